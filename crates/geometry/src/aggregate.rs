@@ -1,0 +1,83 @@
+//! The set of objects of a scene, with a BVH over their boxes.
+
+use crate::bvh::Bvh;
+use crate::object::{Hit, Object};
+use isolux_core::Ray;
+
+/// All objects of a scene; bounded ones in a BVH, unbounded ones (an
+/// infinite plane) tested one by one.
+#[derive(Clone, Debug, Default)]
+pub struct Aggregate {
+    objects: Vec<Object>,
+    bvh: Bvh,
+    bounded: Vec<u32>,
+    unbounded: Vec<u32>,
+}
+
+impl Aggregate {
+    /// Builds the aggregate.
+    pub fn new(objects: Vec<Object>) -> Self {
+        let mut boxes = Vec::new();
+        let mut bounded = Vec::new();
+        let mut unbounded = Vec::new();
+        for (i, o) in objects.iter().enumerate() {
+            if o.bbox().is_finite() {
+                boxes.push(o.bbox());
+                bounded.push(i as u32);
+            } else {
+                unbounded.push(i as u32);
+            }
+        }
+        Self {
+            bvh: Bvh::build(&boxes),
+            objects,
+            bounded,
+            unbounded,
+        }
+    }
+
+    /// The objects, in scene order.
+    pub fn objects(&self) -> &[Object] {
+        &self.objects
+    }
+
+    /// Closest hit with `t` in `[t_min, t_max]`: object index and hit.
+    pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<(usize, Hit)> {
+        let mut best: Option<(usize, Hit)> = None;
+        let mut t1 = t_max;
+        for &i in &self.unbounded {
+            if let Some(h) = self.objects[i as usize].intersect(ray, t_min, t1) {
+                t1 = h.t;
+                best = Some((i as usize, h));
+            }
+        }
+        self.bvh.traverse(ray, t_min, &mut t1, |item, t1| {
+            let i = self.bounded[item as usize] as usize;
+            if let Some(h) = self.objects[i].intersect(ray, t_min, *t1) {
+                *t1 = h.t;
+                best = Some((i, h));
+            }
+            true
+        });
+        best
+    }
+
+    /// Whether anything crosses the ray within `[t_min, t_max]`.
+    pub fn occluded(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        if self
+            .unbounded
+            .iter()
+            .any(|&i| self.objects[i as usize].occludes(ray, t_min, t_max))
+        {
+            return true;
+        }
+        let mut found = false;
+        let mut t1 = t_max;
+        self.bvh.traverse(ray, t_min, &mut t1, |item, _| {
+            let i = self.bounded[item as usize] as usize;
+            found = self.objects[i].occludes(ray, t_min, t_max);
+            !found
+        });
+        found
+    }
+}

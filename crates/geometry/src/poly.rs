@@ -1,0 +1,331 @@
+//! Exact root finding for the piecewise polynomials along a ray.
+//!
+//! On a segment where the set of active perturbations is fixed, `F'(t)` is
+//! a polynomial of degree <= 6. It is re-expressed in a local parameter
+//! `s in [0, 1]` (so that it stays well conditioned whatever the distance of
+//! the segment from the ray origin), converted to the Bernstein basis, and
+//! its first root is isolated by Descartes' rule of signs on the Bernstein
+//! coefficients (a sign-change count of zero proves there is no root) with
+//! de Casteljau subdivision at the midpoint, left half first. An interval
+//! with a single sign change and opposite endpoint signs holds exactly one
+//! root, which safeguarded Newton iteration (bisection whenever a Newton
+//! step leaves the bracket) refines to full double precision.
+//!
+//! Only *crossings* count as hits: a root of even multiplicity (a ray that
+//! grazes the surface tangentially) does not enter the solid and is not
+//! reported, except when subdivision reaches [`MAX_DEPTH`], where two
+//! roots closer than `2^-MAX_DEPTH` of the segment are indistinguishable.
+
+/// Maximum polynomial degree handled (base quadric plus cubes of quadrics).
+pub const MAX_DEGREE: usize = 6;
+
+/// Deepest subdivision level: intervals of `2^-48` of the segment.
+pub const MAX_DEPTH: u32 = 48;
+
+/// A polynomial of degree <= 6 in ascending powers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Poly {
+    /// Coefficients `c[i]` of `s^i`.
+    pub c: [f64; MAX_DEGREE + 1],
+    /// Degree bound (coefficients above are zero).
+    pub degree: usize,
+}
+
+impl Poly {
+    /// The quadratic `c0 + c1 s + c2 s^2`.
+    pub fn quadratic(q: [f64; 3]) -> Self {
+        let mut c = [0.0; MAX_DEGREE + 1];
+        c[..3].copy_from_slice(&q);
+        Poly { c, degree: 2 }
+    }
+
+    /// Adds `f * q^3` for the quadratic `q`.
+    pub fn add_cube(&mut self, f: f64, q: [f64; 3]) {
+        let [a0, a1, a2] = q;
+        // q^2
+        let s0 = a0 * a0;
+        let s1 = 2.0 * a0 * a1;
+        let s2 = a1 * a1 + 2.0 * a0 * a2;
+        let s3 = 2.0 * a1 * a2;
+        let s4 = a2 * a2;
+        // q^3 = q^2 * q
+        self.c[0] += f * (s0 * a0);
+        self.c[1] += f * (s0 * a1 + s1 * a0);
+        self.c[2] += f * (s0 * a2 + s1 * a1 + s2 * a0);
+        self.c[3] += f * (s1 * a2 + s2 * a1 + s3 * a0);
+        self.c[4] += f * (s2 * a2 + s3 * a1 + s4 * a0);
+        self.c[5] += f * (s3 * a2 + s4 * a1);
+        self.c[6] += f * (s4 * a2);
+        self.degree = 6;
+    }
+
+    /// Value and derivative at `s` (Horner).
+    #[inline]
+    pub fn eval_d(&self, s: f64) -> (f64, f64) {
+        let mut p = self.c[self.degree];
+        let mut d = 0.0;
+        for i in (0..self.degree).rev() {
+            d = d * s + p;
+            p = p * s + self.c[i];
+        }
+        (p, d)
+    }
+
+    /// Value at `s`.
+    #[inline]
+    pub fn eval(&self, s: f64) -> f64 {
+        let mut p = self.c[self.degree];
+        for i in (0..self.degree).rev() {
+            p = p * s + self.c[i];
+        }
+        p
+    }
+
+    /// Bernstein coefficients on `[0, 1]` for degree `self.degree`:
+    /// `b_k = sum_{j <= k} C(k, j) / C(n, j) a_j`.
+    pub fn bernstein(&self) -> [f64; MAX_DEGREE + 1] {
+        let n = self.degree;
+        let mut b = [0.0; MAX_DEGREE + 1];
+        for (k, bk) in b.iter_mut().enumerate().take(n + 1) {
+            let mut s = 0.0;
+            for j in 0..=k {
+                s += binom(k, j) / binom(n, j) * self.c[j];
+            }
+            *bk = s;
+        }
+        b
+    }
+
+    /// First crossing root in `[0, 1]`, if any.
+    pub fn first_root_unit(&self) -> Option<f64> {
+        let b = self.bernstein();
+        let n = self.degree;
+        // Explicit stack of (coefficients, lo, hi, depth), left first.
+        let mut stack: smallvec::SmallVec<[Interval; 24]> = smallvec::SmallVec::new();
+        stack.push((b, 0.0, 1.0, 0));
+        while let Some((b, lo, hi, depth)) = stack.pop() {
+            if b[0] == 0.0 {
+                // Exact zero at the left end (measure zero, but must not loop).
+                if lo > 0.0 || self.eval(0.0) == 0.0 {
+                    return Some(lo);
+                }
+            }
+            let changes = sign_changes(&b[..=n]);
+            if changes == 0 {
+                continue;
+            }
+            let fa = b[0];
+            let fb = b[n];
+            if changes == 1 && fa * fb < 0.0 {
+                return Some(self.refine(lo, hi, fa));
+            }
+            if depth >= MAX_DEPTH {
+                if fa * fb <= 0.0 {
+                    return Some(self.refine(lo, hi, fa));
+                }
+                // Even number of roots closer than the resolution: a tangency.
+                continue;
+            }
+            let (l, r) = de_casteljau_half(&b, n);
+            let mid = 0.5 * (lo + hi);
+            stack.push((r, mid, hi, depth + 1));
+            stack.push((l, lo, mid, depth + 1));
+        }
+        None
+    }
+
+    /// Safeguarded Newton on a bracket `[lo, hi]` with `sign(f(lo)) = sign(fa)`
+    /// opposite to `sign(f(hi))`.
+    fn refine(&self, mut lo: f64, mut hi: f64, fa: f64) -> f64 {
+        let neg_left = fa < 0.0;
+        let mut s = 0.5 * (lo + hi);
+        for _ in 0..100 {
+            let (f, d) = self.eval_d(s);
+            if f == 0.0 {
+                return s;
+            }
+            if (f < 0.0) == neg_left {
+                lo = s;
+            } else {
+                hi = s;
+            }
+            let newton = s - f / d;
+            let next = if d != 0.0 && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - s).abs() <= 1e-16 * next.abs().max(1e-300)
+                || hi - lo <= 2.0 * f64::EPSILON * hi.abs()
+            {
+                return next;
+            }
+            s = next;
+        }
+        s
+    }
+}
+
+/// Bernstein coefficients on `[lo, hi]` and the subdivision depth.
+type Interval = ([f64; MAX_DEGREE + 1], f64, f64, u32);
+
+/// Binomial coefficient as f64 (small arguments).
+#[inline]
+fn binom(n: usize, k: usize) -> f64 {
+    const T: [[f64; 7]; 7] = [
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 3.0, 3.0, 1.0, 0.0, 0.0, 0.0],
+        [1.0, 4.0, 6.0, 4.0, 1.0, 0.0, 0.0],
+        [1.0, 5.0, 10.0, 10.0, 5.0, 1.0, 0.0],
+        [1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0],
+    ];
+    T[n][k]
+}
+
+/// Number of sign changes among the non-zero entries.
+#[inline]
+fn sign_changes(b: &[f64]) -> u32 {
+    let mut count = 0;
+    let mut prev = 0.0f64;
+    for &x in b {
+        if x != 0.0 {
+            if prev != 0.0 && (x < 0.0) != (prev < 0.0) {
+                count += 1;
+            }
+            prev = x;
+        }
+    }
+    count
+}
+
+/// Splits Bernstein coefficients at `s = 1/2` (de Casteljau).
+#[inline]
+fn de_casteljau_half(
+    b: &[f64; MAX_DEGREE + 1],
+    n: usize,
+) -> ([f64; MAX_DEGREE + 1], [f64; MAX_DEGREE + 1]) {
+    let mut work = *b;
+    let mut left = [0.0; MAX_DEGREE + 1];
+    let mut right = [0.0; MAX_DEGREE + 1];
+    left[0] = work[0];
+    right[n] = work[n];
+    for level in 1..=n {
+        for i in 0..=(n - level) {
+            work[i] = 0.5 * (work[i] + work[i + 1]);
+        }
+        left[level] = work[0];
+        right[n - level] = work[n - level];
+    }
+    (left, right)
+}
+
+/// Roots of `c0 + c1 t + c2 t^2` where the sign changes, ascending, by the
+/// numerically stable formula (no cancellation). Double roots (tangency)
+/// and complex roots give none.
+pub fn quadratic_crossings(q: [f64; 3]) -> smallvec::SmallVec<[f64; 2]> {
+    let [c, b, a] = q;
+    let mut out = smallvec::SmallVec::new();
+    let scale = a.abs().max(b.abs()).max(c.abs());
+    if scale == 0.0 {
+        return out;
+    }
+    if a.abs() <= 1e-15 * scale {
+        if b != 0.0 {
+            out.push(-c / b);
+        }
+        return out;
+    }
+    let disc = b * b - 4.0 * a * c;
+    if !(disc > 0.0) {
+        return out;
+    }
+    let sq = disc.sqrt();
+    let q = -0.5 * (b + sq.copysign(b));
+    let (mut r1, mut r2) = (q / a, c / q);
+    if q == 0.0 {
+        // b == 0 and c == 0 is excluded by disc > 0 with q == 0 only if b == 0 and sq == 0.
+        r1 = -sq / (2.0 * a);
+        r2 = -r1;
+    }
+    if r1 > r2 {
+        std::mem::swap(&mut r1, &mut r2);
+    }
+    out.push(r1);
+    out.push(r2);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn from_roots(roots: &[f64], lead: f64) -> Poly {
+        let mut c = [0.0; 7];
+        c[0] = lead;
+        let mut deg = 0;
+        for &r in roots {
+            // multiply by (s - r)
+            for i in (0..=deg + 1).rev() {
+                let lower = if i > 0 { c[i - 1] } else { 0.0 };
+                c[i] = lower - r * c[i];
+            }
+            deg += 1;
+        }
+        Poly { c, degree: deg }
+    }
+
+    #[test]
+    fn finds_first_of_several_roots() {
+        let p = from_roots(&[0.71, 0.2, 0.9, 1.5, -0.3, 0.45], 2.0);
+        let r = p.first_root_unit().unwrap();
+        assert!((r - 0.2).abs() < 1e-14, "{r}");
+    }
+
+    #[test]
+    fn close_roots_are_separated() {
+        // Roots 1e-6 apart: conditioning limits accuracy to ~eps/|p'|.
+        let p = from_roots(&[0.5 + 1e-6, 0.5, 2.0, 3.0], 1.0);
+        let r = p.first_root_unit().unwrap();
+        assert!((r - 0.5).abs() < 1e-9, "{r}");
+    }
+
+    #[test]
+    fn tangent_double_root_is_not_a_crossing() {
+        let p = from_roots(&[0.3, 0.3, 2.0, 3.0], 1.0);
+        assert!(p.first_root_unit().is_none());
+        let p = from_roots(&[0.3, 0.3, 0.6, 3.0], 1.0);
+        assert!((p.first_root_unit().unwrap() - 0.6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn no_roots_in_unit_interval() {
+        let p = from_roots(&[-0.5, 1.2, 1.7, 2.0, 5.0, -3.0], -1.0);
+        assert!(p.first_root_unit().is_none());
+    }
+
+    #[test]
+    fn add_cube_matches_direct_power() {
+        let q = [0.3, -1.2, 0.7];
+        let mut p = Poly::quadratic([1.0, 2.0, 3.0]);
+        p.add_cube(-0.8, q);
+        for s in [0.0, 0.3, 0.9, 1.7] {
+            let qs = q[0] + q[1] * s + q[2] * s * s;
+            let expect = 1.0 + 2.0 * s + 3.0 * s * s - 0.8 * qs.powi(3);
+            assert!((p.eval(s) - expect).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn stable_quadratic() {
+        // Roots 1e-8 and 1e8: naive formula loses the small one.
+        let r = quadratic_crossings([1.0, -(1e8 + 1e-8), 1.0]);
+        assert!((r[0] - 1e-8).abs() < 1e-20 && (r[1] - 1e8).abs() < 1e-6);
+        assert!(
+            quadratic_crossings([1.0, 2.0, 1.0]).is_empty()
+                || quadratic_crossings([1.0, 2.0, 1.0]).len() == 2
+        );
+        assert!(quadratic_crossings([1.0, 0.0, 1.0]).is_empty());
+    }
+}

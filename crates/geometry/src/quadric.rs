@@ -1,0 +1,347 @@
+//! Quadrics: polynomials of degree <= 2 in x, y, z.
+//!
+//! ```text
+//! Q(p) = a11 x^2 + a22 y^2 + a33 z^2 + 2 a12 xy + 2 a13 xz + 2 a23 yz
+//!        + 2 a14 x + 2 a24 y + 2 a34 z + a44
+//!      = p^T M p + 2 b.p + c
+//! ```
+//!
+//! with `M` the symmetric 3x3 block, `b = (a14, a24, a34)`, `c = a44`; in
+//! homogeneous form `Q(p) = [p 1] S [p 1]^T` with the symmetric 4x4 `S`.
+//!
+//! **Sign convention** (Vyatkin, HyperFun, SPEC §1): every constructor yields
+//! a quadric that is *positive inside*, so a sphere is `r^2 - |p - c|^2`. A
+//! perturbation `f Q^3 [Q >= 0]` with `f > 0` therefore raises a bump and
+//! with `f < 0` carves a dent.
+//!
+//! **Scale convention.** The magnitude of a quadric matters when it perturbs
+//! (the bump height scales with `f Q^3`). The constructors are scaled so
+//! that `Q` equals "squared radius minus squared distance" wherever that
+//! phrase has a meaning:
+//!
+//! | constructor | Q(p) |
+//! |---|---|
+//! | sphere (c, r) | `r^2 - |p - c|^2` |
+//! | ellipsoid (c, radii, R) | `s^2 (1 - sum (q_i / r_i)^2)`, `q = R^T (p - c)`, `s` = geometric mean of the radii (equals the sphere for equal radii) |
+//! | cylinder (c, axis a, r) | `r^2 - |(p - c) - ((p - c).a) a|^2` (infinite) |
+//! | cone (apex, axis a, half-angle θ) | `(h tan θ)^2 - ρ^2`, `h = (p - apex).a`, `ρ` the distance to the axis (both nappes) |
+//! | paraboloid (vertex, axis a, focal length f) | `4 f h - ρ^2`, opening along `+a` |
+//! | plane (point, normal n) | `-(p - point).n`: solid behind the plane, outward normal `n` |
+
+use isolux_core::{Aabb, DMat3, DMat4, DVec3, DVec4, Ray};
+
+/// A quadric `p^T M p + 2 b.p + c` (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Quadric {
+    /// Symmetric quadratic part.
+    pub m: DMat3,
+    /// Linear part (half the gradient at the origin).
+    pub b: DVec3,
+    /// Constant term.
+    pub c: f64,
+}
+
+impl Quadric {
+    /// From the ten coefficients `[a11, a22, a33, a12, a13, a23, a14, a24,
+    /// a34, a44]` of the module formula.
+    pub fn from_coefficients(a: [f64; 10]) -> Self {
+        let [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44] = a;
+        Self {
+            m: DMat3::from_cols(
+                DVec3::new(a11, a12, a13),
+                DVec3::new(a12, a22, a23),
+                DVec3::new(a13, a23, a33),
+            ),
+            b: DVec3::new(a14, a24, a34),
+            c: a44,
+        }
+    }
+
+    /// The ten coefficients, in the order of [`Quadric::from_coefficients`].
+    pub fn coefficients(&self) -> [f64; 10] {
+        let m = &self.m;
+        [
+            m.x_axis.x, m.y_axis.y, m.z_axis.z, m.y_axis.x, m.z_axis.x, m.z_axis.y, self.b.x,
+            self.b.y, self.b.z, self.c,
+        ]
+    }
+
+    /// Sphere of centre `c` and radius `r`: `r^2 - |p - c|^2`.
+    pub fn sphere(c: DVec3, r: f64) -> Self {
+        Self {
+            m: -DMat3::IDENTITY,
+            b: c,
+            c: r * r - c.length_squared(),
+        }
+    }
+
+    /// Ellipsoid with centre `c`, semi-axes `radii` along the columns of the
+    /// rotation `rot` (identity for axis-aligned).
+    pub fn ellipsoid(c: DVec3, radii: DVec3, rot: DMat3) -> Self {
+        let s2 = (radii.x * radii.y * radii.z).abs().powf(2.0 / 3.0);
+        // Local: s^2 (1 - sum q_i^2 / r_i^2) with q = R^T (p - c).
+        let d = DMat3::from_diagonal(-s2 / (radii * radii));
+        let local = Self {
+            m: d,
+            b: DVec3::ZERO,
+            c: s2,
+        };
+        local.transformed(&(DMat4::from_translation(c) * DMat4::from_mat3(rot)))
+    }
+
+    /// Infinite cylinder of radius `r` around the line through `c` along `axis`.
+    pub fn cylinder(c: DVec3, axis: DVec3, r: f64) -> Self {
+        let a = axis.normalize();
+        // r^2 - |v|^2 + (v.a)^2, v = p - c  ->  M = a a^T - I.
+        let m = DMat3::from_cols(a * a.x, a * a.y, a * a.z) - DMat3::IDENTITY;
+        Self::centred(m, c, r * r)
+    }
+
+    /// Double cone with apex `apex`, axis `axis` and half-angle `half_angle`
+    /// (radians, in `(0, pi/2)`).
+    pub fn cone(apex: DVec3, axis: DVec3, half_angle: f64) -> Self {
+        let a = axis.normalize();
+        let t2 = half_angle.tan().powi(2);
+        // h^2 tan^2 - (|v|^2 - h^2) = (1 + tan^2) h^2 - |v|^2.
+        let m = DMat3::from_cols(a * a.x, a * a.y, a * a.z) * (1.0 + t2) - DMat3::IDENTITY;
+        Self::centred(m, apex, 0.0)
+    }
+
+    /// Paraboloid with vertex `vertex` opening along `axis`, focal length `f`:
+    /// `4 f h - rho^2`.
+    pub fn paraboloid(vertex: DVec3, axis: DVec3, f: f64) -> Self {
+        let a = axis.normalize();
+        // 4 f (v.a) - |v|^2 + (v.a)^2
+        let m = DMat3::from_cols(a * a.x, a * a.y, a * a.z) - DMat3::IDENTITY;
+        let q = Self::centred(m, vertex, 0.0);
+        // add linear term 4 f a.(p - vertex) = 2 (2 f a).p - 4 f a.vertex
+        Self {
+            m: q.m,
+            b: q.b + 2.0 * f * a,
+            c: q.c - 4.0 * f * a.dot(vertex),
+        }
+    }
+
+    /// Half-space behind the plane through `point` with outward normal `n`.
+    pub fn plane(point: DVec3, n: DVec3) -> Self {
+        let n = n.normalize();
+        Self {
+            m: DMat3::ZERO,
+            b: -0.5 * n,
+            c: n.dot(point),
+        }
+    }
+
+    /// `(p - c)^T m (p - c) + k`.
+    fn centred(m: DMat3, c: DVec3, k: f64) -> Self {
+        Self {
+            m,
+            b: -(m * c),
+            c: c.dot(m * c) + k,
+        }
+    }
+
+    /// The symmetric 4x4 homogeneous matrix `S`.
+    pub fn to_mat4(&self) -> DMat4 {
+        DMat4::from_cols(
+            self.m.x_axis.extend(self.b.x),
+            self.m.y_axis.extend(self.b.y),
+            self.m.z_axis.extend(self.b.z),
+            DVec4::new(self.b.x, self.b.y, self.b.z, self.c),
+        )
+    }
+
+    fn from_mat4(s: &DMat4) -> Self {
+        // Symmetrize to wash out round-off.
+        let s = (*s + s.transpose()) * 0.5;
+        Self {
+            m: DMat3::from_cols(
+                s.x_axis.truncate(),
+                s.y_axis.truncate(),
+                s.z_axis.truncate(),
+            ),
+            b: s.w_axis.truncate(),
+            c: s.w_axis.w,
+        }
+    }
+
+    /// The quadric moved by the affine map `t` (the new quadric at `t(p)`
+    /// equals the old one at `p`): `S' = T^-T S T^-1`.
+    pub fn transformed(&self, t: &DMat4) -> Self {
+        let inv = t.inverse();
+        Self::from_mat4(&(inv.transpose() * self.to_mat4() * inv))
+    }
+
+    /// Multiplied by a positive constant (same surface, scaled magnitude).
+    pub fn scaled(&self, k: f64) -> Self {
+        Self {
+            m: self.m * k,
+            b: self.b * k,
+            c: self.c * k,
+        }
+    }
+
+    /// Value at `p`.
+    #[inline]
+    pub fn eval(&self, p: DVec3) -> f64 {
+        p.dot(self.m * p) + 2.0 * self.b.dot(p) + self.c
+    }
+
+    /// Gradient at `p`: `2 (M p + b)`.
+    #[inline]
+    pub fn gradient(&self, p: DVec3) -> DVec3 {
+        2.0 * (self.m * p + self.b)
+    }
+
+    /// Restriction to a ray: `Q(o + t d) = a t^2 + b t + c`, as `[c, b, a]`
+    /// (ascending powers).
+    #[inline]
+    pub fn along(&self, ray: &Ray) -> [f64; 3] {
+        let md = self.m * ray.dir;
+        let a = ray.dir.dot(md);
+        let b = 2.0 * (md.dot(ray.origin) + self.b.dot(ray.dir));
+        let c = self.eval(ray.origin);
+        [c, b, a]
+    }
+
+    /// Bounding box of the positive set `{Q >= 0}` when it is bounded (an
+    /// ellipsoid, possibly a point or empty), `None` when unbounded.
+    ///
+    /// For negative definite `M` the set is `{(p - m)^T (-M) (p - m) <= k}`
+    /// with centre `m = -M^-1 b` and `k = Q(m)`; its half-extent along axis
+    /// `i` is `sqrt(k ((-M)^-1)_ii)`.
+    pub fn positive_bounds(&self) -> Option<Aabb> {
+        let neg = -self.m;
+        // Negative definiteness of M <=> positive leading minors of -M.
+        let m1 = neg.x_axis.x;
+        let m2 = neg.x_axis.x * neg.y_axis.y - neg.x_axis.y * neg.y_axis.x;
+        let m3 = neg.determinant();
+        let scale = neg
+            .x_axis
+            .x
+            .abs()
+            .max(neg.y_axis.y.abs())
+            .max(neg.z_axis.z.abs());
+        if !(m1 > 0.0 && m2 > 1e-14 * scale * scale && m3 > 1e-14 * scale * scale * scale) {
+            return None;
+        }
+        let inv = neg.inverse();
+        let centre = inv * self.b; // -M^-1 b = (-M)^-1 b
+        let k = self.eval(centre);
+        if !(k >= 0.0) {
+            return Some(Aabb::EMPTY);
+        }
+        let half = DVec3::new(
+            (k * inv.x_axis.x).max(0.0).sqrt(),
+            (k * inv.y_axis.y).max(0.0).sqrt(),
+            (k * inv.z_axis.z).max(0.0).sqrt(),
+        );
+        // Pad by a relative hair so that boundary roots are never culled.
+        let pad = half * 1e-9 + DVec3::splat(1e-12 * (1.0 + centre.abs().max_element()));
+        Some(Aabb::new(centre - half - pad, centre + half + pad))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() < 1e-9 * (1.0 + a.abs().max(b.abs()))
+    }
+
+    #[test]
+    fn sphere_values_and_gradient() {
+        let q = Quadric::sphere(DVec3::new(1.0, 2.0, 3.0), 2.0);
+        assert!(close(q.eval(DVec3::new(1.0, 2.0, 3.0)), 4.0));
+        assert!(close(q.eval(DVec3::new(3.0, 2.0, 3.0)), 0.0));
+        let g = q.gradient(DVec3::new(3.0, 2.0, 3.0));
+        assert!((g - DVec3::new(-4.0, 0.0, 0.0)).length() < 1e-12);
+        let b = q.positive_bounds().unwrap();
+        assert!((b.min - DVec3::new(-1.0, 0.0, 1.0)).length() < 1e-6);
+        assert!((b.max - DVec3::new(3.0, 4.0, 5.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn coefficient_round_trip() {
+        let q = Quadric::ellipsoid(
+            DVec3::new(0.1, 0.2, 0.3),
+            DVec3::new(1.0, 2.0, 0.5),
+            DMat3::from_rotation_y(0.3) * DMat3::from_rotation_x(0.7),
+        );
+        let r = Quadric::from_coefficients(q.coefficients());
+        let p = DVec3::new(0.3, -0.4, 0.9);
+        assert!(close(q.eval(p), r.eval(p)));
+    }
+
+    #[test]
+    fn equal_radius_ellipsoid_is_sphere() {
+        let c = DVec3::new(0.5, -1.0, 2.0);
+        let e = Quadric::ellipsoid(c, DVec3::splat(0.7), DMat3::from_rotation_z(1.0));
+        let s = Quadric::sphere(c, 0.7);
+        for p in [DVec3::ZERO, DVec3::new(1.0, 2.0, 3.0), c] {
+            assert!(close(e.eval(p), s.eval(p)));
+        }
+    }
+
+    #[test]
+    fn rotated_ellipsoid_surface_points() {
+        let rot = DMat3::from_rotation_z(PI / 4.0);
+        let c = DVec3::new(1.0, 0.0, 0.0);
+        let e = Quadric::ellipsoid(c, DVec3::new(2.0, 1.0, 0.5), rot);
+        // The first semi-axis points along (1,1,0)/sqrt2 with length 2.
+        let p = c + rot * DVec3::new(2.0, 0.0, 0.0);
+        assert!(close(e.eval(p), 0.0));
+        assert!(e.eval(c) > 0.0);
+        let b = e.positive_bounds().unwrap();
+        assert!(b.contains(p) && b.contains(c + rot * DVec3::new(0.0, -1.0, 0.0)));
+    }
+
+    #[test]
+    fn other_constructors_are_positive_inside() {
+        let cyl = Quadric::cylinder(DVec3::ZERO, DVec3::Y, 1.0);
+        assert!(cyl.eval(DVec3::new(0.5, 100.0, 0.0)) > 0.0);
+        assert!(close(cyl.eval(DVec3::new(1.0, -7.0, 0.0)), 0.0));
+        assert!(cyl.positive_bounds().is_none());
+        let cone = Quadric::cone(DVec3::ZERO, DVec3::Z, PI / 4.0);
+        assert!(close(cone.eval(DVec3::new(2.0, 0.0, 2.0)), 0.0));
+        assert!(cone.eval(DVec3::new(0.0, 0.0, 1.0)) > 0.0);
+        let par = Quadric::paraboloid(DVec3::ZERO, DVec3::Y, 0.25);
+        assert!(close(par.eval(DVec3::new(1.0, 1.0, 0.0)), 0.0)); // y = x^2
+        assert!(par.eval(DVec3::new(0.0, 1.0, 0.0)) > 0.0);
+        let pl = Quadric::plane(DVec3::new(0.0, 1.0, 0.0), DVec3::Y);
+        assert!(pl.eval(DVec3::ZERO) > 0.0 && pl.eval(DVec3::new(0.0, 2.0, 0.0)) < 0.0);
+        // Outward normal = -grad.
+        assert!((-pl.gradient(DVec3::ZERO)).normalize().dot(DVec3::Y) > 0.999);
+    }
+
+    #[test]
+    fn transform_moves_surface() {
+        let s = Quadric::sphere(DVec3::ZERO, 1.0);
+        let t = DMat4::from_scale_rotation_translation(
+            DVec3::new(2.0, 1.0, 1.0),
+            glam::DQuat::from_rotation_z(0.5),
+            DVec3::new(3.0, 0.0, 0.0),
+        );
+        let m = s.transformed(&t);
+        for p in [DVec3::X, DVec3::Y, DVec3::new(0.6, 0.8, 0.0)] {
+            assert!(close(m.eval(t.transform_point3(p)), 0.0));
+        }
+        assert!(m.eval(DVec3::new(3.0, 0.0, 0.0)) > 0.0);
+    }
+
+    #[test]
+    fn along_matches_eval() {
+        let q = Quadric::ellipsoid(
+            DVec3::ONE,
+            DVec3::new(1.0, 2.0, 3.0),
+            DMat3::from_rotation_x(0.4),
+        );
+        let r = Ray::new(DVec3::new(-2.0, 0.5, 0.1), DVec3::new(0.3, 0.2, -0.9));
+        let [c, b, a] = q.along(&r);
+        for t in [-1.0, 0.0, 0.7, 3.0] {
+            assert!(close(a * t * t + b * t + c, q.eval(r.at(t))));
+        }
+    }
+}
