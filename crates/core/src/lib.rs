@@ -22,6 +22,7 @@
 pub mod color;
 pub mod distribution;
 pub mod frame;
+pub mod image;
 pub mod ray;
 pub mod rng;
 pub mod sampling;
@@ -30,6 +31,7 @@ pub use color::Rgb;
 pub use distribution::{Distribution1D, Distribution2D};
 pub use frame::Frame;
 pub use glam::{DMat3, DMat4, DVec2, DVec3, DVec4};
+pub use image::{Aovs, Image};
 pub use ray::{Aabb, Ray};
 pub use rng::Pcg32;
 

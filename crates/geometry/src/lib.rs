@@ -19,6 +19,7 @@ pub mod bvh;
 pub mod object;
 pub mod poly;
 pub mod quadric;
+pub mod samples;
 
 pub use aggregate::Aggregate;
 pub use object::{GeometryError, Hit, Object, Perturbation};

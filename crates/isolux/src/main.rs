@@ -1,1 +1,43 @@
-fn main() {}
+//! The `isolux` command line: a thin layer over the Isolux library crates.
+//! `main` parses flags, calls the libraries, and maps errors to exit codes
+//! (0 success, 1 runtime or input error, 2 usage error).
+
+mod bench;
+mod render_cmd;
+
+use clap::{Parser, Subcommand};
+
+/// Isolux: a physically based renderer for functionally defined objects
+/// (quadrics with cubic perturbations, intersected exactly).
+#[derive(Parser, Debug)]
+#[command(name = "isolux", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a scene file to a PNG or EXR image.
+    Render(render_cmd::RenderArgs),
+    /// Run performance benchmarks and print a table.
+    Bench(bench::BenchArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(a) => render_cmd::run(a),
+        Command::Bench(a) => bench::run(a),
+    };
+    if let Err(e) = result {
+        // One line: the chain of causes joined.
+        let msg = e
+            .chain()
+            .map(|c| c.to_string())
+            .collect::<Vec<_>>()
+            .join(": ");
+        eprintln!("isolux: error: {msg}");
+        std::process::exit(1);
+    }
+}

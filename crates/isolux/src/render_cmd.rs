@@ -1,0 +1,162 @@
+//! `isolux render`.
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use isolux_io::{OutputFormat, Tonemap};
+use isolux_render::{render, RenderOptions};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Tone maps for 8-bit output.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum TonemapArg {
+    /// Clip to [0, 1] (faithful below 1).
+    Clamp,
+    /// Luminance Reinhard L/(1+L), hue preserving.
+    Reinhard,
+}
+
+/// Render a scene; flags override the scene file.
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file (TOML; see docs/scene-format.md).
+    pub scene: PathBuf,
+    /// Output image: .png (8-bit sRGB) or .exr (linear float).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Samples per pixel (any count; stratified on a sub-pixel grid).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Image width in pixels.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Random seed (same seed, same image).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Maximum number of scattering events per path.
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Exposure in stops for PNG output (linear values times 2^EV).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f64,
+    /// Tone map for PNG output.
+    #[arg(long, value_enum, default_value_t = TonemapArg::Clamp)]
+    pub tonemap: TonemapArg,
+    /// Also write albedo, normal and depth layers (EXR output only).
+    #[arg(long)]
+    pub aov: bool,
+    /// No progress bar and no closing line.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Runs `isolux render`.
+pub fn run(a: RenderArgs) -> Result<()> {
+    let format = OutputFormat::from_path(&a.output).with_context(|| {
+        format!(
+            "{}: unknown output format: use a .png or .exr file name",
+            a.output.display()
+        )
+    })?;
+    if a.aov && format != OutputFormat::Exr {
+        bail!("--aov needs an .exr output (PNG has no room for extra layers)");
+    }
+    if !a.exposure.is_finite() {
+        bail!("--exposure must be a finite number");
+    }
+    let mut scene = isolux_scene::load(&a.scene)?;
+    if let Some(v) = a.spp {
+        scene.film.spp = v;
+    }
+    if let Some(v) = a.width {
+        scene.film.width = v;
+    }
+    if let Some(v) = a.height {
+        scene.film.height = v;
+    }
+    if let Some(v) = a.seed {
+        scene.integrator.seed = v;
+    }
+    if let Some(v) = a.max_depth {
+        scene.integrator.max_depth = v;
+    }
+    for (name, v) in [
+        ("--spp", scene.film.spp),
+        ("--width", scene.film.width),
+        ("--height", scene.film.height),
+    ] {
+        if v == 0 {
+            bail!("{name} must be at least 1");
+        }
+    }
+    let threads = match a.threads {
+        Some(0) => bail!("--threads must be at least 1"),
+        Some(n) => n,
+        None => std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start worker threads")?;
+
+    let show = !a.quiet && std::io::stderr().is_terminal();
+    let bar = ProgressBar::with_draw_target(
+        None,
+        if show {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
+    );
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} rendering [{bar:40}] {percent:>3}% {elapsed_precise} ETA {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let start = Instant::now();
+    let options = RenderOptions { aov: a.aov };
+    let (image, stats) = pool.install(|| {
+        render(&scene, &options, &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })
+    })?;
+    bar.finish_and_clear();
+    let secs = start.elapsed().as_secs_f64();
+    let tonemap = match a.tonemap {
+        TonemapArg::Clamp => Tonemap::Clamp,
+        TonemapArg::Reinhard => Tonemap::Reinhard,
+    };
+    isolux_io::write_image(&a.output, &image, a.exposure, tonemap)?;
+    if stats.rejected_samples > 0 {
+        eprintln!(
+            "isolux: warning: {} samples had non-finite radiance and were dropped",
+            stats.rejected_samples
+        );
+    }
+    if !a.quiet {
+        eprintln!(
+            "isolux: rendered {}x{} at {} spp in {:.2} s ({:.2} M samples/s, {} threads) -> {}",
+            image.width,
+            image.height,
+            scene.film.spp,
+            secs,
+            stats.samples as f64 / secs / 1e6,
+            threads,
+            a.output.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,394 @@
+//! The scene schema: sections, keys, defaults and validation.
+
+use crate::reader::{Doc, Result, SceneError, Table, Value};
+use isolux_core::{Aabb, DMat3, DMat4, DVec3, Rgb};
+use isolux_geometry::{Aggregate, Object, Perturbation, Quadric};
+use isolux_materials::{Diffuse, Material};
+use isolux_render::{
+    Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
+};
+use std::path::Path;
+
+/// Material `type` names accepted by this version.
+pub const MATERIAL_TYPES: &[&str] = &["diffuse"];
+
+/// Quadric `type` names.
+pub const QUADRIC_TYPES: &[&str] = &[
+    "sphere",
+    "ellipsoid",
+    "cylinder",
+    "cone",
+    "paraboloid",
+    "plane",
+    "quadric",
+];
+
+/// Parses scene text. `file` is used in messages; `base_dir` resolves
+/// relative file names.
+pub fn parse_str(
+    src: &str,
+    file: &Path,
+    base_dir: &Path,
+) -> std::result::Result<Scene, SceneError> {
+    let doc = Doc::new(file, src);
+    let root = doc.parse()?;
+    let t = Table::root(&doc, &root);
+    t.allow(&[
+        "camera",
+        "film",
+        "integrator",
+        "light",
+        "environment",
+        "material",
+        "object",
+    ])?;
+    let mut scene = Scene::default();
+    let camera_table = t.get("camera").map(|v| v.table()).transpose()?;
+    if let Some(c) = &camera_table {
+        scene.camera = camera(c)?;
+    }
+    if let Some(v) = t.get("film") {
+        scene.film = film(&v.table()?)?;
+    }
+    if let Some(v) = t.get("integrator") {
+        scene.integrator = integrator(&v.table()?)?;
+    }
+    if let Err(msg) = scene.camera.rig(scene.film.width, scene.film.height) {
+        return Err(match &camera_table {
+            Some(c) => c.error(msg),
+            None => t.error(msg),
+        });
+    }
+    if let Some(v) = t.get("light") {
+        for l in v.tables()? {
+            scene.lights.push(light(&l)?);
+        }
+    }
+    if let Some(v) = t.get("environment") {
+        scene.environment = environment(&v.table()?, base_dir)?;
+    }
+    if let Some(v) = t.get("material") {
+        for m in v.tables()? {
+            let name_v = m.req("name")?;
+            let name = name_v.str()?;
+            if scene.material_names.iter().any(|n| n == name) {
+                return Err(name_v.error(format!("duplicate material name \"{name}\"")));
+            }
+            scene.materials.push(material(&m)?);
+            scene.material_names.push(name.to_string());
+        }
+    }
+    let mut objects = Vec::new();
+    if let Some(v) = t.get("object") {
+        for o in v.tables()? {
+            let (obj, mat) = object(&o, &scene.material_names)?;
+            objects.push(obj);
+            scene.object_material.push(mat);
+        }
+    }
+    scene.geometry = Aggregate::new(objects);
+    Ok(scene)
+}
+
+fn vec3(v: &Value) -> Result<DVec3> {
+    Ok(DVec3::from_array(v.numbers::<3>()?))
+}
+
+fn direction(v: &Value) -> Result<DVec3> {
+    let d = vec3(v)?;
+    d.try_normalize()
+        .ok_or_else(|| v.error("must be a non-zero vector"))
+}
+
+fn rgb_nonneg(v: &Value) -> Result<Rgb> {
+    let c = v.numbers::<3>()?;
+    if c.iter().any(|&x| x < 0.0) {
+        return Err(v.error(format!("components must be non-negative, got {c:?}")));
+    }
+    Ok(Rgb::from_array(c))
+}
+
+fn reflectance(v: &Value) -> Result<Rgb> {
+    let c = rgb_nonneg(v)?;
+    if c.max_component() > 1.0 {
+        return Err(v.error(format!(
+            "reflectance above 1 would create energy, got {:?}",
+            c.to_array()
+        )));
+    }
+    Ok(c)
+}
+
+fn camera(t: &Table) -> Result<Camera> {
+    t.allow(&["position", "look_at", "up", "fov_y"])?;
+    let mut c = Camera::default();
+    if let Some(v) = t.get("position") {
+        c.position = vec3(&v)?;
+    }
+    if let Some(v) = t.get("look_at") {
+        c.look_at = vec3(&v)?;
+    }
+    if let Some(v) = t.get("up") {
+        c.up = direction(&v)?;
+    }
+    if let Some(v) = t.get("fov_y") {
+        let f = v.f64()?;
+        if !(f > 0.0 && f < 180.0) {
+            return Err(v.error(format!(
+                "must lie strictly between 0 and 180 degrees, got {f}"
+            )));
+        }
+        c.fov_y = f;
+    }
+    Ok(c)
+}
+
+fn film(t: &Table) -> Result<FilmSettings> {
+    t.allow(&["width", "height", "spp"])?;
+    let mut f = FilmSettings::default();
+    if let Some(v) = t.get("width") {
+        f.width = v.uint(1, 65536)? as u32;
+    }
+    if let Some(v) = t.get("height") {
+        f.height = v.uint(1, 65536)? as u32;
+    }
+    if let Some(v) = t.get("spp") {
+        f.spp = v.uint(1, 1 << 20)? as u32;
+    }
+    Ok(f)
+}
+
+fn integrator(t: &Table) -> Result<IntegratorSettings> {
+    t.allow(&["max_depth", "seed"])?;
+    let mut s = IntegratorSettings::default();
+    if let Some(v) = t.get("max_depth") {
+        s.max_depth = v.uint(0, 10_000)? as u32;
+    }
+    if let Some(v) = t.get("seed") {
+        s.seed = v.uint(0, i64::MAX as u64)?;
+    }
+    Ok(s)
+}
+
+fn light(t: &Table) -> Result<PointLight> {
+    t.req("type")?.choice(&["point"])?;
+    t.allow(&["type", "position", "intensity"])?;
+    Ok(PointLight {
+        position: vec3(&t.req("position")?)?,
+        intensity: rgb_nonneg(&t.req("intensity")?)?,
+    })
+}
+
+fn environment(t: &Table, base_dir: &Path) -> Result<Environment> {
+    match t.req("type")?.choice(&["constant", "map"])? {
+        "constant" => {
+            t.allow(&["type", "radiance"])?;
+            Ok(Environment::Constant(rgb_nonneg(&t.req("radiance")?)?))
+        }
+        _ => {
+            t.allow(&["type", "file", "scale"])?;
+            let fv = t.req("file")?;
+            let file = base_dir.join(fv.str()?);
+            let scale = match t.get("scale") {
+                Some(v) => {
+                    let s = v.f64()?;
+                    if s < 0.0 {
+                        return Err(v.error(format!("must be non-negative, got {s}")));
+                    }
+                    s
+                }
+                None => 1.0,
+            };
+            let img = isolux_io::read_rgb_image(&file).map_err(|e| fv.error(e.to_string()))?;
+            let texels = img
+                .pixels
+                .iter()
+                .map(|p| Rgb::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                .collect();
+            let map = EnvMap::new(img.width, img.height, texels, scale)
+                .map_err(|e| fv.error(format!("{}: {e}", file.display())))?;
+            Ok(Environment::Map(map))
+        }
+    }
+}
+
+fn material(t: &Table) -> Result<Material> {
+    let ty = t.req("type")?.choice(MATERIAL_TYPES)?;
+    match ty {
+        "diffuse" => {
+            t.allow(&["name", "type", "reflectance"])?;
+            let mut d = Diffuse::default();
+            if let Some(v) = t.get("reflectance") {
+                d.reflectance = reflectance(&v)?;
+            }
+            Ok(Material::Diffuse(d))
+        }
+        _ => unreachable!("choice() validated the type"),
+    }
+}
+
+/// `transform = { translate, rotate, scale }`: `M = T R S`, rotation in
+/// degrees about x, then y, then z.
+fn transform(t: &Table) -> Result<DMat4> {
+    t.allow(&["translate", "rotate", "scale"])?;
+    let translate = match t.get("translate") {
+        Some(v) => vec3(&v)?,
+        None => DVec3::ZERO,
+    };
+    let rot = match t.get("rotate") {
+        Some(v) => rotation(&v)?,
+        None => DMat3::IDENTITY,
+    };
+    let scale = match t.get("scale") {
+        Some(v) => {
+            let s = if v.array().is_ok() {
+                vec3(&v)?
+            } else {
+                DVec3::splat(v.f64()?)
+            };
+            if s.x == 0.0 || s.y == 0.0 || s.z == 0.0 {
+                return Err(v.error("scale factors must be non-zero"));
+            }
+            s
+        }
+        None => DVec3::ONE,
+    };
+    Ok(DMat4::from_translation(translate) * DMat4::from_mat3(rot) * DMat4::from_scale(scale))
+}
+
+fn rotation(v: &Value) -> Result<DMat3> {
+    let [rx, ry, rz] = v.numbers::<3>()?;
+    Ok(DMat3::from_rotation_z(rz.to_radians())
+        * DMat3::from_rotation_y(ry.to_radians())
+        * DMat3::from_rotation_x(rx.to_radians()))
+}
+
+/// One of the quadric forms (see `docs/scene-format.md`).
+fn quadric(t: &Table) -> Result<Quadric> {
+    let ty = t.req("type")?.choice(QUADRIC_TYPES)?;
+    let keys: &[&str] = match ty {
+        "sphere" => &["center", "radius"],
+        "ellipsoid" => &["center", "radii", "rotate"],
+        "cylinder" => &["center", "axis", "radius"],
+        "cone" => &["apex", "axis", "angle"],
+        "paraboloid" => &["vertex", "axis", "focal_length"],
+        "plane" => &["point", "normal"],
+        _ => &["coefficients"],
+    };
+    let mut all = vec!["type", "transform"];
+    all.extend_from_slice(keys);
+    t.allow(&all)?;
+    let q = match ty {
+        "sphere" => Quadric::sphere(vec3(&t.req("center")?)?, t.req("radius")?.positive()?),
+        "ellipsoid" => {
+            let rv = t.req("radii")?;
+            let r = vec3(&rv)?;
+            if r.min_element() <= 0.0 {
+                return Err(rv.error("radii must be positive"));
+            }
+            let rot = match t.get("rotate") {
+                Some(v) => rotation(&v)?,
+                None => DMat3::IDENTITY,
+            };
+            Quadric::ellipsoid(vec3(&t.req("center")?)?, r, rot)
+        }
+        "cylinder" => Quadric::cylinder(
+            vec3(&t.req("center")?)?,
+            direction(&t.req("axis")?)?,
+            t.req("radius")?.positive()?,
+        ),
+        "cone" => {
+            let av = t.req("angle")?;
+            let a = av.f64()?;
+            if !(a > 0.0 && a < 90.0) {
+                return Err(av.error(format!(
+                    "half-angle must lie strictly between 0 and 90 degrees, got {a}"
+                )));
+            }
+            Quadric::cone(
+                vec3(&t.req("apex")?)?,
+                direction(&t.req("axis")?)?,
+                a.to_radians(),
+            )
+        }
+        "paraboloid" => Quadric::paraboloid(
+            vec3(&t.req("vertex")?)?,
+            direction(&t.req("axis")?)?,
+            t.req("focal_length")?.positive()?,
+        ),
+        "plane" => Quadric::plane(vec3(&t.req("point")?)?, direction(&t.req("normal")?)?),
+        _ => {
+            let cv = t.req("coefficients")?;
+            let c = cv.numbers::<10>()?;
+            if c.iter().all(|&x| x == 0.0) {
+                return Err(cv.error("all coefficients are zero"));
+            }
+            Quadric::from_coefficients(c)
+        }
+    };
+    Ok(match t.get("transform") {
+        Some(v) => q.transformed(&transform(&v.table()?)?),
+        None => q,
+    })
+}
+
+fn object(t: &Table, material_names: &[String]) -> Result<(Object, usize)> {
+    t.allow(&[
+        "name",
+        "material",
+        "base",
+        "bounds",
+        "transform",
+        "perturbation",
+    ])?;
+    let mv = t.req("material")?;
+    let mname = mv.str()?;
+    let mat = material_names
+        .iter()
+        .position(|n| n == mname)
+        .ok_or_else(|| {
+            mv.error(if material_names.is_empty() {
+                format!("unknown material \"{mname}\": the scene defines no [[material]]")
+            } else {
+                format!(
+                    "unknown material \"{mname}\" (defined: {})",
+                    material_names.join(", ")
+                )
+            })
+        })?;
+    let xf = match t.get("transform") {
+        Some(v) => Some(transform(&v.table()?)?),
+        None => None,
+    };
+    let apply = |q: Quadric| match &xf {
+        Some(m) => q.transformed(m),
+        None => q,
+    };
+    let base = apply(quadric(&t.req("base")?.table()?)?);
+    let mut perts = Vec::new();
+    if let Some(v) = t.get("perturbation") {
+        for p in v.tables()? {
+            p.allow(&["quadric", "factor"])?;
+            let q = apply(quadric(&p.req("quadric")?.table()?)?);
+            perts.push(Perturbation {
+                quadric: q,
+                factor: p.req("factor")?.f64()?,
+            });
+        }
+    }
+    let bounds = match t.get("bounds") {
+        Some(v) => {
+            let b = v.table()?;
+            b.allow(&["min", "max"])?;
+            let lo = vec3(&b.req("min")?)?;
+            let hi = vec3(&b.req("max")?)?;
+            if !(lo.cmplt(hi).all()) {
+                return Err(v.error("bounds.min must be below bounds.max on every axis"));
+            }
+            Some(Aabb { min: lo, max: hi })
+        }
+        None => None,
+    };
+    let obj = Object::new(base, perts, bounds).map_err(|e| t.error(e.to_string()))?;
+    Ok((obj, mat))
+}
