@@ -115,6 +115,16 @@ pub fn atomic_write(
         .map_err(io)?;
     write(tmp.as_file_mut())?;
     tmp.as_file_mut().sync_all().map_err(io)?;
+    // Temporary files are created private (0600); an image is not. Keep the
+    // permissions of a file being replaced, else use the usual 0644.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(path)
+            .map(|m| m.permissions().mode() & 0o7777)
+            .unwrap_or(0o644);
+        std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(mode)).map_err(io)?;
+    }
     tmp.persist(path).map_err(|e| io(e.error))?;
     Ok(())
 }
@@ -314,6 +324,12 @@ mod tests {
         let back = read_rgb_image(&p).unwrap();
         assert_eq!((back.width, back.height), (5, 3));
         assert_eq!(back.pixels, img.rgb);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&p).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, 0o644, "images are world-readable");
+        }
         // Only the final file remains: no temporary left behind.
         let names: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()

@@ -125,7 +125,8 @@ pub fn render(
                         }
                     }
                     let inv = 1.0 / spp as f64;
-                    let v = sum * inv;
+                    // Finite f64 beyond f32 range would become Inf: clamp.
+                    let v = (sum * inv).map(|c| c.min(f32::MAX as f64));
                     rgb.push([v.r as f32, v.g as f32, v.b as f32]);
                     if let Some(a) = aov.as_mut() {
                         let al = alb * inv;

@@ -1,0 +1,170 @@
+//! Scene files: every documented key, every example, and bad input.
+
+use isolux_core::{DVec3, Rgb};
+use isolux_render::Environment;
+use std::path::Path;
+
+fn parse(src: &str) -> Result<isolux_render::Scene, String> {
+    isolux_scene::parse_str(src, Path::new("s.toml"), Path::new(".")).map_err(|e| e.to_string())
+}
+
+/// Every key of docs/scene-format.md in one file.
+const ALL_KEYS: &str = r#"
+[camera]
+position = [1.0, 2.0, 3.0]
+look_at = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 45
+
+[film]
+width = 320
+height = 200
+spp = 9
+
+[integrator]
+max_depth = 12
+seed = 77
+
+[[light]]
+type = "point"
+position = [0.0, 5.0, 0.0]
+intensity = [10.0, 9.0, 8.0]
+
+[environment]
+type = "constant"
+radiance = [0.1, 0.2, 0.3]
+
+[[material]]
+name = "a"
+type = "diffuse"
+reflectance = [0.9, 0.5, 0.1]
+
+[[material]]
+name = "b"
+type = "diffuse"
+
+[[object]]
+name = "blob"
+material = "a"
+base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }
+transform = { translate = [0.0, 1.0, 0.0], rotate = [0.0, 30.0, 0.0], scale = 0.5 }
+[[object.perturbation]]
+quadric = { type = "sphere", center = [0.0, 1.0, 0.0], radius = 0.3 }
+factor = 100.0
+[[object.perturbation]]
+quadric = { type = "ellipsoid", center = [1.0, 0.0, 0.0], radii = [0.3, 0.2, 0.1], rotate = [10.0, 20.0, 30.0] }
+factor = -50.0
+[[object.perturbation]]
+quadric = { type = "quadric", coefficients = [-1.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, -0.91] }
+factor = 10.0
+
+[[object]]
+material = "b"
+base = { type = "plane", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }
+bounds = { min = [-5.0, -2.0, -5.0], max = [5.0, 0.0, 5.0] }
+
+[[object]]
+material = "b"
+base = { type = "cylinder", center = [3.0, 0.0, 0.0], axis = [0.0, 1.0, 0.0], radius = 0.2, transform = { translate = [0.0, 0.0, 1.0] } }
+bounds = { min = [2.0, -1.0, -1.0], max = [4.0, 1.0, 3.0] }
+
+[[object]]
+material = "b"
+base = { type = "cone", apex = [-3.0, 1.0, 0.0], axis = [0.0, -1.0, 0.0], angle = 20.0 }
+bounds = { min = [-4.0, -1.0, -1.0], max = [-2.0, 1.0, 1.0] }
+
+[[object]]
+material = "b"
+base = { type = "paraboloid", vertex = [0.0, -1.0, -3.0], axis = [0.0, 1.0, 0.0], focal_length = 0.25 }
+bounds = { min = [-1.0, -1.0, -4.0], max = [1.0, 0.5, -2.0] }
+"#;
+
+#[test]
+fn every_documented_key_is_parsed() {
+    let s = parse(ALL_KEYS).unwrap();
+    assert_eq!(s.camera.position, DVec3::new(1.0, 2.0, 3.0));
+    assert_eq!(s.camera.look_at, DVec3::new(0.0, 0.5, 0.0));
+    assert_eq!(s.camera.fov_y, 45.0);
+    assert_eq!((s.film.width, s.film.height, s.film.spp), (320, 200, 9));
+    assert_eq!((s.integrator.max_depth, s.integrator.seed), (12, 77));
+    assert_eq!(s.lights.len(), 1);
+    assert_eq!(s.lights[0].intensity, Rgb::new(10.0, 9.0, 8.0));
+    assert!(matches!(s.environment, Environment::Constant(c) if c == Rgb::new(0.1, 0.2, 0.3)));
+    assert_eq!(s.material_names, vec!["a", "b"]);
+    assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
+    let objs = s.geometry.objects();
+    assert_eq!(objs.len(), 5);
+    assert_eq!(objs[0].perturbations().len(), 3);
+    // The transform moved the unit sphere to radius 0.5 around (0, 1, 0).
+    assert!(objs[0].base().eval(DVec3::new(0.5, 1.0, 0.0)).abs() < 1e-12);
+    assert!(objs[0].base().eval(DVec3::new(0.0, 1.0, 0.0)) > 0.0);
+    // Bounded plane and cylinder got finite boxes.
+    assert!(objs[1].bbox().is_finite() && objs[2].bbox().is_finite());
+    // The cylinder's own transform moved its axis to z = 1.
+    assert!(objs[2].base().eval(DVec3::new(3.0, 0.0, 1.0)) > 0.0);
+    assert!(objs[2].base().eval(DVec3::new(3.0, 0.0, 0.0)) < 0.0);
+}
+
+#[test]
+fn defaults_fill_a_minimal_scene() {
+    let s = parse("").unwrap();
+    assert_eq!((s.film.width, s.film.height, s.film.spp), (640, 480, 16));
+    assert_eq!(s.integrator.max_depth, 8);
+    assert!(matches!(s.environment, Environment::Constant(c) if c == Rgb::BLACK));
+}
+
+#[test]
+fn every_example_scene_loads() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            isolux_scene::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            n += 1;
+        }
+    }
+    assert!(n >= 2);
+}
+
+#[test]
+fn bad_scenes_are_rejected_with_file_line_column_and_key() {
+    let cases: &[(&str, &str)] = &[
+        ("[film]\nwidth = 0\n", "s.toml:2:9: film.width: must lie in 1..=65536, got 0"),
+        ("[film]\nwidht = 10\n", "s.toml:2:1: film.widht: unknown key (valid keys here: height, spp, width)"),
+        ("[film]\nwidth = \"big\"\n", "s.toml:2:9: film.width: expected an integer, found a string"),
+        ("[camera]\nfov_y = nan\n", "s.toml:2:9: camera.fov_y: must be a finite number, got NaN"),
+        ("[camera]\nposition = [1.0, inf, 0.0]\n", "s.toml:2:18: camera.position[1]: must be a finite number, got inf"),
+        ("[camera]\nposition = [1.0, 2.0]\n", "s.toml:2:12: camera.position: expected an array of 3 numbers, found 2"),
+        ("[camera]\nposition = [0.0, 0.0, 0.0]\n", "s.toml:1:1: camera: camera position equals look_at"),
+        ("[camera]\nfov_y = 180\n", "s.toml:2:9: camera.fov_y: must lie strictly between 0 and 180 degrees, got 180"),
+        ("[[light]]\ntype = \"spot\"\n", "s.toml:2:8: light[0].type: unknown value \"spot\" (valid: point)"),
+        ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
+        ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
+        ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse)"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
+        ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = -1 }\n", "s.toml:6:56: object[0].base.radius: must be positive, got -1"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"torus\" }\n", "s.toml:6:17: object[0].base.type: unknown value \"torus\" (valid: sphere, ellipsoid, cylinder, cone, paraboloid, plane, quadric)"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1, colour = 3 }\n", "s.toml:6:59: object[0].base.colour: unknown key"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"plane\", point = [0, 0, 0], normal = [0, 1, 0] }\n[[object.perturbation]]\nquadric = { type = \"cylinder\", center = [0, 0, 0], axis = [0, 1, 0], radius = 1 }\nfactor = 1\n", "s.toml:4:1: object[0]: perturbation 0 has unbounded support"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n[[object.perturbation]]\nquadric = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:7:1: object[0].perturbation[0].factor: missing required key"),
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\nbounds = { min = [1, 1, 1], max = [0, 2, 2] }\n", "s.toml:7:10: object[0].bounds: bounds.min must be below bounds.max on every axis"),
+        ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
+        ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
+        ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
+    ];
+    for (src, want) in cases {
+        let got = parse(src).err().unwrap_or_else(|| panic!("accepted:\n{src}"));
+        assert!(got.starts_with(want), "\nscene:\n{src}\nwant prefix: {want}\ngot:         {got}");
+        assert!(!got.contains('\n'), "one-line message: {got}");
+    }
+}
+
+#[test]
+fn load_reports_missing_file() {
+    let e = isolux_scene::load(Path::new("/no/such/scene.toml")).unwrap_err();
+    assert!(e.to_string().starts_with("/no/such/scene.toml: cannot read scene file"));
+}
