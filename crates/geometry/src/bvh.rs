@@ -95,14 +95,23 @@ impl Bvh {
     }
 }
 
-#[inline]
-fn slab(b: &Aabb, o: DVec3, inv: DVec3, t0: f64, t1: f64) -> bool {
-    let ta = (b.min - o) * inv;
-    let tb = (b.max - o) * inv;
-    // NaN (0 * inf) from axis-parallel rays on a slab face: max/min of glam
-    // propagate the non-NaN operand, which keeps the test conservative.
-    let lo = ta.min(tb).max_element().max(t0);
-    let hi = ta.max(tb).min_element().min(t1);
+/// Slab test with a precomputed inverse direction. Plain comparisons: a
+/// NaN (`0 * inf`, an axis-parallel ray exactly on a slab plane) fails the
+/// comparison and leaves the bound untouched, which keeps the test
+/// conservative.
+#[inline(always)]
+pub fn slab(b: &Aabb, o: DVec3, inv: DVec3, mut lo: f64, mut hi: f64) -> bool {
+    for a in 0..3 {
+        let ta = (b.min[a] - o[a]) * inv[a];
+        let tb = (b.max[a] - o[a]) * inv[a];
+        let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
+        if near > lo {
+            lo = near;
+        }
+        if far < hi {
+            hi = far;
+        }
+    }
     lo <= hi
 }
 

@@ -78,8 +78,6 @@ pub enum GeometryError {
 pub struct Object {
     base: Quadric,
     perturbations: Vec<Perturbation>,
-    /// Support boxes of the bounded perturbations, in BVH item order.
-    support: Vec<Aabb>,
     /// Which perturbation each BVH item is.
     bounded: Vec<u32>,
     /// Perturbations with unbounded support.
@@ -88,8 +86,17 @@ pub struct Object {
     bbox: Aabb,
 }
 
-/// A perturbation the current ray crosses: index and `Q_i(t)` coefficients.
-type Candidate = (u32, [f64; 3]);
+/// A perturbation the current ray crosses.
+#[derive(Clone, Copy, Debug)]
+struct Candidate {
+    /// Perturbation index.
+    index: u32,
+    /// `Q_i(t)` along the ray, ascending powers.
+    q: [f64; 3],
+    /// Active interval `(lo, hi)` for bounded supports; NaN for unbounded.
+    lo: f64,
+    hi: f64,
+}
 
 impl Object {
     /// Builds an object; `bounds` clips the surface.
@@ -142,7 +149,6 @@ impl Object {
         Ok(Self {
             base,
             perturbations,
-            support,
             bounded,
             unbounded,
             bvh,
@@ -195,60 +201,113 @@ impl Object {
     }
 
     /// First crossing of the surface with `t` in `[t_min, t_max]`.
+    ///
+    /// Two phases keep the work near the front of the object: candidates
+    /// and breakpoints are first gathered only up to the base quadric's
+    /// first crossing `L` (perturbations cannot move the surface outside
+    /// their supports, so any earlier hit lies in a support that starts
+    /// before `L`); only when `[t0, L]` holds no hit (a dent at the base
+    /// surface, say) is the rest of the ray gathered and searched.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         let (t0, t1) = self.bbox.clip(ray, t_min, t_max)?;
+        let base_q = self.base.along(ray);
+        let split = quadratic_crossings(base_q)
+            .into_iter()
+            .find(|&r| r > t0 && r < t1)
+            .unwrap_or(t1);
         let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
-        let mut breaks: SmallVec<[f64; 32]> = SmallVec::new();
-        let mut consider = |i: u32, lo: f64, hi: f64| {
+        for (lo, hi) in [(t0, split), (split, t1)] {
+            if hi <= lo && !(lo == t0 && hi == t1) {
+                continue;
+            }
+            self.gather(ray, t0, lo, hi, &mut cands);
+            let mut breaks: SmallVec<[f64; 32]> = SmallVec::new();
+            for c in &cands {
+                for x in [c.lo, c.hi] {
+                    if x > lo && x < hi {
+                        breaks.push(x);
+                    }
+                }
+                if c.lo.is_nan() {
+                    for x in quadratic_crossings(c.q) {
+                        if x > lo && x < hi {
+                            breaks.push(x);
+                        }
+                    }
+                }
+            }
+            breaks.sort_unstable_by(f64::total_cmp);
+            let mut a = lo;
+            for k in 0..=breaks.len() {
+                let b = if k < breaks.len() { breaks[k] } else { hi };
+                if b <= a {
+                    continue;
+                }
+                if let Some(t) = self.segment_root(ray, base_q, &cands, a, b) {
+                    return Some(self.hit_at(ray, t, &cands));
+                }
+                a = b;
+            }
+            if split >= t1 {
+                break;
+            }
+        }
+        None
+    }
+
+    /// Adds the perturbations active somewhere on `[lo, hi]` and not yet
+    /// gathered (those active before `lo` already are, when `lo > t0`).
+    fn gather(&self, ray: &Ray, t0: f64, lo: f64, hi: f64, cands: &mut SmallVec<[Candidate; 16]>) {
+        let fresh = lo <= t0;
+        let mut tt = hi;
+        // Bounded supports are ellipsoids: `q(t)` has a negative leading
+        // coefficient, so the perturbation is active exactly between the
+        // two roots of `q` (none: never active).
+        self.bvh.traverse(ray, lo, &mut tt, |item, _| {
+            let i = self.bounded[item as usize];
             let q = self.perturbations[i as usize].quadric.along(ray);
-            let mut crosses = false;
-            for r in quadratic_crossings(q) {
-                if r > t0 && r < t1 {
-                    breaks.push(r);
+            let r = quadratic_crossings(q);
+            if r.len() == 2 && r[1] > lo && r[0] < hi {
+                // Already gathered in the first phase if active before lo.
+                if !fresh && r[1] > t0 && r[0] < lo {
+                    return true;
                 }
-                if r > lo && r < hi {
-                    crosses = true;
-                }
-            }
-            if crosses || poly2(q, 0.5 * (lo + hi)) > 0.0 {
-                cands.push((i, q));
-            }
-        };
-        let mut tt = t1;
-        self.bvh.traverse(ray, t0, &mut tt, |item, _| {
-            if let Some((lo, hi)) = self.support[item as usize].clip(ray, t0, t1) {
-                consider(self.bounded[item as usize], lo, hi);
+                cands.push(Candidate {
+                    index: i,
+                    q,
+                    lo: r[0],
+                    hi: r[1],
+                });
             }
             true
         });
-        for &i in &self.unbounded {
-            consider(i, t0, t1);
+        if fresh {
+            // Unbounded supports: active where `q > 0`, tested per segment.
+            for &i in &self.unbounded {
+                let q = self.perturbations[i as usize].quadric.along(ray);
+                cands.push(Candidate {
+                    index: i,
+                    q,
+                    lo: f64::NAN,
+                    hi: f64::NAN,
+                });
+            }
         }
-        breaks.sort_unstable_by(f64::total_cmp);
+    }
 
-        let base_q = self.base.along(ray);
-        let mut a = t0;
-        for k in 0..=breaks.len() {
-            let b = if k < breaks.len() { breaks[k] } else { t1 };
-            if b <= a {
-                continue;
+    /// The hit record at `t`: point and outward normal from `grad F'`.
+    fn hit_at(&self, ray: &Ray, t: f64, cands: &[Candidate]) -> Hit {
+        let p = ray.at(t);
+        let mut g = self.base.gradient(p);
+        for c in cands {
+            let pert = &self.perturbations[c.index as usize];
+            let x = pert.quadric.eval(p);
+            if x > 0.0 {
+                g += 3.0 * pert.factor * x * x * pert.quadric.gradient(p);
             }
-            if let Some(t) = self.segment_root(ray, base_q, &cands, a, b) {
-                let p = ray.at(t);
-                let mut g = self.base.gradient(p);
-                for &(i, _) in &cands {
-                    let pert = &self.perturbations[i as usize];
-                    let x = pert.quadric.eval(p);
-                    if x > 0.0 {
-                        g += 3.0 * pert.factor * x * x * pert.quadric.gradient(p);
-                    }
-                }
-                let n = (-g).try_normalize().unwrap_or(-ray.dir.normalize());
-                return Some(Hit { t, p, n });
-            }
-            a = b;
         }
-        None
+        let n = (-g).try_normalize().unwrap_or(-ray.dir.normalize());
+        Hit { t, p, n }
     }
 
     /// Whether the surface crosses the ray within `[t_min, t_max]`.
@@ -266,32 +325,52 @@ impl Object {
         a: f64,
         b: f64,
     ) -> Option<f64> {
-        let active = |q: &[f64; 3]| {
-            if b.is_finite() {
-                poly2(*q, 0.5 * (a + b)) > 0.0
+        let mid = 0.5 * (a + b);
+        let active = |c: &Candidate| {
+            if c.lo.is_nan() {
+                if b.is_finite() {
+                    poly2(c.q, mid) > 0.0
+                } else {
+                    let q = c.q;
+                    q[2] > 0.0 || (q[2] == 0.0 && (q[1] > 0.0 || (q[1] == 0.0 && q[0] > 0.0)))
+                }
             } else {
-                q[2] > 0.0 || (q[2] == 0.0 && (q[1] > 0.0 || (q[1] == 0.0 && q[0] > 0.0)))
+                c.lo < mid && mid < c.hi
             }
         };
-        let any_active = cands.iter().any(|(_, q)| active(q));
-        if !any_active {
+        if !cands.iter().any(active) {
             return quadratic_crossings(base_q)
                 .into_iter()
                 .find(|&r| r >= a && r <= b);
         }
         debug_assert!(b.is_finite());
-        // Local reparameterization t = a + s (b - a), s in [0, 1].
-        let local = Ray::new(ray.at(a), (b - a) * ray.dir);
+        // Local reparameterization t = a + s (b - a), s in [0, 1]: the base
+        // quadric is re-evaluated at the segment origin (its value there is
+        // the dominant term); perturbations use the Taylor shift of their
+        // ray quadratic.
+        let len = b - a;
+        let local = Ray::new(ray.at(a), len * ray.dir);
         let mut poly = Poly::quadratic(self.base.along(&local));
-        for (i, q) in cands {
-            if active(q) {
-                let p = &self.perturbations[*i as usize];
-                poly.add_cube(p.factor, p.quadric.along(&local));
+        for c in cands {
+            if active(c) {
+                let f = self.perturbations[c.index as usize].factor;
+                poly.add_cube(f, shift(c.q, a, len));
             }
         }
         let s = poly.first_root_unit()?;
-        Some(a + s * (b - a))
+        Some(a + s * len)
     }
+}
+
+/// `q(a + s len)` as a quadratic in `s`.
+#[inline]
+fn shift(q: [f64; 3], a: f64, len: f64) -> [f64; 3] {
+    let [c0, c1, c2] = q;
+    [
+        (c2 * a + c1) * a + c0,
+        (2.0 * c2 * a + c1) * len,
+        c2 * len * len,
+    ]
 }
 
 #[inline]

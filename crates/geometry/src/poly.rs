@@ -85,13 +85,10 @@ impl Poly {
     /// `b_k = sum_{j <= k} C(k, j) / C(n, j) a_j`.
     pub fn bernstein(&self) -> [f64; MAX_DEGREE + 1] {
         let n = self.degree;
+        let table = &BERNSTEIN[n];
         let mut b = [0.0; MAX_DEGREE + 1];
         for (k, bk) in b.iter_mut().enumerate().take(n + 1) {
-            let mut s = 0.0;
-            for j in 0..=k {
-                s += binom(k, j) / binom(n, j) * self.c[j];
-            }
-            *bk = s;
+            *bk = table[k][..=k].iter().zip(&self.c).map(|(w, c)| w * c).sum();
         }
         b
     }
@@ -169,20 +166,35 @@ impl Poly {
 /// Bernstein coefficients on `[lo, hi]` and the subdivision depth.
 type Interval = ([f64; MAX_DEGREE + 1], f64, f64, u32);
 
-/// Binomial coefficient as f64 (small arguments).
-#[inline]
-fn binom(n: usize, k: usize) -> f64 {
-    const T: [[f64; 7]; 7] = [
-        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-        [1.0, 3.0, 3.0, 1.0, 0.0, 0.0, 0.0],
-        [1.0, 4.0, 6.0, 4.0, 1.0, 0.0, 0.0],
-        [1.0, 5.0, 10.0, 10.0, 5.0, 1.0, 0.0],
-        [1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0],
-    ];
-    T[n][k]
+/// Binomial coefficient (small arguments), usable in constants.
+const fn binom(n: usize, k: usize) -> u64 {
+    let mut r = 1u64;
+    let mut i = 0;
+    while i < k {
+        r = r * (n - i) as u64 / (i + 1) as u64;
+        i += 1;
+    }
+    r
 }
+
+/// Power-to-Bernstein weights `C(k, j) / C(n, j)`, indexed `[n][k][j]`.
+const BERNSTEIN: [[[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DEGREE + 1] = {
+    let mut t = [[[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DEGREE + 1];
+    let mut n = 0;
+    while n <= MAX_DEGREE {
+        let mut k = 0;
+        while k <= n {
+            let mut j = 0;
+            while j <= k {
+                t[n][k][j] = binom(k, j) as f64 / binom(n, j) as f64;
+                j += 1;
+            }
+            k += 1;
+        }
+        n += 1;
+    }
+    t
+};
 
 /// Number of sign changes among the non-zero entries.
 #[inline]
@@ -303,6 +315,23 @@ mod tests {
     fn no_roots_in_unit_interval() {
         let p = from_roots(&[-0.5, 1.2, 1.7, 2.0, 5.0, -3.0], -1.0);
         assert!(p.first_root_unit().is_none());
+    }
+
+    #[test]
+    fn bernstein_coefficients_reproduce_the_polynomial() {
+        // sum_k b_k C(n,k) s^k (1-s)^(n-k) = p(s)
+        let p = from_roots(&[0.1, 0.4, 0.45, 0.9, 1.3, -2.0], 1.5);
+        let b = p.bernstein();
+        let n = p.degree;
+        for i in 0..=10 {
+            let s = i as f64 / 10.0;
+            let v: f64 = (0..=n)
+                .map(|k| {
+                    b[k] * binom(n, k) as f64 * s.powi(k as i32) * (1.0 - s).powi((n - k) as i32)
+                })
+                .sum();
+            assert!((v - p.eval(s)).abs() < 1e-12, "{v} {}", p.eval(s));
+        }
     }
 
     #[test]

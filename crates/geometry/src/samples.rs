@@ -1,7 +1,7 @@
 //! Reference objects shared by benchmarks, tests and examples.
 
 use crate::{Object, Perturbation, Quadric};
-use isolux_core::DVec3;
+use isolux_core::{DVec3, Ray};
 
 /// Form factor of the benchmark bumps: raises a bump about 0.05 high on a
 /// sphere of radius 0.6 (`1.2 h = f (0.04 - h^2)^3`).
@@ -33,4 +33,22 @@ pub fn bumpy_sphere(bumps: usize) -> Object {
         })
         .collect();
     Object::new(Quadric::sphere(DVec3::ZERO, 0.6), perts, None).expect("valid benchmark object")
+}
+
+/// Casts one orthographic primary ray per pixel of a `size x size` image
+/// over `[-1, 1]^2`, looking down `-z` from `z = 2` (the view of fidget's
+/// 3D heightmap render), on the calling thread. Returns the hit count.
+pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>) -> usize {
+    let mut hits = 0;
+    for y in rows {
+        for x in 0..size {
+            let px = (x as f64 + 0.5) / size as f64 * 2.0 - 1.0;
+            let py = 1.0 - (y as f64 + 0.5) / size as f64 * 2.0;
+            let ray = Ray::new(DVec3::new(px, py, 2.0), -DVec3::Z);
+            if obj.intersect(&ray, 0.0, f64::INFINITY).is_some() {
+                hits += 1;
+            }
+        }
+    }
+    hits
 }

@@ -2,8 +2,10 @@
 
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
-use isolux_core::{DVec3, Ray};
-use isolux_geometry::{samples::bumpy_sphere, Object};
+use isolux_geometry::{
+    samples::{bumpy_sphere, cast_rows},
+    Object,
+};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -31,27 +33,12 @@ pub struct BenchArgs {
     pub repeat: u32,
 }
 
-/// Casts one orthographic primary ray per pixel over `[-1, 1]^2` looking
-/// down `-z` (the same view as fidget's 3D heightmap render) and returns
-/// the number of hits.
+/// Primary rays of [`cast_rows`] over the whole image, rows in parallel.
 pub fn cast_primary(obj: &Object, size: u32) -> usize {
     (0..size)
         .into_par_iter()
-        .map(|y| cast_row(obj, size, y))
+        .map(|y| cast_rows(obj, size, y..y + 1))
         .sum()
-}
-
-fn cast_row(obj: &Object, size: u32, y: u32) -> usize {
-    let mut hits = 0;
-    for x in 0..size {
-        let px = (x as f64 + 0.5) / size as f64 * 2.0 - 1.0;
-        let py = 1.0 - (y as f64 + 0.5) / size as f64 * 2.0;
-        let ray = Ray::new(DVec3::new(px, py, 2.0), -DVec3::Z);
-        if obj.intersect(&ray, 0.0, f64::INFINITY).is_some() {
-            hits += 1;
-        }
-    }
-    hits
 }
 
 fn best_of(repeat: u32, mut f: impl FnMut() -> usize) -> (f64, usize) {

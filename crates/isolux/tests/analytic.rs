@@ -12,7 +12,10 @@ fn scene(src: &str) -> Scene {
 }
 
 fn render_with(scene: &Scene, threads: usize) -> Image {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
     pool.install(|| render(scene, &RenderOptions::default(), &|_, _| {}))
         .unwrap()
         .0
@@ -71,7 +74,13 @@ fn diffuse_sphere_under_constant_sky_is_exactly_its_reflectance() {
             let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
             let dists: Vec<f64> = corners
                 .iter()
-                .map(|(cx, cy)| line_distance(eye, pinhole_dir(x as f64 + cx, y as f64 + cy, w, h, 30.0), c))
+                .map(|(cx, cy)| {
+                    line_distance(
+                        eye,
+                        pinhole_dir(x as f64 + cx, y as f64 + cy, w, h, 30.0),
+                        c,
+                    )
+                })
                 .collect();
             let p = img.pixel(x, y);
             if dists.iter().all(|&d| d < 0.8) {
@@ -150,7 +159,10 @@ fn white_furnace_on_a_non_convex_perturbed_object_stays_at_one() {
     // Reflectance 1 under radiance 1: every path that escapes carries
     // exactly 1; Russian roulette never cuts throughput 1. Only paths that
     // exhaust max_depth (deep inside concavities) can lose energy.
-    let s = scene(&FURNACE.replace("ENV", "[environment]\ntype = \"constant\"\nradiance = [1.0, 1.0, 1.0]"));
+    let s = scene(&FURNACE.replace(
+        "ENV",
+        "[environment]\ntype = \"constant\"\nradiance = [1.0, 1.0, 1.0]",
+    ));
     let img = render_with(&s, 2);
     let mut sum = 0.0;
     for p in &img.rgb {
@@ -181,8 +193,20 @@ fn white_furnace_under_an_environment_map_exercises_mis() {
     let s = isolux_scene::parse_str(&src, Path::new("t.toml"), dir.path()).unwrap();
     let out = render_with(&s, 2);
     let n = (3 * out.rgb.len()) as f64;
-    let mean: f64 = out.rgb.iter().flat_map(|p| p.iter()).map(|&v| v as f64).sum::<f64>() / n;
-    let var: f64 = out.rgb.iter().flat_map(|p| p.iter()).map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / n;
+    let mean: f64 = out
+        .rgb
+        .iter()
+        .flat_map(|p| p.iter())
+        .map(|&v| v as f64)
+        .sum::<f64>()
+        / n;
+    let var: f64 = out
+        .rgb
+        .iter()
+        .flat_map(|p| p.iter())
+        .map(|&v| (v as f64 - mean).powi(2))
+        .sum::<f64>()
+        / n;
     // Standard error of the mean over pixels (channels are correlated:
     // count pixels, not channels).
     let se = (var / out.rgb.len() as f64).sqrt();
@@ -240,7 +264,10 @@ base = { type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
                 .collect();
             let lo = vals.iter().cloned().fold(f64::INFINITY, f64::min);
             let hi = vals.iter().cloned().fold(0.0, f64::max);
-            assert!(v >= lo * (1.0 - 1e-4) && v <= hi * (1.0 + 1e-4), "({x},{y}) {v} not in [{lo}, {hi}]");
+            assert!(
+                v >= lo * (1.0 - 1e-4) && v <= hi * (1.0 + 1e-4),
+                "({x},{y}) {v} not in [{lo}, {hi}]"
+            );
         }
     }
     // Colour ratio follows rho * I exactly.
@@ -251,7 +278,11 @@ base = { type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
 
 #[test]
 fn image_is_bit_identical_whatever_the_thread_count() {
-    let src = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes/perturbed-sphere.toml")).unwrap();
+    let src = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/perturbed-sphere.toml"
+    ))
+    .unwrap();
     let mut s = isolux_scene::parse_str(&src, Path::new("p.toml"), Path::new(".")).unwrap();
     s.film.width = 64;
     s.film.height = 48;

@@ -36,12 +36,34 @@ fn renders_png_and_exr_with_overrides() {
     let scene = write_scene(dir.path(), TINY);
     let png = dir.path().join("out.png");
     let st = isolux()
-        .args(["render", scene.to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "30", "--height", "20", "--spp", "3", "--threads", "1", "--seed", "5"])
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--width",
+            "30",
+            "--height",
+            "20",
+            "--spp",
+            "3",
+            "--threads",
+            "1",
+            "--seed",
+            "5",
+        ])
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let stderr = String::from_utf8_lossy(&st.stderr);
-    assert!(stderr.contains("rendered 30x20 at 3 spp") && stderr.contains("M samples/s"), "{stderr}");
+    assert!(
+        stderr.contains("rendered 30x20 at 3 spp") && stderr.contains("M samples/s"),
+        "{stderr}"
+    );
     let bytes = std::fs::read(&png).unwrap();
     assert_eq!(&bytes[1..4], b"PNG");
     // IHDR width and height (big-endian at offsets 16 and 20).
@@ -50,7 +72,14 @@ fn renders_png_and_exr_with_overrides() {
 
     let exr = dir.path().join("out.exr");
     let st = isolux()
-        .args(["render", scene.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--aov", "--quiet"])
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            exr.to_str().unwrap(),
+            "--aov",
+            "--quiet",
+        ])
         .output()
         .unwrap();
     assert!(st.status.success());
@@ -64,19 +93,34 @@ fn renders_png_and_exr_with_overrides() {
 #[test]
 fn bad_scene_exits_non_zero_with_one_line_and_no_output() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = write_scene(dir.path(), &TINY.replace("radius = 1.0", "radius = \"one\""));
+    let scene = write_scene(
+        dir.path(),
+        &TINY.replace("radius = 1.0", "radius = \"one\""),
+    );
     let png = dir.path().join("out.png");
     let st = isolux()
-        .args(["render", scene.to_str().unwrap(), "-o", png.to_str().unwrap()])
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("scene.toml:15:") && err.contains("object[0].base.radius: expected a number, found a string"), "{err}");
+    assert!(
+        err.contains("scene.toml:15:")
+            && err.contains("object[0].base.radius: expected a number, found a string"),
+        "{err}"
+    );
     assert!(!png.exists());
     // Nothing half-written either.
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(leftovers.len(), 1, "{leftovers:?}");
 }
 
@@ -86,13 +130,32 @@ fn usage_errors_are_clear() {
     let scene = write_scene(dir.path(), TINY);
     let s = scene.to_str().unwrap();
     for (args, want) in [
-        (vec!["render", s, "-o", "x.jpg"], "x.jpg: unknown output format: use a .png or .exr file name"),
-        (vec!["render", s, "-o", "x.png", "--aov"], "--aov needs an .exr output"),
-        (vec!["render", s, "-o", "x.png", "--spp", "0"], "--spp must be at least 1"),
-        (vec!["render", s, "-o", "x.png", "--threads", "0"], "--threads must be at least 1"),
-        (vec!["render", "/missing.toml", "-o", "x.png"], "/missing.toml: cannot read scene file"),
+        (
+            vec!["render", s, "-o", "x.jpg"],
+            "x.jpg: unknown output format: use a .png or .exr file name",
+        ),
+        (
+            vec!["render", s, "-o", "x.png", "--aov"],
+            "--aov needs an .exr output",
+        ),
+        (
+            vec!["render", s, "-o", "x.png", "--spp", "0"],
+            "--spp must be at least 1",
+        ),
+        (
+            vec!["render", s, "-o", "x.png", "--threads", "0"],
+            "--threads must be at least 1",
+        ),
+        (
+            vec!["render", "/missing.toml", "-o", "x.png"],
+            "/missing.toml: cannot read scene file",
+        ),
     ] {
-        let st = isolux().args(&args).current_dir(dir.path()).output().unwrap();
+        let st = isolux()
+            .args(&args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
         assert_eq!(st.status.code(), Some(1), "{args:?}");
         let err = String::from_utf8_lossy(&st.stderr);
         assert!(err.contains(want), "{args:?}: {err}");
@@ -106,7 +169,19 @@ fn usage_errors_are_clear() {
 fn help_documents_every_flag() {
     let out = isolux().args(["render", "--help"]).output().unwrap();
     let help = String::from_utf8_lossy(&out.stdout);
-    for flag in ["--output", "--spp", "--width", "--height", "--threads", "--seed", "--quiet", "--exposure", "--tonemap", "--aov", "--max-depth"] {
+    for flag in [
+        "--output",
+        "--spp",
+        "--width",
+        "--height",
+        "--threads",
+        "--seed",
+        "--quiet",
+        "--exposure",
+        "--tonemap",
+        "--aov",
+        "--max-depth",
+    ] {
         assert!(help.contains(flag), "missing {flag} in:\n{help}");
     }
     let out = isolux().arg("--help").output().unwrap();
@@ -121,7 +196,25 @@ fn exposure_and_tonemap_change_png() {
     let s = scene.to_str().unwrap();
     let a = dir.path().join("a.png");
     let b = dir.path().join("b.png");
-    assert!(isolux().args(["render", s, "-o", a.to_str().unwrap(), "-q"]).status().unwrap().success());
-    assert!(isolux().args(["render", s, "-o", b.to_str().unwrap(), "-q", "--exposure", "-1", "--tonemap", "reinhard"]).status().unwrap().success());
+    assert!(isolux()
+        .args(["render", s, "-o", a.to_str().unwrap(), "-q"])
+        .status()
+        .unwrap()
+        .success());
+    assert!(isolux()
+        .args([
+            "render",
+            s,
+            "-o",
+            b.to_str().unwrap(),
+            "-q",
+            "--exposure",
+            "-1",
+            "--tonemap",
+            "reinhard"
+        ])
+        .status()
+        .unwrap()
+        .success());
     assert_ne!(std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
 }

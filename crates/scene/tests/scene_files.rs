@@ -157,8 +157,13 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
     ];
     for (src, want) in cases {
-        let got = parse(src).err().unwrap_or_else(|| panic!("accepted:\n{src}"));
-        assert!(got.starts_with(want), "\nscene:\n{src}\nwant prefix: {want}\ngot:         {got}");
+        let got = parse(src)
+            .err()
+            .unwrap_or_else(|| panic!("accepted:\n{src}"));
+        assert!(
+            got.starts_with(want),
+            "\nscene:\n{src}\nwant prefix: {want}\ngot:         {got}"
+        );
         assert!(!got.contains('\n'), "one-line message: {got}");
     }
 }
@@ -166,5 +171,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
 #[test]
 fn load_reports_missing_file() {
     let e = isolux_scene::load(Path::new("/no/such/scene.toml")).unwrap_err();
-    assert!(e.to_string().starts_with("/no/such/scene.toml: cannot read scene file"));
+    assert!(e
+        .to_string()
+        .starts_with("/no/such/scene.toml: cannot read scene file"));
 }
