@@ -368,3 +368,45 @@ fn rays_leaving_the_surface_do_not_rehit() {
     }
     assert_eq!(rehits, 0);
 }
+
+#[test]
+fn thin_bump_of_height_1e7_is_found_exactly() {
+    // Unit sphere with a bump of radius 0.1 at the pole; f = 0.2 raises it
+    // by about f r^6 / |grad F| = 0.2e-6 / 2 = 1e-7. Marching would need a
+    // step far below 1e-7 to see it; the exact method finds it to 1e-12.
+    let f = 0.2;
+    let pole = DVec3::new(0.0, 0.0, 1.0);
+    let obj = Object::new(
+        Quadric::sphere(DVec3::ZERO, 1.0),
+        vec![Perturbation { quadric: Quadric::sphere(pole, 0.1), factor: f }],
+        None,
+    )
+    .unwrap();
+    let g = |x: f64, z: f64| {
+        let q = 0.01 - x * x - (z - 1.0) * (z - 1.0);
+        1.0 - x * x - z * z + if q > 0.0 { f * q * q * q } else { 0.0 }
+    };
+    for i in 0..40 {
+        let x = i as f64 * 0.003; // across the footprint and beyond (0.1)
+        let ray = Ray::new(DVec3::new(x, 0.0, 5.0), -DVec3::Z);
+        let h = obj.intersect(&ray, 0.0, f64::INFINITY).unwrap();
+        // Reference: bisection of g(x, z) on z in [0.9, 1.1] (outside: g < 0).
+        let (mut lo, mut hi) = ((1.0 - x * x).sqrt() - 1e-3, 1.1);
+        for _ in 0..200 {
+            let m = 0.5 * (lo + hi);
+            if g(x, m) > 0.0 {
+                lo = m;
+            } else {
+                hi = m;
+            }
+        }
+        let z = 0.5 * (lo + hi);
+        assert!((h.p.z - z).abs() < 1e-12, "x {x}: {} vs {z}", h.p.z);
+        let base = (1.0 - x * x).sqrt();
+        if x < 0.09 {
+            assert!(h.p.z - base > 1e-9, "x {x}: the bump must raise the surface");
+        } else if x > 0.1 {
+            assert!((h.p.z - base).abs() < 1e-14, "outside the footprint: the base sphere");
+        }
+    }
+}
