@@ -378,7 +378,10 @@ fn thin_bump_of_height_1e7_is_found_exactly() {
     let pole = DVec3::new(0.0, 0.0, 1.0);
     let obj = Object::new(
         Quadric::sphere(DVec3::ZERO, 1.0),
-        vec![Perturbation { quadric: Quadric::sphere(pole, 0.1), factor: f }],
+        vec![Perturbation {
+            quadric: Quadric::sphere(pole, 0.1),
+            factor: f,
+        }],
         None,
     )
     .unwrap();
@@ -404,9 +407,15 @@ fn thin_bump_of_height_1e7_is_found_exactly() {
         assert!((h.p.z - z).abs() < 1e-12, "x {x}: {} vs {z}", h.p.z);
         let base = (1.0 - x * x).sqrt();
         if x < 0.09 {
-            assert!(h.p.z - base > 1e-9, "x {x}: the bump must raise the surface");
+            assert!(
+                h.p.z - base > 1e-9,
+                "x {x}: the bump must raise the surface"
+            );
         } else if x > 0.1 {
-            assert!((h.p.z - base).abs() < 1e-14, "outside the footprint: the base sphere");
+            assert!(
+                (h.p.z - base).abs() < 1e-14,
+                "outside the footprint: the base sphere"
+            );
         }
     }
 }
