@@ -11,8 +11,12 @@
 
 pub mod bxdf;
 pub mod diffuse;
+pub mod fresnel;
 pub mod material;
+pub mod metals;
+pub mod validate;
 
 pub use bxdf::{Bsdf, BsdfSample, BxdfFlags, BxdfModel};
 pub use diffuse::Diffuse;
+pub use fresnel::Fresnel;
 pub use material::Material;
