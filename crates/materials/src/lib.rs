@@ -14,6 +14,7 @@ pub mod diffuse;
 pub mod fresnel;
 pub mod material;
 pub mod metals;
+pub mod microfacet;
 pub mod validate;
 
 pub use bxdf::{Bsdf, BsdfSample, BxdfFlags, BxdfModel};

@@ -6,9 +6,9 @@
 //!
 //! - the sphere is cut into `theta_bins x phi_bins` **equal-area** cells
 //!   (uniform in `cos(theta)` and in `phi`);
-//! - the expected count of a cell is `N * int_cell pdf dw`, integrated by a
-//!   `sub x sub` midpoint rule in `(cos theta, phi)`, where `dw = dz dphi`
-//!   exactly;
+//! - the expected count of a cell is `N * int_cell pdf dw`, integrated
+//!   adaptively in `(cos theta, phi)` (where `dw = dz dphi` exactly) until a
+//!   2x2 and a 4x4 midpoint rule agree on every sub-cell;
 //! - cells expecting fewer than 5 samples are pooled into one;
 //! - a sample in a cell whose pdf integral is zero fails at once;
 //! - the statistic's p-value comes from the regularized upper incomplete
@@ -76,26 +76,17 @@ pub fn chi2_test(
             }
         }
     }
-    // Expected counts by midpoint integration of the pdf per cell.
-    let sub = 8;
+    // Expected counts: adaptive integration of the pdf over each cell in
+    // (z, phi), where dw = dz dphi exactly.
     let dz = 2.0 / theta_bins as f64;
     let dphi = 2.0 * PI / phi_bins as f64;
     let mut expected = vec![0.0f64; cells];
     for t in 0..theta_bins {
         for p in 0..phi_bins {
-            let mut s = 0.0;
-            for i in 0..sub {
-                let z = -1.0 + (t as f64 + (i as f64 + 0.5) / sub as f64) * dz;
-                let r = (1.0 - z * z).max(0.0).sqrt();
-                for j in 0..sub {
-                    let phi = (p as f64 + (j as f64 + 0.5) / sub as f64) * dphi;
-                    let v = pdf(DVec3::new(r * phi.cos(), r * phi.sin(), z));
-                    if v.is_finite() && v > 0.0 {
-                        s += v;
-                    }
-                }
-            }
-            expected[t * phi_bins + p] = s * dz * dphi / (sub * sub) as f64 * samples as f64;
+            let z0 = -1.0 + t as f64 * dz;
+            let p0 = p as f64 * dphi;
+            expected[t * phi_bins + p] =
+                integrate_cell(&pdf, z0, z0 + dz, p0, p0 + dphi, 0) * samples as f64;
         }
     }
     let pdf_mass = expected.iter().sum::<f64>() / samples as f64;
@@ -140,6 +131,47 @@ pub fn chi2_test(
         failure,
         pdf_mass,
     }
+}
+
+/// Midpoint rule with `n x n` points over `[z0, z1] x [p0, p1]`.
+fn midpoint(pdf: &impl Fn(DVec3) -> f64, z0: f64, z1: f64, p0: f64, p1: f64, n: usize) -> f64 {
+    let mut s = 0.0;
+    for i in 0..n {
+        let z = z0 + (i as f64 + 0.5) / n as f64 * (z1 - z0);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        for j in 0..n {
+            let phi = p0 + (j as f64 + 0.5) / n as f64 * (p1 - p0);
+            let v = pdf(DVec3::new(r * phi.cos(), r * phi.sin(), z));
+            if v.is_finite() && v > 0.0 {
+                s += v;
+            }
+        }
+    }
+    s * (z1 - z0) * (p1 - p0) / (n * n) as f64
+}
+
+/// Adaptive integral of the pdf over a cell: quadrants are refined until a
+/// 2x2 and a 4x4 midpoint estimate agree (narrow lobes need it).
+fn integrate_cell(
+    pdf: &impl Fn(DVec3) -> f64,
+    z0: f64,
+    z1: f64,
+    p0: f64,
+    p1: f64,
+    depth: u32,
+) -> f64 {
+    let coarse = midpoint(pdf, z0, z1, p0, p1, 2);
+    let fine = midpoint(pdf, z0, z1, p0, p1, 4);
+    // At least three levels (32 x 32 points per cell) so that thin slivers
+    // of support (a lobe cut by the horizon) are not missed.
+    if depth >= 7 || (depth >= 3 && (fine - coarse).abs() <= 1e-4 * fine + 1e-9) {
+        return fine;
+    }
+    let (zm, pm) = (0.5 * (z0 + z1), 0.5 * (p0 + p1));
+    integrate_cell(pdf, z0, zm, p0, pm, depth + 1)
+        + integrate_cell(pdf, zm, z1, p0, pm, depth + 1)
+        + integrate_cell(pdf, z0, zm, pm, p1, depth + 1)
+        + integrate_cell(pdf, zm, z1, pm, p1, depth + 1)
 }
 
 /// Regularized upper incomplete gamma function `Q(a, x)`: series for
