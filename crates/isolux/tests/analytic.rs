@@ -306,3 +306,53 @@ fn no_nan_or_inf_reaches_the_image() {
     let img = render_with(&scene(&src), 2);
     assert!(img.rgb.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
 }
+
+#[test]
+fn every_model_under_a_white_sky_stays_below_the_sky() {
+    // Sphere of each model under constant radiance 1. On a convex object a
+    // reflected ray escapes at once, and each model's sample weight
+    // f cos / pdf is at most 1 (F G2 / G1 for visible-normal sampling), so
+    // no pixel may exceed the sky; a perfect F = 1 mirror is exactly 1.
+    let models = [
+        ("ggx", "type = \"ggx\"\nroughness = 0.3"),
+        (
+            "ggx-aniso",
+            "type = \"ggx\"\nroughness_u = 0.05\nroughness_v = 0.5\ntangent = [0.0, 1.0, 0.0]",
+        ),
+        ("beckmann", "type = \"beckmann\"\nroughness = 0.5"),
+        ("gold", "type = \"ggx\"\nroughness = 0.2\nmetal = \"Au\""),
+        ("mirror", "type = \"conductor\""),
+        ("silver-mirror", "type = \"conductor\"\nmetal = \"Ag\""),
+    ];
+    for (name, params) in models {
+        let src = SPHERE_SCENE
+            .replace(
+                "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
+                params,
+            )
+            .replace("spp = 4", "spp = 16");
+        let img = render_with(&scene(&src), 2);
+        let mut sphere_sum = 0.0;
+        let mut n = 0;
+        for p in &img.rgb {
+            for &v in p {
+                assert!(v <= 1.0 + 1e-6, "{name}: pixel {p:?} above the sky");
+            }
+            if p[0] < 0.999 || p[2] < 0.999 {
+                sphere_sum += p[1] as f64;
+                n += 1;
+            }
+        }
+        if name == "mirror" {
+            assert!(
+                img.rgb.iter().flatten().all(|&v| (v - 1.0).abs() < 1e-6),
+                "F = 1 mirror reflects the sky exactly"
+            );
+        } else {
+            // Something visibly darker than the sky, but not black.
+            assert!(n > 100, "{name}: the sphere must show");
+            let mean = sphere_sum / n as f64;
+            assert!(mean > 0.3 && mean < 1.0, "{name}: mean {mean}");
+        }
+    }
+}

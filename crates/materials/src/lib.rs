@@ -7,17 +7,30 @@
 //! | `type` | model | file |
 //! |---|---|---|
 //! | `diffuse` | Lambertian | [`diffuse`] |
+//! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
+//! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
+//! | `conductor` | smooth metal mirror | [`conductor`] |
+//!
+//! Shared machinery: [`fresnel`] (dielectric, conductor, Schlick),
+//! [`metals`] (measured `n + ik`), [`microfacet`] (distributions, masking,
+//! visible-normal sampling); statistical checks in [`validate`].
 #![warn(missing_docs)]
 
+pub mod beckmann;
 pub mod bxdf;
+pub mod conductor;
 pub mod diffuse;
 pub mod fresnel;
+pub mod ggx;
 pub mod material;
 pub mod metals;
 pub mod microfacet;
 pub mod validate;
 
+pub use beckmann::Beckmann;
 pub use bxdf::{Bsdf, BsdfSample, BxdfFlags, BxdfModel};
+pub use conductor::Conductor;
 pub use diffuse::Diffuse;
 pub use fresnel::Fresnel;
+pub use ggx::Ggx;
 pub use material::Material;

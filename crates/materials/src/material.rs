@@ -1,7 +1,8 @@
-//! The material enum: every model a scene can name, dispatched by `match`.
+//! The material enum: every model a scene can name, dispatched by `match`
+//! (no trait objects, so the same plain data can mirror a GPU layout).
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::diffuse::Diffuse;
+use crate::{Beckmann, Conductor, Diffuse, Ggx};
 use isolux_core::{DVec3, Rgb};
 
 /// A named material of a scene.
@@ -9,6 +10,24 @@ use isolux_core::{DVec3, Rgb};
 pub enum Material {
     /// Lambertian reflection (`type = "diffuse"`).
     Diffuse(Diffuse),
+    /// GGX microfacet reflection (`type = "ggx"`).
+    Ggx(Ggx),
+    /// Beckmann microfacet reflection (`type = "beckmann"`).
+    Beckmann(Beckmann),
+    /// Smooth conductor mirror (`type = "conductor"`).
+    Conductor(Conductor),
+}
+
+/// Applies `$body` to the model inside any variant.
+macro_rules! dispatch {
+    ($self:expr, $m:ident => $body:expr) => {
+        match $self {
+            Material::Diffuse($m) => $body,
+            Material::Ggx($m) => $body,
+            Material::Beckmann($m) => $body,
+            Material::Conductor($m) => $body,
+        }
+    };
 }
 
 impl Material {
@@ -16,34 +35,36 @@ impl Material {
     pub fn type_name(&self) -> &'static str {
         match self {
             Material::Diffuse(_) => "diffuse",
+            Material::Ggx(_) => "ggx",
+            Material::Beckmann(_) => "beckmann",
+            Material::Conductor(_) => "conductor",
+        }
+    }
+
+    /// World-space tangent hint of anisotropic models.
+    pub fn tangent(&self) -> Option<DVec3> {
+        match self {
+            Material::Ggx(m) => m.tangent,
+            Material::Beckmann(m) => m.tangent,
+            _ => None,
         }
     }
 }
 
 impl BxdfModel for Material {
     fn f(&self, wo: DVec3, wi: DVec3) -> Rgb {
-        match self {
-            Material::Diffuse(m) => m.f(wo, wi),
-        }
+        dispatch!(self, m => m.f(wo, wi))
     }
     fn sample(&self, wo: DVec3, uc: f64, u: [f64; 2]) -> Option<BsdfSample> {
-        match self {
-            Material::Diffuse(m) => m.sample(wo, uc, u),
-        }
+        dispatch!(self, m => m.sample(wo, uc, u))
     }
     fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
-        match self {
-            Material::Diffuse(m) => m.pdf(wo, wi),
-        }
+        dispatch!(self, m => m.pdf(wo, wi))
     }
     fn flags(&self) -> BxdfFlags {
-        match self {
-            Material::Diffuse(m) => m.flags(),
-        }
+        dispatch!(self, m => m.flags())
     }
     fn albedo(&self) -> Rgb {
-        match self {
-            Material::Diffuse(m) => m.albedo(),
-        }
+        dispatch!(self, m => m.albedo())
     }
 }

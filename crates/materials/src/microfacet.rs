@@ -253,6 +253,62 @@ pub fn erfinv(x: f64) -> f64 {
     y
 }
 
+/// A rough reflector: `f = D(m) G(wo, wi) F(wo.m) / (4 cos_o cos_i)` with
+/// `m = normalize(wo + wi)` (Walter et al. 2007), sampled through the
+/// visible normals of `wo`. Shared by the `ggx` and `beckmann` models.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MicrofacetReflection {
+    /// Normal distribution.
+    pub distribution: Microfacet,
+    /// Fresnel term at the microfacet.
+    pub fresnel: crate::Fresnel,
+}
+
+impl MicrofacetReflection {
+    /// `f(wo, wi)` without the cosine.
+    pub fn f(&self, wo: DVec3, wi: DVec3) -> isolux_core::Rgb {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return isolux_core::Rgb::BLACK;
+        }
+        let Some(m) = (wo + wi).try_normalize() else {
+            return isolux_core::Rgb::BLACK;
+        };
+        let d = self.distribution.d(m);
+        let g = self.distribution.g(wo, wi);
+        self.fresnel.eval(wo.dot(m)) * (d * g / (4.0 * wo.z * wi.z))
+    }
+
+    /// Visible-normal sampling.
+    pub fn sample(&self, wo: DVec3, u: [f64; 2]) -> Option<crate::BsdfSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let m = self.distribution.sample_visible(wo, u);
+        let wi = reflect(wo, m);
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(wo, wi);
+        Some(crate::BsdfSample {
+            wi,
+            f: self.f(wo, wi),
+            pdf,
+            flags: crate::BxdfFlags::REFLECTION | crate::BxdfFlags::GLOSSY,
+        })
+    }
+
+    /// `D_wo(m) / (4 |wo.m|)`.
+    pub fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        let Some(m) = (wo + wi).try_normalize() else {
+            return 0.0;
+        };
+        self.distribution.d_visible(wo, m) / (4.0 * wo.dot(m).abs())
+    }
+}
+
 /// Mirror `w` about `m`.
 #[inline]
 pub fn reflect(w: DVec3, m: DVec3) -> DVec3 {

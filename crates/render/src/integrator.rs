@@ -77,7 +77,10 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
             break;
         }
         let wo = -ray.dir;
-        let bsdf = Bsdf::new(material, hit.n, wo);
+        let bsdf = match material.tangent() {
+            Some(t) => Bsdf::with_tangent(material, hit.n, t, wo),
+            None => Bsdf::new(material, hit.n, wo),
+        };
         let ns = bsdf.normal();
 
         // Point lights.

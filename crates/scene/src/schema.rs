@@ -3,14 +3,15 @@
 use crate::reader::{Doc, Result, SceneError, Table, Value};
 use isolux_core::{Aabb, DMat3, DMat4, DVec3, Rgb};
 use isolux_geometry::{Aggregate, Object, Perturbation, Quadric};
-use isolux_materials::{Diffuse, Material};
+use isolux_materials::metals::Metal;
+use isolux_materials::{Beckmann, Conductor, Diffuse, Fresnel, Ggx, Material};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
 use std::path::Path;
 
 /// Material `type` names accepted by this version.
-pub const MATERIAL_TYPES: &[&str] = &["diffuse"];
+pub const MATERIAL_TYPES: &[&str] = &["diffuse", "ggx", "beckmann", "conductor"];
 
 /// Quadric `type` names.
 pub const QUADRIC_TYPES: &[&str] = &[
@@ -212,19 +213,139 @@ fn environment(t: &Table, base_dir: &Path) -> Result<Environment> {
     }
 }
 
+/// Keys that select a Fresnel term.
+const FRESNEL_KEYS: &[&str] = &["metal", "eta", "k", "ior", "schlick"];
+
 fn material(t: &Table) -> Result<Material> {
     let ty = t.req("type")?.choice(MATERIAL_TYPES)?;
+    let allow = |extra: &[&str]| {
+        let mut keys = vec!["name", "type"];
+        keys.extend_from_slice(extra);
+        t.allow(&keys)
+    };
     match ty {
         "diffuse" => {
-            t.allow(&["name", "type", "reflectance"])?;
+            allow(&["reflectance"])?;
             let mut d = Diffuse::default();
             if let Some(v) = t.get("reflectance") {
                 d.reflectance = reflectance(&v)?;
             }
             Ok(Material::Diffuse(d))
         }
+        "ggx" | "beckmann" => {
+            let mut keys = vec!["roughness", "roughness_u", "roughness_v", "tangent"];
+            keys.extend_from_slice(FRESNEL_KEYS);
+            allow(&keys)?;
+            let (ax, ay) = roughness(t)?;
+            let f = fresnel(t)?;
+            let tangent = t.get("tangent").map(|v| direction(&v)).transpose()?;
+            Ok(if ty == "ggx" {
+                let mut m = Ggx::new(ax, ay, f);
+                m.tangent = tangent;
+                Material::Ggx(m)
+            } else {
+                let mut m = Beckmann::new(ax, ay, f);
+                m.tangent = tangent;
+                Material::Beckmann(m)
+            })
+        }
+        "conductor" => {
+            allow(FRESNEL_KEYS)?;
+            Ok(Material::Conductor(Conductor {
+                fresnel: fresnel(t)?,
+            }))
+        }
         _ => unreachable!("choice() validated the type"),
     }
+}
+
+/// `roughness`, or `roughness_u` with `roughness_v`; default 0.2.
+fn roughness(t: &Table) -> Result<(f64, f64)> {
+    let check = |v: &Value| -> Result<f64> {
+        let r = v.f64()?;
+        if !(r > 0.0 && r <= 10.0) {
+            return Err(v.error(format!("roughness must lie in (0, 10], got {r}")));
+        }
+        Ok(r)
+    };
+    match (
+        t.get("roughness"),
+        t.get("roughness_u"),
+        t.get("roughness_v"),
+    ) {
+        (Some(r), None, None) => {
+            let a = check(&r)?;
+            Ok((a, a))
+        }
+        (None, Some(u), Some(v)) => Ok((check(&u)?, check(&v)?)),
+        (None, None, None) => Ok((0.2, 0.2)),
+        (Some(_), _, _) => {
+            Err(t.error("give either `roughness` or `roughness_u` with `roughness_v`, not both"))
+        }
+        _ => Err(t.error("`roughness_u` and `roughness_v` go together: give both")),
+    }
+}
+
+/// One of `metal`, `eta` + `k`, `ior`, `schlick`; none means `F = 1`.
+fn fresnel(t: &Table) -> Result<Fresnel> {
+    let groups = [
+        t.get("metal").is_some(),
+        t.get("eta").is_some() || t.get("k").is_some(),
+        t.get("ior").is_some(),
+        t.get("schlick").is_some(),
+    ];
+    if groups.iter().filter(|&&g| g).count() > 1 {
+        return Err(t.error(
+            "conflicting Fresnel keys: give only one of `metal`, `eta` + `k`, `ior`, `schlick`",
+        ));
+    }
+    if let Some(v) = t.get("metal") {
+        let name = v.str()?;
+        let metal = Metal::by_name(name).ok_or_else(|| {
+            v.error(format!(
+                "unknown metal \"{name}\" (valid: {})",
+                Metal::names().join(", ")
+            ))
+        })?;
+        let (eta, k) = metal.rgb();
+        return Ok(Fresnel::Conductor {
+            eta: Rgb::from_array(eta),
+            k: Rgb::from_array(k),
+        });
+    }
+    if groups[1] {
+        let ev = t.req("eta")?;
+        let eta = ev.numbers::<3>()?;
+        if eta.iter().any(|&x| x <= 0.0) {
+            return Err(ev.error(format!("eta must be positive, got {eta:?}")));
+        }
+        let kv = t.req("k")?;
+        let k = kv.numbers::<3>()?;
+        if k.iter().any(|&x| x < 0.0) {
+            return Err(kv.error(format!("k must be non-negative, got {k:?}")));
+        }
+        return Ok(Fresnel::Conductor {
+            eta: Rgb::from_array(eta),
+            k: Rgb::from_array(k),
+        });
+    }
+    if let Some(v) = t.get("ior") {
+        let ior = v.f64()?;
+        if !(ior > 0.0) {
+            return Err(v.error(format!("ior must be positive, got {ior}")));
+        }
+        return Ok(Fresnel::Dielectric { ior });
+    }
+    if let Some(v) = t.get("schlick") {
+        let f0 = v.numbers::<3>()?;
+        if f0.iter().any(|&x| !(0.0..=1.0).contains(&x)) {
+            return Err(v.error(format!("schlick F0 must lie in [0, 1], got {f0:?}")));
+        }
+        return Ok(Fresnel::Schlick {
+            f0: Rgb::from_array(f0),
+        });
+    }
+    Ok(Fresnel::One)
 }
 
 /// `transform = { translate, rotate, scale }`: `M = T R S`, rotation in

@@ -43,6 +43,36 @@ reflectance = [0.9, 0.5, 0.1]
 name = "b"
 type = "diffuse"
 
+[[material]]
+name = "gold"
+type = "ggx"
+roughness_u = 0.1
+roughness_v = 0.4
+tangent = [0.0, 1.0, 0.0]
+metal = "Au"
+
+[[material]]
+name = "satin"
+type = "beckmann"
+roughness = 0.3
+eta = [0.2, 0.9, 1.1]
+k = [3.9, 2.4, 2.2]
+
+[[material]]
+name = "coat"
+type = "ggx"
+roughness = 0.2
+ior = 1.5
+
+[[material]]
+name = "paint"
+type = "beckmann"
+schlick = [0.04, 0.04, 0.04]
+
+[[material]]
+name = "mirror"
+type = "conductor"
+
 [[object]]
 name = "blob"
 material = "a"
@@ -90,7 +120,32 @@ fn every_documented_key_is_parsed() {
     assert_eq!(s.lights.len(), 1);
     assert_eq!(s.lights[0].intensity, Rgb::new(10.0, 9.0, 8.0));
     assert!(matches!(s.environment, Environment::Constant(c) if c == Rgb::new(0.1, 0.2, 0.3)));
-    assert_eq!(s.material_names, vec!["a", "b"]);
+    assert_eq!(
+        s.material_names,
+        vec!["a", "b", "gold", "satin", "coat", "paint", "mirror"]
+    );
+    use isolux_materials::{Fresnel, Material};
+    match &s.materials[2] {
+        Material::Ggx(g) => {
+            assert_eq!(
+                (g.lobe.distribution.alpha_x, g.lobe.distribution.alpha_y),
+                (0.1, 0.4)
+            );
+            assert_eq!(g.tangent, Some(DVec3::Y));
+            assert!(matches!(g.lobe.fresnel, Fresnel::Conductor { .. }));
+        }
+        m => panic!("{m:?}"),
+    }
+    assert!(
+        matches!(&s.materials[3], Material::Beckmann(b) if b.lobe.distribution.alpha_x == 0.3 && matches!(b.lobe.fresnel, Fresnel::Conductor { eta, .. } if eta.r == 0.2))
+    );
+    assert!(
+        matches!(&s.materials[4], Material::Ggx(g) if g.lobe.fresnel == Fresnel::Dielectric { ior: 1.5 })
+    );
+    assert!(
+        matches!(&s.materials[5], Material::Beckmann(b) if matches!(b.lobe.fresnel, Fresnel::Schlick { .. }) && b.lobe.distribution.alpha_x == 0.2)
+    );
+    assert!(matches!(&s.materials[6], Material::Conductor(c) if c.fresnel == Fresnel::One));
     assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
     let objs = s.geometry.objects();
     assert_eq!(objs.len(), 5);
@@ -142,7 +197,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, ggx, beckmann, conductor)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
@@ -152,6 +207,16 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"plane\", point = [0, 0, 0], normal = [0, 1, 0] }\n[[object.perturbation]]\nquadric = { type = \"cylinder\", center = [0, 0, 0], axis = [0, 1, 0], radius = 1 }\nfactor = 1\n", "s.toml:4:1: object[0]: perturbation 0 has unbounded support"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n[[object.perturbation]]\nquadric = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:7:1: object[0].perturbation[0].factor: missing required key"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\nbounds = { min = [1, 1, 1], max = [0, 2, 2] }\n", "s.toml:7:10: object[0].bounds: bounds.min must be below bounds.max on every axis"),
+        ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nroughness = 0.1\nroughness_u = 0.2\n", "s.toml:1:1: material[0]: give either `roughness` or `roughness_u` with `roughness_v`, not both"),
+        ("[[material]]\nname = \"m\"\ntype = \"beckmann\"\nroughness_u = 0.2\n", "s.toml:1:1: material[0]: `roughness_u` and `roughness_v` go together: give both"),
+        ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nroughness = 0\n", "s.toml:4:13: material[0].roughness: roughness must lie in (0, 10], got 0"),
+        ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nroughness = nan\n", "s.toml:4:13: material[0].roughness: must be a finite number, got NaN"),
+        ("[[material]]\nname = \"m\"\ntype = \"conductor\"\nmetal = \"Pt\"\n", "s.toml:4:9: material[0].metal: unknown metal \"Pt\" (valid: Ag, Al, Au, Cr, Cu, Fe, Ni, Ti)"),
+        ("[[material]]\nname = \"m\"\ntype = \"conductor\"\nmetal = \"Au\"\nior = 1.5\n", "s.toml:1:1: material[0]: conflicting Fresnel keys: give only one of `metal`, `eta` + `k`, `ior`, `schlick`"),
+        ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nior = 0\n", "s.toml:4:7: material[0].ior: ior must be positive, got 0"),
+        ("[[material]]\nname = \"m\"\ntype = \"ggx\"\neta = [0.2, 0.3, 1.0]\n", "s.toml:1:1: material[0].k: missing required key"),
+        ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nschlick = [0.5, 1.5, 0.5]\n", "s.toml:4:11: material[0].schlick: schlick F0 must lie in [0, 1]"),
+        ("[[material]]\nname = \"m\"\ntype = \"conductor\"\nroughness = 0.1\n", "s.toml:4:1: material[0].roughness: unknown key (valid keys here: eta, ior, k, metal, name, schlick, type)"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
