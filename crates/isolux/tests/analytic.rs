@@ -356,3 +356,21 @@ fn every_model_under_a_white_sky_stays_below_the_sky() {
         }
     }
 }
+
+#[test]
+fn clear_glass_sphere_under_a_white_sky_renders_the_sky() {
+    // Every path reflects or refracts with weight 1 (radiance compressed
+    // by 1/eta^2 on the way in, expanded on the way out) and escapes.
+    let src = SPHERE_SCENE
+        .replace(
+            "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
+            "type = \"dielectric\"\nior = 1.5",
+        )
+        .replace("max_depth = 16", "max_depth = 64");
+    let img = render_with(&scene(&src), 2);
+    for p in &img.rgb {
+        for &v in p {
+            assert!((v - 1.0).abs() < 1e-6, "{p:?}");
+        }
+    }
+}

@@ -66,6 +66,10 @@ pub struct BsdfSample {
     pub pdf: f64,
     /// Lobe that produced the sample.
     pub flags: BxdfFlags,
+    /// Relative index `n_t / n_i` crossed by a transmitted sample (1 for
+    /// reflection): the integrator uses it to undo radiance compression in
+    /// Russian roulette.
+    pub eta: f64,
 }
 
 impl BsdfSample {
@@ -94,7 +98,8 @@ pub trait BxdfModel {
 ///
 /// Opaque reflective models are **two-sided**: the frame's normal is turned
 /// toward `wo`, so a surface seen from inside a solid shades like its
-/// outside. (Transmissive models, added later, keep the geometric side.)
+/// outside. Transmissive models keep the outward normal: which side is
+/// inside decides the relative index of refraction.
 #[derive(Clone, Copy, Debug)]
 pub struct Bsdf<'a, M: BxdfModel> {
     model: &'a M,
@@ -104,7 +109,7 @@ pub struct Bsdf<'a, M: BxdfModel> {
 impl<'a, M: BxdfModel> Bsdf<'a, M> {
     /// Places `model` at a point with unit normal `n` seen from `wo`.
     pub fn new(model: &'a M, n: DVec3, wo: DVec3) -> Self {
-        let n = if wo.dot(n) < 0.0 { -n } else { n };
+        let n = Self::facing(model, n, wo);
         Self {
             model,
             frame: Frame::from_normal(n),
@@ -113,14 +118,23 @@ impl<'a, M: BxdfModel> Bsdf<'a, M> {
 
     /// Places `model` with a tangent for anisotropic models.
     pub fn with_tangent(model: &'a M, n: DVec3, tangent: DVec3, wo: DVec3) -> Self {
-        let n = if wo.dot(n) < 0.0 { -n } else { n };
+        let n = Self::facing(model, n, wo);
         Self {
             model,
             frame: Frame::from_normal_tangent(n, tangent),
         }
     }
 
-    /// The shading normal (facing `wo`).
+    fn facing(model: &M, n: DVec3, wo: DVec3) -> DVec3 {
+        if wo.dot(n) < 0.0 && !model.flags().contains(BxdfFlags::TRANSMISSION) {
+            -n
+        } else {
+            n
+        }
+    }
+
+    /// The shading normal (facing `wo` for opaque models, outward for
+    /// transmissive ones).
     pub fn normal(&self) -> DVec3 {
         self.frame.n
     }

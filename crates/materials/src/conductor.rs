@@ -53,6 +53,7 @@ impl BxdfModel for Conductor {
             f: self.fresnel.eval(wo.z) * (1.0 / wi.z),
             pdf: 1.0,
             flags: BxdfFlags::REFLECTION | BxdfFlags::SPECULAR,
+            eta: 1.0,
         })
     }
     fn pdf(&self, _wo: DVec3, _wi: DVec3) -> f64 {

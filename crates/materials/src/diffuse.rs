@@ -70,6 +70,7 @@ impl BxdfModel for Diffuse {
             f: self.reflectance * INV_PI,
             pdf: sampling::cosine_hemisphere_pdf(wi.z),
             flags: BxdfFlags::REFLECTION | BxdfFlags::DIFFUSE,
+            eta: 1.0,
         })
     }
 

@@ -10,6 +10,7 @@
 //! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
+//! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |
 //!
 //! Shared machinery: [`fresnel`] (dielectric, conductor, Schlick),
 //! [`metals`] (measured `n + ik`), [`microfacet`] (distributions, masking,
@@ -19,6 +20,7 @@
 pub mod beckmann;
 pub mod bxdf;
 pub mod conductor;
+pub mod dielectric;
 pub mod diffuse;
 pub mod fresnel;
 pub mod ggx;
@@ -30,6 +32,7 @@ pub mod validate;
 pub use beckmann::Beckmann;
 pub use bxdf::{Bsdf, BsdfSample, BxdfFlags, BxdfModel};
 pub use conductor::Conductor;
+pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use fresnel::Fresnel;
 pub use ggx::Ggx;

@@ -2,7 +2,7 @@
 //! (no trait objects, so the same plain data can mirror a GPU layout).
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::{Beckmann, Conductor, Diffuse, Ggx};
+use crate::{Beckmann, Conductor, Dielectric, Diffuse, Ggx};
 use isolux_core::{DVec3, Rgb};
 
 /// A named material of a scene.
@@ -16,6 +16,8 @@ pub enum Material {
     Beckmann(Beckmann),
     /// Smooth conductor mirror (`type = "conductor"`).
     Conductor(Conductor),
+    /// Smooth glass (`type = "dielectric"`).
+    Dielectric(Dielectric),
 }
 
 /// Applies `$body` to the model inside any variant.
@@ -26,6 +28,7 @@ macro_rules! dispatch {
             Material::Ggx($m) => $body,
             Material::Beckmann($m) => $body,
             Material::Conductor($m) => $body,
+            Material::Dielectric($m) => $body,
         }
     };
 }
@@ -38,6 +41,7 @@ impl Material {
             Material::Ggx(_) => "ggx",
             Material::Beckmann(_) => "beckmann",
             Material::Conductor(_) => "conductor",
+            Material::Dielectric(_) => "dielectric",
         }
     }
 

@@ -294,6 +294,7 @@ impl MicrofacetReflection {
             f: self.f(wo, wi),
             pdf,
             flags: crate::BxdfFlags::REFLECTION | crate::BxdfFlags::GLOSSY,
+            eta: 1.0,
         })
     }
 

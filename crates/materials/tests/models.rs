@@ -204,3 +204,52 @@ fn smooth_conductor_reflects_f_in_the_mirror_direction() {
     assert!(w.r > w.b, "gold reflects red more than blue");
     assert!(m.f(wo, s.wi).is_black() && m.pdf(wo, s.wi) == 0.0);
 }
+
+#[test]
+fn dielectric_obeys_snell_fresnel_and_energy() {
+    use isolux_materials::Dielectric;
+    let glass = Dielectric { ior: 1.5 };
+    for a in [0.0, 20.0, 45.0, 70.0, 89.0] {
+        for inside in [false, true] {
+            let mut wo = wo_at(a);
+            if inside {
+                wo.z = -wo.z;
+            }
+            let f = isolux_materials::fresnel::dielectric(wo.z, 1.5);
+            // Reflection branch (uc < F) and transmission branch.
+            let r = glass.sample(wo, 0.0, [0.5, 0.5]).unwrap();
+            assert!(r.flags.is_specular());
+            assert!((r.wi - DVec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-15);
+            assert!(
+                (r.weight(r.wi.z).r - 1.0).abs() < 1e-12,
+                "reflection weight F/F = 1"
+            );
+            assert!((r.pdf - f).abs() < 1e-15);
+            let t = glass.sample(wo, 1.0 - 1e-12, [0.5, 0.5]).unwrap();
+            if t.flags.contains(isolux_materials::BxdfFlags::TRANSMISSION) {
+                assert!(f < 1.0);
+                // Snell: n_i sin_i = n_t sin_t, opposite side, same plane.
+                let (ni, nt) = if inside { (1.5, 1.0) } else { (1.0, 1.5) };
+                let sin_i = (1.0 - wo.z * wo.z).sqrt();
+                let sin_t = (1.0 - t.wi.z * t.wi.z).sqrt();
+                assert!((ni * sin_i - nt * sin_t).abs() < 1e-12, "{a} {inside}");
+                assert!(t.wi.z * wo.z < 0.0);
+                assert!(
+                    (t.wi.x * wo.y - t.wi.y * wo.x).abs() < 1e-12,
+                    "plane of incidence"
+                );
+                assert!((t.wi.length() - 1.0).abs() < 1e-12);
+                // Weight (1 - F)/eta'^2 / (1 - F): radiance compression.
+                let w = t.weight(t.wi.z).r;
+                assert!((w - (ni / nt) * (ni / nt)).abs() < 1e-12, "{w}");
+                assert!((t.pdf - (1.0 - f)).abs() < 1e-12);
+            } else {
+                // Total internal reflection: only from inside beyond the
+                // critical angle, where F = 1 and even u -> 1 reflects.
+                assert!(inside && (1.0 - wo.z * wo.z).sqrt() * 1.5 > 1.0);
+                assert_eq!(f, 1.0);
+                assert!(t.wi.z * wo.z > 0.0);
+            }
+        }
+    }
+}

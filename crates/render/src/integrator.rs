@@ -10,8 +10,11 @@
 //!    environment radiance with the matching MIS weight.
 //!
 //! Russian roulette starts after three bounces with survival probability
-//! `min(1, max(throughput))`, so a white furnace (throughput 1) is never
-//! cut short and stays noise-free. Paths end after `max_depth` scattering
+//! `min(1, max(throughput * eta_scale))`, so a white furnace (throughput 1)
+//! is never cut short and stays noise-free. `eta_scale` accumulates `eta'^2`
+//! of every refraction (pbrt-v4 §14.1.4): the radiance compression inside
+//! glass (throughput `1/eta^2`) is undone on the way out and must not be
+//! mistaken for absorption. Paths end after `max_depth` scattering
 //! events.
 //!
 //! Spawned rays start at the hit point moved by `1e-7 (1 + |p|_inf)` along
@@ -55,6 +58,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
     let env = &scene.environment;
     let max_depth = scene.integrator.max_depth;
     let mut depth = 0u32;
+    let mut eta_scale = 1.0;
     loop {
         let Some((obj, hit)) = scene.geometry.intersect(&ray, 0.0, f64::INFINITY) else {
             let le = env.eval(ray.dir);
@@ -125,6 +129,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
             break;
         };
         beta *= s.weight(s.wi.dot(ns));
+        eta_scale *= s.eta * s.eta;
         prev_pdf = if s.flags.is_specular() {
             None
         } else {
@@ -134,7 +139,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
         depth += 1;
 
         if depth >= 3 {
-            let q = beta.max_component();
+            let q = (beta * eta_scale).max_component();
             if q < 1.0 {
                 if rng.next_f64() >= q {
                     break;

@@ -4,14 +4,14 @@ use crate::reader::{Doc, Result, SceneError, Table, Value};
 use isolux_core::{Aabb, DMat3, DMat4, DVec3, Rgb};
 use isolux_geometry::{Aggregate, Object, Perturbation, Quadric};
 use isolux_materials::metals::Metal;
-use isolux_materials::{Beckmann, Conductor, Diffuse, Fresnel, Ggx, Material};
+use isolux_materials::{Beckmann, Conductor, Dielectric, Diffuse, Fresnel, Ggx, Material};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
 use std::path::Path;
 
 /// Material `type` names accepted by this version.
-pub const MATERIAL_TYPES: &[&str] = &["diffuse", "ggx", "beckmann", "conductor"];
+pub const MATERIAL_TYPES: &[&str] = &["diffuse", "ggx", "beckmann", "conductor", "dielectric"];
 
 /// Quadric `type` names.
 pub const QUADRIC_TYPES: &[&str] = &[
@@ -248,6 +248,18 @@ fn material(t: &Table) -> Result<Material> {
                 m.tangent = tangent;
                 Material::Beckmann(m)
             })
+        }
+        "dielectric" => {
+            allow(&["ior"])?;
+            let mut d = Dielectric::default();
+            if let Some(v) = t.get("ior") {
+                let ior = v.f64()?;
+                if !(ior > 0.0) {
+                    return Err(v.error(format!("ior must be positive, got {ior}")));
+                }
+                d.ior = ior;
+            }
+            Ok(Material::Dielectric(d))
         }
         "conductor" => {
             allow(FRESNEL_KEYS)?;

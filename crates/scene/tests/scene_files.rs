@@ -73,6 +73,11 @@ schlick = [0.04, 0.04, 0.04]
 name = "mirror"
 type = "conductor"
 
+[[material]]
+name = "glass"
+type = "dielectric"
+ior = 1.33
+
 [[object]]
 name = "blob"
 material = "a"
@@ -122,7 +127,7 @@ fn every_documented_key_is_parsed() {
     assert!(matches!(s.environment, Environment::Constant(c) if c == Rgb::new(0.1, 0.2, 0.3)));
     assert_eq!(
         s.material_names,
-        vec!["a", "b", "gold", "satin", "coat", "paint", "mirror"]
+        vec!["a", "b", "gold", "satin", "coat", "paint", "mirror", "glass"]
     );
     use isolux_materials::{Fresnel, Material};
     match &s.materials[2] {
@@ -146,6 +151,7 @@ fn every_documented_key_is_parsed() {
         matches!(&s.materials[5], Material::Beckmann(b) if matches!(b.lobe.fresnel, Fresnel::Schlick { .. }) && b.lobe.distribution.alpha_x == 0.2)
     );
     assert!(matches!(&s.materials[6], Material::Conductor(c) if c.fresnel == Fresnel::One));
+    assert!(matches!(&s.materials[7], Material::Dielectric(d) if d.ior == 1.33));
     assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
     let objs = s.geometry.objects();
     assert_eq!(objs.len(), 5);
@@ -197,7 +203,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, ggx, beckmann, conductor)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, ggx, beckmann, conductor, dielectric)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
@@ -217,6 +223,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"m\"\ntype = \"ggx\"\neta = [0.2, 0.3, 1.0]\n", "s.toml:1:1: material[0].k: missing required key"),
         ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nschlick = [0.5, 1.5, 0.5]\n", "s.toml:4:11: material[0].schlick: schlick F0 must lie in [0, 1]"),
         ("[[material]]\nname = \"m\"\ntype = \"conductor\"\nroughness = 0.1\n", "s.toml:4:1: material[0].roughness: unknown key (valid keys here: eta, ior, k, metal, name, schlick, type)"),
+        ("[[material]]\nname = \"g\"\ntype = \"dielectric\"\nior = -1.5\n", "s.toml:4:7: material[0].ior: ior must be positive, got -1.5"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
