@@ -374,3 +374,39 @@ fn clear_glass_sphere_under_a_white_sky_renders_the_sky() {
         }
     }
 }
+
+#[test]
+fn lobe_models_under_a_white_sky_do_not_create_energy() {
+    // Phong-type sample weights can exceed 1 individually ((n+2)/(n+1) cos
+    // for a pure Phong lobe), so the bound is statistical: the mean over
+    // the sphere stays at or below the sky within 4 standard errors.
+    let models = [
+        ("phong", "type = \"phong\"\nexponent = 30\nspecular = [1.0, 1.0, 1.0]"),
+        ("phong+diffuse", "type = \"phong\"\nexponent = 5\nspecular = [0.5, 0.5, 0.5]\nreflectance = [0.5, 0.5, 0.5]"),
+        ("blinn_phong", "type = \"blinn_phong\"\nexponent = 80\nspecular = [1.0, 1.0, 1.0]"),
+    ];
+    for (name, params) in models {
+        let src = SPHERE_SCENE
+            .replace(
+                "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
+                params,
+            )
+            .replace("spp = 4", "spp = 64");
+        let img = render_with(&scene(&src), 2);
+        let vals: Vec<f64> = img
+            .rgb
+            .iter()
+            .filter(|p| p[1] < 0.999 || p[1] > 1.001)
+            .map(|p| p[1] as f64)
+            .collect();
+        let n = vals.len() as f64;
+        let mean = vals.iter().sum::<f64>() / n;
+        let var = vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+        assert!(n > 100.0, "{name}");
+        assert!(
+            mean <= 1.0 + 4.0 * (var / n).sqrt(),
+            "{name}: sphere mean {mean}"
+        );
+        assert!(img.rgb.iter().flatten().all(|v| v.is_finite()));
+    }
+}

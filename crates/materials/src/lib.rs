@@ -7,9 +7,12 @@
 //! | `type` | model | file |
 //! |---|---|---|
 //! | `diffuse` | Lambertian | [`diffuse`] |
+//! | `phong` | normalized Phong lobe + Lambert | [`phong`] |
+//! | `blinn_phong` | bounded Blinn-Phong lobe + Lambert | [`blinn_phong`] |
 //! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
+//! | `mix` | weighted mixture of non-delta materials | [`mix`] |
 //! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |
 //!
 //! Shared machinery: [`fresnel`] (dielectric, conductor, Schlick),
@@ -18,18 +21,23 @@
 #![warn(missing_docs)]
 
 pub mod beckmann;
+pub mod blinn_phong;
 pub mod bxdf;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
 pub mod fresnel;
 pub mod ggx;
+pub mod lobe;
 pub mod material;
 pub mod metals;
 pub mod microfacet;
+pub mod mix;
+pub mod phong;
 pub mod validate;
 
 pub use beckmann::Beckmann;
+pub use blinn_phong::BlinnPhong;
 pub use bxdf::{Bsdf, BsdfSample, BxdfFlags, BxdfModel};
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
@@ -37,3 +45,5 @@ pub use diffuse::Diffuse;
 pub use fresnel::Fresnel;
 pub use ggx::Ggx;
 pub use material::Material;
+pub use mix::Mix;
+pub use phong::Phong;

@@ -2,7 +2,7 @@
 //! (no trait objects, so the same plain data can mirror a GPU layout).
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::{Beckmann, Conductor, Dielectric, Diffuse, Ggx};
+use crate::{Beckmann, BlinnPhong, Conductor, Dielectric, Diffuse, Ggx, Mix, Phong};
 use isolux_core::{DVec3, Rgb};
 
 /// A named material of a scene.
@@ -10,6 +10,10 @@ use isolux_core::{DVec3, Rgb};
 pub enum Material {
     /// Lambertian reflection (`type = "diffuse"`).
     Diffuse(Diffuse),
+    /// Normalized Phong (`type = "phong"`).
+    Phong(Phong),
+    /// Bounded Blinn-Phong (`type = "blinn_phong"`).
+    BlinnPhong(BlinnPhong),
     /// GGX microfacet reflection (`type = "ggx"`).
     Ggx(Ggx),
     /// Beckmann microfacet reflection (`type = "beckmann"`).
@@ -18,6 +22,8 @@ pub enum Material {
     Conductor(Conductor),
     /// Smooth glass (`type = "dielectric"`).
     Dielectric(Dielectric),
+    /// Weighted mixture (`type = "mix"`).
+    Mix(Mix),
 }
 
 /// Applies `$body` to the model inside any variant.
@@ -25,10 +31,13 @@ macro_rules! dispatch {
     ($self:expr, $m:ident => $body:expr) => {
         match $self {
             Material::Diffuse($m) => $body,
+            Material::Phong($m) => $body,
+            Material::BlinnPhong($m) => $body,
             Material::Ggx($m) => $body,
             Material::Beckmann($m) => $body,
             Material::Conductor($m) => $body,
             Material::Dielectric($m) => $body,
+            Material::Mix($m) => $body,
         }
     };
 }
@@ -38,10 +47,13 @@ impl Material {
     pub fn type_name(&self) -> &'static str {
         match self {
             Material::Diffuse(_) => "diffuse",
+            Material::Phong(_) => "phong",
+            Material::BlinnPhong(_) => "blinn_phong",
             Material::Ggx(_) => "ggx",
             Material::Beckmann(_) => "beckmann",
             Material::Conductor(_) => "conductor",
             Material::Dielectric(_) => "dielectric",
+            Material::Mix(_) => "mix",
         }
     }
 
@@ -50,6 +62,7 @@ impl Material {
         match self {
             Material::Ggx(m) => m.tangent,
             Material::Beckmann(m) => m.tangent,
+            Material::Mix(m) => m.components.iter().find_map(|(c, _)| c.tangent()),
             _ => None,
         }
     }

@@ -4,14 +4,26 @@ use crate::reader::{Doc, Result, SceneError, Table, Value};
 use isolux_core::{Aabb, DMat3, DMat4, DVec3, Rgb};
 use isolux_geometry::{Aggregate, Object, Perturbation, Quadric};
 use isolux_materials::metals::Metal;
-use isolux_materials::{Beckmann, Conductor, Dielectric, Diffuse, Fresnel, Ggx, Material};
+use isolux_materials::{
+    Beckmann, BlinnPhong, BxdfModel, Conductor, Dielectric, Diffuse, Fresnel, Ggx, Material, Mix,
+    Phong,
+};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
 use std::path::Path;
 
 /// Material `type` names accepted by this version.
-pub const MATERIAL_TYPES: &[&str] = &["diffuse", "ggx", "beckmann", "conductor", "dielectric"];
+pub const MATERIAL_TYPES: &[&str] = &[
+    "diffuse",
+    "phong",
+    "blinn_phong",
+    "ggx",
+    "beckmann",
+    "conductor",
+    "dielectric",
+    "mix",
+];
 
 /// Quadric `type` names.
 pub const QUADRIC_TYPES: &[&str] = &[
@@ -75,7 +87,8 @@ pub fn parse_str(
             if scene.material_names.iter().any(|n| n == name) {
                 return Err(name_v.error(format!("duplicate material name \"{name}\"")));
             }
-            scene.materials.push(material(&m)?);
+            let mat = material(&m, &scene.material_names, &scene.materials)?;
+            scene.materials.push(mat);
             scene.material_names.push(name.to_string());
         }
     }
@@ -216,7 +229,7 @@ fn environment(t: &Table, base_dir: &Path) -> Result<Environment> {
 /// Keys that select a Fresnel term.
 const FRESNEL_KEYS: &[&str] = &["metal", "eta", "k", "ior", "schlick"];
 
-fn material(t: &Table) -> Result<Material> {
+fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Material> {
     let ty = t.req("type")?.choice(MATERIAL_TYPES)?;
     let allow = |extra: &[&str]| {
         let mut keys = vec!["name", "type"];
@@ -231,6 +244,80 @@ fn material(t: &Table) -> Result<Material> {
                 d.reflectance = reflectance(&v)?;
             }
             Ok(Material::Diffuse(d))
+        }
+        "phong" | "blinn_phong" => {
+            allow(&["exponent", "specular", "reflectance"])?;
+            let exponent = match t.get("exponent") {
+                Some(v) => {
+                    let n = v.f64()?;
+                    if !(0.0..=1e6).contains(&n) {
+                        return Err(v.error(format!("exponent must lie in [0, 1e6], got {n}")));
+                    }
+                    n
+                }
+                None => 32.0,
+            };
+            let specular = match t.get("specular") {
+                Some(v) => reflectance(&v)?,
+                None => Rgb::splat(0.5),
+            };
+            let diffuse = match t.get("reflectance") {
+                Some(v) => reflectance(&v)?,
+                None => Rgb::BLACK,
+            };
+            let sum = specular + diffuse;
+            if sum.max_component() > 1.0 + 1e-12 {
+                return Err(t.error(format!(
+                    "reflectance + specular = {:?} exceeds 1: the material would create energy",
+                    sum.to_array()
+                )));
+            }
+            Ok(if ty == "phong" {
+                Material::Phong(Phong::new(exponent, specular, diffuse))
+            } else {
+                Material::BlinnPhong(BlinnPhong::new(exponent, specular, diffuse))
+            })
+        }
+        "mix" => {
+            allow(&["components"])?;
+            let cv = t.req("components")?;
+            let mut components = Vec::new();
+            let mut total = 0.0;
+            for c in cv.array()? {
+                let ct = c.table()?;
+                ct.allow(&["material", "weight"])?;
+                let mv = ct.req("material")?;
+                let name = mv.str()?;
+                let idx = names.iter().position(|n| n == name).ok_or_else(|| {
+                    mv.error(format!(
+                        "unknown material \"{name}\": a mix refers to materials defined before it (defined: {})",
+                        if names.is_empty() { "none".to_string() } else { names.join(", ") }
+                    ))
+                })?;
+                let m = earlier[idx].clone();
+                if m.flags().is_specular() {
+                    return Err(mv.error(format!(
+                        "\"{name}\" is a delta ({}) material: mix components must be non-delta reflection models",
+                        m.type_name()
+                    )));
+                }
+                let wv = ct.req("weight")?;
+                let w = wv.f64()?;
+                if w < 0.0 {
+                    return Err(wv.error(format!("weight must be non-negative, got {w}")));
+                }
+                total += w;
+                components.push((m, w));
+            }
+            if components.is_empty() {
+                return Err(cv.error("a mix needs at least one component"));
+            }
+            if total > 1.0 + 1e-12 {
+                return Err(cv.error(format!(
+                    "weights sum to {total}, above 1: the mix would create energy"
+                )));
+            }
+            Ok(Material::Mix(Mix { components }))
         }
         "ggx" | "beckmann" => {
             let mut keys = vec!["roughness", "roughness_u", "roughness_v", "tangent"];

@@ -78,6 +78,23 @@ name = "glass"
 type = "dielectric"
 ior = 1.33
 
+[[material]]
+name = "shiny"
+type = "phong"
+exponent = 50
+specular = [0.2, 0.2, 0.2]
+reflectance = [0.7, 0.7, 0.7]
+
+[[material]]
+name = "lacquer"
+type = "blinn_phong"
+exponent = 120
+
+[[material]]
+name = "blend"
+type = "mix"
+components = [{ material = "b", weight = 0.5 }, { material = "gold", weight = 0.25 }]
+
 [[object]]
 name = "blob"
 material = "a"
@@ -127,7 +144,10 @@ fn every_documented_key_is_parsed() {
     assert!(matches!(s.environment, Environment::Constant(c) if c == Rgb::new(0.1, 0.2, 0.3)));
     assert_eq!(
         s.material_names,
-        vec!["a", "b", "gold", "satin", "coat", "paint", "mirror", "glass"]
+        vec![
+            "a", "b", "gold", "satin", "coat", "paint", "mirror", "glass", "shiny", "lacquer",
+            "blend"
+        ]
     );
     use isolux_materials::{Fresnel, Material};
     match &s.materials[2] {
@@ -152,6 +172,15 @@ fn every_documented_key_is_parsed() {
     );
     assert!(matches!(&s.materials[6], Material::Conductor(c) if c.fresnel == Fresnel::One));
     assert!(matches!(&s.materials[7], Material::Dielectric(d) if d.ior == 1.33));
+    assert!(
+        matches!(&s.materials[8], Material::Phong(p) if p.0.lobe.exponent == 50.0 && p.0.reflectance.r == 0.7)
+    );
+    assert!(
+        matches!(&s.materials[9], Material::BlinnPhong(p) if p.0.lobe.exponent == 120.0 && p.0.specular.g == 0.5)
+    );
+    assert!(
+        matches!(&s.materials[10], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
+    );
     assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
     let objs = s.geometry.objects();
     assert_eq!(objs.len(), 5);
@@ -203,7 +232,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, ggx, beckmann, conductor, dielectric)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, ggx, beckmann, conductor, dielectric, mix)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
@@ -224,6 +253,10 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nschlick = [0.5, 1.5, 0.5]\n", "s.toml:4:11: material[0].schlick: schlick F0 must lie in [0, 1]"),
         ("[[material]]\nname = \"m\"\ntype = \"conductor\"\nroughness = 0.1\n", "s.toml:4:1: material[0].roughness: unknown key (valid keys here: eta, ior, k, metal, name, schlick, type)"),
         ("[[material]]\nname = \"g\"\ntype = \"dielectric\"\nior = -1.5\n", "s.toml:4:7: material[0].ior: ior must be positive, got -1.5"),
+        ("[[material]]\nname = \"p\"\ntype = \"phong\"\nspecular = [0.6, 0.6, 0.6]\nreflectance = [0.5, 0.3, 0.3]\n", "s.toml:1:1: material[0]: reflectance + specular = [1.1, 0.8999999999999999, 0.8999999999999999] exceeds 1"),
+        ("[[material]]\nname = \"a\"\ntype = \"diffuse\"\n[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"a\", weight = 0.7 }, { material = \"a\", weight = 0.4 }]\n", "s.toml:7:14: material[1].components: weights sum to 1.1"),
+        ("[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"later\", weight = 0.5 }]\n", "s.toml:4:28: material[0].components[0].material: unknown material \"later\": a mix refers to materials defined before it (defined: none)"),
+        ("[[material]]\nname = \"g\"\ntype = \"dielectric\"\n[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"g\", weight = 0.5 }]\n", "s.toml:7:28: material[1].components[0].material: \"g\" is a delta (dielectric) material"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
