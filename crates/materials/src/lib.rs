@@ -9,6 +9,8 @@
 //! | `diffuse` | Lambertian | [`diffuse`] |
 //! | `phong` | normalized Phong lobe + Lambert | [`phong`] |
 //! | `blinn_phong` | bounded Blinn-Phong lobe + Lambert | [`blinn_phong`] |
+//! | `gaussian` | the seed's Gaussian highlight, numerically normalized | [`gaussian`] |
+//! | `cook_torrance` | Cook-Torrance (Beckmann/GGX/Gaussian, V-groove/Smith) + Lambert | [`cook_torrance`] |
 //! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
@@ -24,9 +26,11 @@ pub mod beckmann;
 pub mod blinn_phong;
 pub mod bxdf;
 pub mod conductor;
+pub mod cook_torrance;
 pub mod dielectric;
 pub mod diffuse;
 pub mod fresnel;
+pub mod gaussian;
 pub mod ggx;
 pub mod lobe;
 pub mod material;
@@ -40,9 +44,11 @@ pub use beckmann::Beckmann;
 pub use blinn_phong::BlinnPhong;
 pub use bxdf::{Bsdf, BsdfSample, BxdfFlags, BxdfModel};
 pub use conductor::Conductor;
+pub use cook_torrance::CookTorrance;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use fresnel::Fresnel;
+pub use gaussian::Gaussian;
 pub use ggx::Ggx;
 pub use material::Material;
 pub use mix::Mix;

@@ -2,7 +2,9 @@
 //! (no trait objects, so the same plain data can mirror a GPU layout).
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::{Beckmann, BlinnPhong, Conductor, Dielectric, Diffuse, Ggx, Mix, Phong};
+use crate::{
+    Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx, Mix, Phong,
+};
 use isolux_core::{DVec3, Rgb};
 
 /// A named material of a scene.
@@ -14,6 +16,10 @@ pub enum Material {
     Phong(Phong),
     /// Bounded Blinn-Phong (`type = "blinn_phong"`).
     BlinnPhong(BlinnPhong),
+    /// Gaussian highlight (`type = "gaussian"`).
+    Gaussian(Gaussian),
+    /// Cook-Torrance (`type = "cook_torrance"`).
+    CookTorrance(CookTorrance),
     /// GGX microfacet reflection (`type = "ggx"`).
     Ggx(Ggx),
     /// Beckmann microfacet reflection (`type = "beckmann"`).
@@ -33,6 +39,8 @@ macro_rules! dispatch {
             Material::Diffuse($m) => $body,
             Material::Phong($m) => $body,
             Material::BlinnPhong($m) => $body,
+            Material::Gaussian($m) => $body,
+            Material::CookTorrance($m) => $body,
             Material::Ggx($m) => $body,
             Material::Beckmann($m) => $body,
             Material::Conductor($m) => $body,
@@ -49,6 +57,8 @@ impl Material {
             Material::Diffuse(_) => "diffuse",
             Material::Phong(_) => "phong",
             Material::BlinnPhong(_) => "blinn_phong",
+            Material::Gaussian(_) => "gaussian",
+            Material::CookTorrance(_) => "cook_torrance",
             Material::Ggx(_) => "ggx",
             Material::Beckmann(_) => "beckmann",
             Material::Conductor(_) => "conductor",

@@ -2,11 +2,15 @@
 //! pdf, consistency of sampled values, reciprocity, and energy.
 
 use isolux_core::{DVec3, Pcg32, Rgb};
+use isolux_materials::cook_torrance::{Masking, NormalDistribution};
+use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::metals::Metal;
+use isolux_materials::microfacet::{Kind, Microfacet};
 use isolux_materials::validate::{albedo_quadrature, chi2_test, sidak};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, Diffuse, Fresnel, Ggx, Material, Mix, Phong,
 };
+use isolux_materials::{CookTorrance, Gaussian};
 
 fn gold() -> Fresnel {
     let (eta, k) = Metal::by_name("Au").unwrap().rgb();
@@ -65,6 +69,44 @@ fn models() -> Vec<(&'static str, Material)> {
                     ),
                     (Material::Ggx(Ggx::new(0.08, 0.3, Fresnel::One)), 0.4),
                 ],
+            }),
+        ),
+        (
+            "gaussian 0.2 + diffuse",
+            Material::Gaussian(Gaussian::new(0.2, Rgb::splat(0.5), Rgb::new(0.3, 0.4, 0.5))),
+        ),
+        (
+            "gaussian 0.6",
+            Material::Gaussian(Gaussian::new(0.6, Rgb::WHITE, Rgb::BLACK)),
+        ),
+        (
+            "ct beckmann vgroove 0.3 glass",
+            Material::CookTorrance(CookTorrance {
+                distribution: NormalDistribution::Analytic(Microfacet::isotropic(
+                    Kind::Beckmann,
+                    0.3,
+                )),
+                masking: Masking::VGroove,
+                fresnel: Fresnel::Dielectric { ior: 1.5 },
+                reflectance: Rgb::splat(0.9),
+            }),
+        ),
+        (
+            "ct ggx smith 0.5 F=1",
+            Material::CookTorrance(CookTorrance {
+                distribution: NormalDistribution::Analytic(Microfacet::isotropic(Kind::Ggx, 0.5)),
+                masking: Masking::Smith,
+                fresnel: Fresnel::One,
+                reflectance: Rgb::BLACK,
+            }),
+        ),
+        (
+            "ct gaussian vgroove 0.7 F=1",
+            Material::CookTorrance(CookTorrance {
+                distribution: NormalDistribution::Gaussian(GaussianDistribution::new(0.7)),
+                masking: Masking::VGroove,
+                fresnel: Fresnel::One,
+                reflectance: Rgb::BLACK,
             }),
         ),
         ("ggx 0.1 Au", Material::Ggx(Ggx::new(0.1, 0.1, gold()))),
@@ -313,5 +355,19 @@ fn phong_albedo_is_one_at_normal_incidence() {
         assert!((a0 - 1.0).abs() < 2e-3, "n {n}: {a0}");
         let a60 = albedo_quadrature(|wi| m.f(wo_at(60.0), wi).r, 2000);
         assert!(a60 < a0, "n {n}: {a60}");
+    }
+}
+
+#[test]
+fn gaussian_distribution_is_normalized() {
+    for m in [0.05, 0.2, 0.6, 1.0] {
+        let g = GaussianDistribution::new(m);
+        let v = albedo_quadrature(|h| g.d(h), 4000);
+        assert!((v - 1.0).abs() < 2e-3, "m {m}: int D cos = {v}");
+        let p = albedo_quadrature(|h| g.pdf_m(h) / h.z, 4000);
+        assert!(
+            (p - 1.0).abs() < 2e-3,
+            "m {m}: sampling density integrates to {p}"
+        );
     }
 }

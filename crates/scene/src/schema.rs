@@ -3,10 +3,13 @@
 use crate::reader::{Doc, Result, SceneError, Table, Value};
 use isolux_core::{Aabb, DMat3, DMat4, DVec3, Rgb};
 use isolux_geometry::{Aggregate, Object, Perturbation, Quadric};
+use isolux_materials::cook_torrance::{Masking, NormalDistribution};
+use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::metals::Metal;
+use isolux_materials::microfacet::{Kind, Microfacet};
 use isolux_materials::{
-    Beckmann, BlinnPhong, BxdfModel, Conductor, Dielectric, Diffuse, Fresnel, Ggx, Material, Mix,
-    Phong,
+    Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
+    Gaussian, Ggx, Material, Mix, Phong,
 };
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
@@ -18,6 +21,8 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "diffuse",
     "phong",
     "blinn_phong",
+    "gaussian",
+    "cook_torrance",
     "ggx",
     "beckmann",
     "conductor",
@@ -257,26 +262,80 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 }
                 None => 32.0,
             };
-            let specular = match t.get("specular") {
-                Some(v) => reflectance(&v)?,
-                None => Rgb::splat(0.5),
-            };
-            let diffuse = match t.get("reflectance") {
-                Some(v) => reflectance(&v)?,
-                None => Rgb::BLACK,
-            };
-            let sum = specular + diffuse;
-            if sum.max_component() > 1.0 + 1e-12 {
-                return Err(t.error(format!(
-                    "reflectance + specular = {:?} exceeds 1: the material would create energy",
-                    sum.to_array()
-                )));
-            }
+            let (specular, diffuse) = lobe_weights(t)?;
             Ok(if ty == "phong" {
                 Material::Phong(Phong::new(exponent, specular, diffuse))
             } else {
                 Material::BlinnPhong(BlinnPhong::new(exponent, specular, diffuse))
             })
+        }
+        "gaussian" => {
+            allow(&["m", "specular", "reflectance"])?;
+            let m = match t.get("m") {
+                Some(v) => {
+                    let m = v.f64()?;
+                    if !(m > 0.0 && m <= 1.0) {
+                        return Err(v.error(format!("m must lie in (0, 1], got {m}")));
+                    }
+                    m
+                }
+                None => 0.2,
+            };
+            let (specular, diffuse) = lobe_weights(t)?;
+            Ok(Material::Gaussian(Gaussian::new(m, specular, diffuse)))
+        }
+        "cook_torrance" => {
+            let mut keys = vec!["roughness", "distribution", "masking", "reflectance"];
+            keys.extend_from_slice(FRESNEL_KEYS);
+            allow(&keys)?;
+            let dist = match t.get("distribution") {
+                Some(v) => v.choice(&["beckmann", "ggx", "gaussian"])?,
+                None => "beckmann",
+            };
+            let masking = match t.get("masking") {
+                Some(v) => match v.choice(&["cook_torrance", "smith"])? {
+                    "smith" if dist == "gaussian" => {
+                        return Err(v.error(
+                            "smith masking needs distribution = \"beckmann\" or \"ggx\" (the Gaussian has no closed-form Lambda)",
+                        ))
+                    }
+                    "smith" => Masking::Smith,
+                    _ => Masking::VGroove,
+                },
+                None => Masking::VGroove,
+            };
+            let rough = match t.get("roughness") {
+                Some(v) => {
+                    let r = v.f64()?;
+                    if !(r > 0.0 && r <= 10.0) {
+                        return Err(v.error(format!("roughness must lie in (0, 10], got {r}")));
+                    }
+                    r
+                }
+                None => 0.3,
+            };
+            let distribution = match dist {
+                "ggx" => NormalDistribution::Analytic(Microfacet::isotropic(Kind::Ggx, rough)),
+                "beckmann" => {
+                    NormalDistribution::Analytic(Microfacet::isotropic(Kind::Beckmann, rough))
+                }
+                _ => NormalDistribution::Gaussian(GaussianDistribution::new(rough)),
+            };
+            let fresnel = if FRESNEL_KEYS.iter().any(|k| t.get(k).is_some()) {
+                fresnel(t)?
+            } else {
+                Fresnel::Dielectric { ior: 1.5 }
+            };
+            let reflectance = match t.get("reflectance") {
+                Some(v) => reflectance(&v)?,
+                None => Rgb::BLACK,
+            };
+            Ok(Material::CookTorrance(CookTorrance {
+                distribution,
+                masking,
+                fresnel,
+                reflectance,
+            }))
         }
         "mix" => {
             allow(&["components"])?;
@@ -356,6 +415,26 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
         }
         _ => unreachable!("choice() validated the type"),
     }
+}
+
+/// `specular` (default 0.5) and `reflectance` (default 0), summing to <= 1.
+fn lobe_weights(t: &Table) -> Result<(Rgb, Rgb)> {
+    let specular = match t.get("specular") {
+        Some(v) => reflectance(&v)?,
+        None => Rgb::splat(0.5),
+    };
+    let diffuse = match t.get("reflectance") {
+        Some(v) => reflectance(&v)?,
+        None => Rgb::BLACK,
+    };
+    let sum = specular + diffuse;
+    if sum.max_component() > 1.0 + 1e-12 {
+        return Err(t.error(format!(
+            "reflectance + specular = {:?} exceeds 1: the material would create energy",
+            sum.to_array()
+        )));
+    }
+    Ok((specular, diffuse))
 }
 
 /// `roughness`, or `roughness_u` with `roughness_v`; default 0.2.

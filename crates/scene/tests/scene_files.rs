@@ -91,6 +91,22 @@ type = "blinn_phong"
 exponent = 120
 
 [[material]]
+name = "gauss"
+type = "gaussian"
+m = 0.3
+specular = [0.3, 0.3, 0.3]
+reflectance = [0.2, 0.2, 0.2]
+
+[[material]]
+name = "ct"
+type = "cook_torrance"
+roughness = 0.2
+distribution = "ggx"
+masking = "smith"
+metal = "Cu"
+reflectance = [0.1, 0.1, 0.1]
+
+[[material]]
 name = "blend"
 type = "mix"
 components = [{ material = "b", weight = 0.5 }, { material = "gold", weight = 0.25 }]
@@ -146,7 +162,7 @@ fn every_documented_key_is_parsed() {
         s.material_names,
         vec![
             "a", "b", "gold", "satin", "coat", "paint", "mirror", "glass", "shiny", "lacquer",
-            "blend"
+            "gauss", "ct", "blend"
         ]
     );
     use isolux_materials::{Fresnel, Material};
@@ -178,8 +194,12 @@ fn every_documented_key_is_parsed() {
     assert!(
         matches!(&s.materials[9], Material::BlinnPhong(p) if p.0.lobe.exponent == 120.0 && p.0.specular.g == 0.5)
     );
+    assert!(matches!(&s.materials[10], Material::Gaussian(g) if g.specular.r == 0.3));
     assert!(
-        matches!(&s.materials[10], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
+        matches!(&s.materials[11], Material::CookTorrance(c) if c.masking == isolux_materials::cook_torrance::Masking::Smith && c.reflectance.g == 0.1)
+    );
+    assert!(
+        matches!(&s.materials[12], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
     );
     assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
     let objs = s.geometry.objects();
@@ -232,7 +252,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, ggx, beckmann, conductor, dielectric, mix)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ggx, beckmann, conductor, dielectric, mix)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
@@ -257,6 +277,9 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"a\"\ntype = \"diffuse\"\n[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"a\", weight = 0.7 }, { material = \"a\", weight = 0.4 }]\n", "s.toml:7:14: material[1].components: weights sum to 1.1"),
         ("[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"later\", weight = 0.5 }]\n", "s.toml:4:28: material[0].components[0].material: unknown material \"later\": a mix refers to materials defined before it (defined: none)"),
         ("[[material]]\nname = \"g\"\ntype = \"dielectric\"\n[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"g\", weight = 0.5 }]\n", "s.toml:7:28: material[1].components[0].material: \"g\" is a delta (dielectric) material"),
+        ("[[material]]\nname = \"c\"\ntype = \"cook_torrance\"\ndistribution = \"gaussian\"\nmasking = \"smith\"\n", "s.toml:5:11: material[0].masking: smith masking needs distribution"),
+        ("[[material]]\nname = \"c\"\ntype = \"cook_torrance\"\ndistribution = \"phong\"\n", "s.toml:4:16: material[0].distribution: unknown value \"phong\" (valid: beckmann, ggx, gaussian)"),
+        ("[[material]]\nname = \"c\"\ntype = \"gaussian\"\nm = 1.5\n", "s.toml:4:5: material[0].m: m must lie in (0, 1], got 1.5"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
