@@ -11,6 +11,7 @@
 //! | `blinn_phong` | bounded Blinn-Phong lobe + Lambert | [`blinn_phong`] |
 //! | `gaussian` | the seed's Gaussian highlight, numerically normalized | [`gaussian`] |
 //! | `cook_torrance` | Cook-Torrance (Beckmann/GGX/Gaussian, V-groove/Smith) + Lambert | [`cook_torrance`] |
+//! | `ward` | anisotropic Ward, bounded-albedo form | [`ward`] |
 //! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
@@ -39,6 +40,7 @@ pub mod microfacet;
 pub mod mix;
 pub mod phong;
 pub mod validate;
+pub mod ward;
 
 pub use beckmann::Beckmann;
 pub use blinn_phong::BlinnPhong;
@@ -53,3 +55,4 @@ pub use ggx::Ggx;
 pub use material::Material;
 pub use mix::Mix;
 pub use phong::Phong;
+pub use ward::Ward;

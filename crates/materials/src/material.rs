@@ -4,6 +4,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
     Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx, Mix, Phong,
+    Ward,
 };
 use isolux_core::{DVec3, Rgb};
 
@@ -20,6 +21,8 @@ pub enum Material {
     Gaussian(Gaussian),
     /// Cook-Torrance (`type = "cook_torrance"`).
     CookTorrance(CookTorrance),
+    /// Anisotropic Ward (`type = "ward"`).
+    Ward(Ward),
     /// GGX microfacet reflection (`type = "ggx"`).
     Ggx(Ggx),
     /// Beckmann microfacet reflection (`type = "beckmann"`).
@@ -41,6 +44,7 @@ macro_rules! dispatch {
             Material::BlinnPhong($m) => $body,
             Material::Gaussian($m) => $body,
             Material::CookTorrance($m) => $body,
+            Material::Ward($m) => $body,
             Material::Ggx($m) => $body,
             Material::Beckmann($m) => $body,
             Material::Conductor($m) => $body,
@@ -59,6 +63,7 @@ impl Material {
             Material::BlinnPhong(_) => "blinn_phong",
             Material::Gaussian(_) => "gaussian",
             Material::CookTorrance(_) => "cook_torrance",
+            Material::Ward(_) => "ward",
             Material::Ggx(_) => "ggx",
             Material::Beckmann(_) => "beckmann",
             Material::Conductor(_) => "conductor",
@@ -72,6 +77,7 @@ impl Material {
         match self {
             Material::Ggx(m) => m.tangent,
             Material::Beckmann(m) => m.tangent,
+            Material::Ward(m) => m.tangent,
             Material::Mix(m) => m.components.iter().find_map(|(c, _)| c.tangent()),
             _ => None,
         }

@@ -10,7 +10,7 @@ use isolux_materials::validate::{albedo_quadrature, chi2_test, sidak};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, Diffuse, Fresnel, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{CookTorrance, Gaussian};
+use isolux_materials::{CookTorrance, Gaussian, Ward};
 
 fn gold() -> Fresnel {
     let (eta, k) = Metal::by_name("Au").unwrap().rgb();
@@ -108,6 +108,18 @@ fn models() -> Vec<(&'static str, Material)> {
                 fresnel: Fresnel::One,
                 reflectance: Rgb::BLACK,
             }),
+        ),
+        (
+            "ward 0.2 + diffuse",
+            Material::Ward(Ward::new(0.2, 0.2, Rgb::splat(0.4), Rgb::splat(0.5))),
+        ),
+        (
+            "ward aniso 0.05/0.4",
+            Material::Ward(Ward::new(0.05, 0.4, Rgb::WHITE, Rgb::BLACK)),
+        ),
+        (
+            "ward 0.7",
+            Material::Ward(Ward::new(0.7, 0.7, Rgb::WHITE, Rgb::BLACK)),
         ),
         ("ggx 0.1 Au", Material::Ggx(Ggx::new(0.1, 0.1, gold()))),
         ("ggx 0.5", Material::Ggx(Ggx::new(0.5, 0.5, Fresnel::One))),

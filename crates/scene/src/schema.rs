@@ -7,6 +7,7 @@ use isolux_materials::cook_torrance::{Masking, NormalDistribution};
 use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::metals::Metal;
 use isolux_materials::microfacet::{Kind, Microfacet};
+use isolux_materials::Ward;
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
     Gaussian, Ggx, Material, Mix, Phong,
@@ -23,6 +24,7 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "blinn_phong",
     "gaussian",
     "cook_torrance",
+    "ward",
     "ggx",
     "beckmann",
     "conductor",
@@ -283,6 +285,25 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
             };
             let (specular, diffuse) = lobe_weights(t)?;
             Ok(Material::Gaussian(Gaussian::new(m, specular, diffuse)))
+        }
+        "ward" => {
+            allow(&["alpha_u", "alpha_v", "specular", "reflectance", "tangent"])?;
+            let alpha = |key: &str| -> Result<f64> {
+                match t.get(key) {
+                    Some(v) => {
+                        let a = v.f64()?;
+                        if !(a > 0.0 && a <= 10.0) {
+                            return Err(v.error(format!("{key} must lie in (0, 10], got {a}")));
+                        }
+                        Ok(a)
+                    }
+                    None => Ok(0.15),
+                }
+            };
+            let (specular, diffuse) = lobe_weights(t)?;
+            let mut w = Ward::new(alpha("alpha_u")?, alpha("alpha_v")?, specular, diffuse);
+            w.tangent = t.get("tangent").map(|v| direction(&v)).transpose()?;
+            Ok(Material::Ward(w))
         }
         "cook_torrance" => {
             let mut keys = vec!["roughness", "distribution", "masking", "reflectance"];

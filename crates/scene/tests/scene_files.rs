@@ -107,6 +107,14 @@ metal = "Cu"
 reflectance = [0.1, 0.1, 0.1]
 
 [[material]]
+name = "wardish"
+type = "ward"
+alpha_u = 0.1
+alpha_v = 0.3
+specular = [0.4, 0.4, 0.4]
+tangent = [1.0, 0.0, 0.0]
+
+[[material]]
 name = "blend"
 type = "mix"
 components = [{ material = "b", weight = 0.5 }, { material = "gold", weight = 0.25 }]
@@ -162,7 +170,7 @@ fn every_documented_key_is_parsed() {
         s.material_names,
         vec![
             "a", "b", "gold", "satin", "coat", "paint", "mirror", "glass", "shiny", "lacquer",
-            "gauss", "ct", "blend"
+            "gauss", "ct", "wardish", "blend"
         ]
     );
     use isolux_materials::{Fresnel, Material};
@@ -199,7 +207,10 @@ fn every_documented_key_is_parsed() {
         matches!(&s.materials[11], Material::CookTorrance(c) if c.masking == isolux_materials::cook_torrance::Masking::Smith && c.reflectance.g == 0.1)
     );
     assert!(
-        matches!(&s.materials[12], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
+        matches!(&s.materials[12], Material::Ward(w) if w.inner.lobe.alpha_y == 0.3 && w.tangent == Some(DVec3::X))
+    );
+    assert!(
+        matches!(&s.materials[13], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
     );
     assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
     let objs = s.geometry.objects();
@@ -252,7 +263,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ggx, beckmann, conductor, dielectric, mix)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ward, ggx, beckmann, conductor, dielectric, mix)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
@@ -280,6 +291,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"c\"\ntype = \"cook_torrance\"\ndistribution = \"gaussian\"\nmasking = \"smith\"\n", "s.toml:5:11: material[0].masking: smith masking needs distribution"),
         ("[[material]]\nname = \"c\"\ntype = \"cook_torrance\"\ndistribution = \"phong\"\n", "s.toml:4:16: material[0].distribution: unknown value \"phong\" (valid: beckmann, ggx, gaussian)"),
         ("[[material]]\nname = \"c\"\ntype = \"gaussian\"\nm = 1.5\n", "s.toml:4:5: material[0].m: m must lie in (0, 1], got 1.5"),
+        ("[[material]]\nname = \"w\"\ntype = \"ward\"\nalpha_u = -0.1\n", "s.toml:4:11: material[0].alpha_u: alpha_u must lie in (0, 10], got -0.1"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
