@@ -384,6 +384,8 @@ fn lobe_models_under_a_white_sky_do_not_create_energy() {
         ("phong", "type = \"phong\"\nexponent = 30\nspecular = [1.0, 1.0, 1.0]"),
         ("phong+diffuse", "type = \"phong\"\nexponent = 5\nspecular = [0.5, 0.5, 0.5]\nreflectance = [0.5, 0.5, 0.5]"),
         ("blinn_phong", "type = \"blinn_phong\"\nexponent = 80\nspecular = [1.0, 1.0, 1.0]"),
+        ("plastic", "type = \"plastic\"\nreflectance = [1.0, 1.0, 1.0]"),
+        ("rough plastic", "type = \"plastic\"\nreflectance = [1.0, 1.0, 1.0]\nroughness = 0.3"),
         ("gaussian", "type = \"gaussian\"\nm = 0.3\nspecular = [0.6, 0.6, 0.6]\nreflectance = [0.4, 0.4, 0.4]"),
         ("cook_torrance", "type = \"cook_torrance\"\nroughness = 0.3\nreflectance = [1.0, 1.0, 1.0]\nior = 1.5"),
         ("cook_torrance_smith", "type = \"cook_torrance\"\nroughness = 0.4\ndistribution = \"ggx\"\nmasking = \"smith\"\nschlick = [1.0, 1.0, 1.0]"),

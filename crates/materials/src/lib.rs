@@ -15,6 +15,7 @@
 //! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
+//! | `plastic` | dielectric coat (smooth or GGX) over a diffuse base | [`plastic`] |
 //! | `mix` | weighted mixture of non-delta materials | [`mix`] |
 //! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |
 //!
@@ -39,6 +40,7 @@ pub mod metals;
 pub mod microfacet;
 pub mod mix;
 pub mod phong;
+pub mod plastic;
 pub mod validate;
 pub mod ward;
 
@@ -55,4 +57,5 @@ pub use ggx::Ggx;
 pub use material::Material;
 pub use mix::Mix;
 pub use phong::Phong;
+pub use plastic::Plastic;
 pub use ward::Ward;

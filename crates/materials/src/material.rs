@@ -4,7 +4,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
     Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx, Mix, Phong,
-    Ward,
+    Plastic, Ward,
 };
 use isolux_core::{DVec3, Rgb};
 
@@ -31,6 +31,8 @@ pub enum Material {
     Conductor(Conductor),
     /// Smooth glass (`type = "dielectric"`).
     Dielectric(Dielectric),
+    /// Coated diffuse (`type = "plastic"`).
+    Plastic(Plastic),
     /// Weighted mixture (`type = "mix"`).
     Mix(Mix),
 }
@@ -49,6 +51,7 @@ macro_rules! dispatch {
             Material::Beckmann($m) => $body,
             Material::Conductor($m) => $body,
             Material::Dielectric($m) => $body,
+            Material::Plastic($m) => $body,
             Material::Mix($m) => $body,
         }
     };
@@ -68,6 +71,7 @@ impl Material {
             Material::Beckmann(_) => "beckmann",
             Material::Conductor(_) => "conductor",
             Material::Dielectric(_) => "dielectric",
+            Material::Plastic(_) => "plastic",
             Material::Mix(_) => "mix",
         }
     }

@@ -10,7 +10,7 @@ use isolux_materials::validate::{albedo_quadrature, chi2_test, sidak};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, Diffuse, Fresnel, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{CookTorrance, Gaussian, Ward};
+use isolux_materials::{CookTorrance, Gaussian, Plastic, Ward};
 
 fn gold() -> Fresnel {
     let (eta, k) = Metal::by_name("Au").unwrap().rgb();
@@ -121,6 +121,22 @@ fn models() -> Vec<(&'static str, Material)> {
             "ward 0.7",
             Material::Ward(Ward::new(0.7, 0.7, Rgb::WHITE, Rgb::BLACK)),
         ),
+        (
+            "plastic smooth",
+            Material::Plastic(Plastic::new(1.5, Rgb::new(0.9, 0.5, 0.1), None)),
+        ),
+        (
+            "plastic white smooth",
+            Material::Plastic(Plastic::new(1.5, Rgb::WHITE, None)),
+        ),
+        (
+            "plastic rough 0.5",
+            Material::Plastic(Plastic::new(1.5, Rgb::WHITE, Some(0.5))),
+        ),
+        (
+            "plastic rough 0.1",
+            Material::Plastic(Plastic::new(1.33, Rgb::splat(0.6), Some(0.1))),
+        ),
         ("ggx 0.1 Au", Material::Ggx(Ggx::new(0.1, 0.1, gold()))),
         ("ggx 0.5", Material::Ggx(Ggx::new(0.5, 0.5, Fresnel::One))),
         (
@@ -164,7 +180,11 @@ fn chi2_all(samples: usize) {
             let wo = wo_at(a);
             let r = chi2_test(
                 |wi| m.pdf(wo, wi),
-                |rng: &mut Pcg32| m.sample(wo, rng.next_f64(), rng.next_2d()).map(|s| s.wi),
+                |rng: &mut Pcg32| {
+                    m.sample(wo, rng.next_f64(), rng.next_2d())
+                        .filter(|s| !s.flags.is_specular())
+                        .map(|s| s.wi)
+                },
                 samples,
                 32,
                 64,
@@ -199,6 +219,9 @@ fn sampled_values_match_evaluation() {
                 let Some(s) = m.sample(wo, rng.next_f64(), rng.next_2d()) else {
                     continue;
                 };
+                if s.flags.is_specular() {
+                    continue; // delta lobes have no density to compare
+                }
                 let f = m.f(wo, s.wi);
                 let p = m.pdf(wo, s.wi);
                 let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * x.abs().max(y.abs()) + 1e-300;
@@ -381,5 +404,18 @@ fn gaussian_distribution_is_normalized() {
             (p - 1.0).abs() < 2e-3,
             "m {m}: sampling density integrates to {p}"
         );
+    }
+}
+
+#[test]
+fn white_smooth_plastic_albedo_matches_closed_form() {
+    // F_o + (1 - F_o) rho (1 - F_int) / (1 - rho F_int): with rho = 1 the
+    // coat loses nothing, so the albedo is exactly 1 at every angle.
+    let m = Plastic::new(1.5, Rgb::WHITE, None);
+    for a in [0.0, 40.0, 80.0] {
+        let wo = wo_at(a);
+        let fo = isolux_materials::fresnel::dielectric(wo.z, 1.5);
+        let diffuse = albedo_quadrature(|wi| m.f(wo, wi).r, 2000);
+        assert!((fo + diffuse - 1.0).abs() < 2e-3, "{a}: {}", fo + diffuse);
     }
 }

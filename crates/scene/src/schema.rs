@@ -7,11 +7,11 @@ use isolux_materials::cook_torrance::{Masking, NormalDistribution};
 use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::metals::Metal;
 use isolux_materials::microfacet::{Kind, Microfacet};
-use isolux_materials::Ward;
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
     Gaussian, Ggx, Material, Mix, Phong,
 };
+use isolux_materials::{Plastic, Ward};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
@@ -29,6 +29,7 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "beckmann",
     "conductor",
     "dielectric",
+    "plastic",
     "mix",
 ];
 
@@ -427,6 +428,34 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 d.ior = ior;
             }
             Ok(Material::Dielectric(d))
+        }
+        "plastic" => {
+            allow(&["ior", "reflectance", "roughness"])?;
+            let ior = match t.get("ior") {
+                Some(v) => {
+                    let ior = v.f64()?;
+                    if !(ior > 0.0) {
+                        return Err(v.error(format!("ior must be positive, got {ior}")));
+                    }
+                    ior
+                }
+                None => 1.5,
+            };
+            let rho = match t.get("reflectance") {
+                Some(v) => reflectance(&v)?,
+                None => Rgb::splat(0.5),
+            };
+            let rough = match t.get("roughness") {
+                Some(v) => {
+                    let r = v.f64()?;
+                    if !(r > 0.0 && r <= 10.0) {
+                        return Err(v.error(format!("roughness must lie in (0, 10], got {r}")));
+                    }
+                    Some(r)
+                }
+                None => None,
+            };
+            Ok(Material::Plastic(Plastic::new(ior, rho, rough)))
         }
         "conductor" => {
             allow(FRESNEL_KEYS)?;

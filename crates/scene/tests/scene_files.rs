@@ -115,6 +115,13 @@ specular = [0.4, 0.4, 0.4]
 tangent = [1.0, 0.0, 0.0]
 
 [[material]]
+name = "toy"
+type = "plastic"
+ior = 1.4
+reflectance = [0.8, 0.1, 0.1]
+roughness = 0.2
+
+[[material]]
 name = "blend"
 type = "mix"
 components = [{ material = "b", weight = 0.5 }, { material = "gold", weight = 0.25 }]
@@ -170,7 +177,7 @@ fn every_documented_key_is_parsed() {
         s.material_names,
         vec![
             "a", "b", "gold", "satin", "coat", "paint", "mirror", "glass", "shiny", "lacquer",
-            "gauss", "ct", "wardish", "blend"
+            "gauss", "ct", "wardish", "toy", "blend"
         ]
     );
     use isolux_materials::{Fresnel, Material};
@@ -210,7 +217,10 @@ fn every_documented_key_is_parsed() {
         matches!(&s.materials[12], Material::Ward(w) if w.inner.lobe.alpha_y == 0.3 && w.tangent == Some(DVec3::X))
     );
     assert!(
-        matches!(&s.materials[13], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
+        matches!(&s.materials[13], Material::Plastic(p) if p.ior == 1.4 && p.coat.is_some() && p.reflectance.r == 0.8)
+    );
+    assert!(
+        matches!(&s.materials[14], Material::Mix(m) if m.components.len() == 2 && m.components[1].1 == 0.25)
     );
     assert_eq!(s.object_material, vec![0, 1, 1, 1, 1]);
     let objs = s.geometry.objects();
@@ -263,7 +273,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ward, ggx, beckmann, conductor, dielectric, mix)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ward, ggx, beckmann, conductor, dielectric, plastic, mix)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),
