@@ -12,6 +12,7 @@
 //! | `gaussian` | the seed's Gaussian highlight, numerically normalized | [`gaussian`] |
 //! | `cook_torrance` | Cook-Torrance (Beckmann/GGX/Gaussian, V-groove/Smith) + Lambert | [`cook_torrance`] |
 //! | `ward` | anisotropic Ward, bounded-albedo form | [`ward`] |
+//! | `heidrich_seidel` | fibre (brushed, hair) highlight + isotropic lobe + Lambert | [`heidrich_seidel`] |
 //! | `ggx` | GGX / Trowbridge-Reitz microfacet reflection | [`ggx`] |
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
@@ -34,6 +35,7 @@ pub mod diffuse;
 pub mod fresnel;
 pub mod gaussian;
 pub mod ggx;
+pub mod heidrich_seidel;
 pub mod lobe;
 pub mod material;
 pub mod metals;
@@ -54,6 +56,7 @@ pub use diffuse::Diffuse;
 pub use fresnel::Fresnel;
 pub use gaussian::Gaussian;
 pub use ggx::Ggx;
+pub use heidrich_seidel::HeidrichSeidel;
 pub use material::Material;
 pub use mix::Mix;
 pub use phong::Phong;

@@ -3,8 +3,8 @@
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
-    Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx, Mix, Phong,
-    Plastic, Ward,
+    Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx,
+    HeidrichSeidel, Mix, Phong, Plastic, Ward,
 };
 use isolux_core::{DVec3, Rgb};
 
@@ -23,6 +23,8 @@ pub enum Material {
     CookTorrance(CookTorrance),
     /// Anisotropic Ward (`type = "ward"`).
     Ward(Ward),
+    /// Heidrich-Seidel fibre model (`type = "heidrich_seidel"`).
+    HeidrichSeidel(HeidrichSeidel),
     /// GGX microfacet reflection (`type = "ggx"`).
     Ggx(Ggx),
     /// Beckmann microfacet reflection (`type = "beckmann"`).
@@ -47,6 +49,7 @@ macro_rules! dispatch {
             Material::Gaussian($m) => $body,
             Material::CookTorrance($m) => $body,
             Material::Ward($m) => $body,
+            Material::HeidrichSeidel($m) => $body,
             Material::Ggx($m) => $body,
             Material::Beckmann($m) => $body,
             Material::Conductor($m) => $body,
@@ -67,6 +70,7 @@ impl Material {
             Material::Gaussian(_) => "gaussian",
             Material::CookTorrance(_) => "cook_torrance",
             Material::Ward(_) => "ward",
+            Material::HeidrichSeidel(_) => "heidrich_seidel",
             Material::Ggx(_) => "ggx",
             Material::Beckmann(_) => "beckmann",
             Material::Conductor(_) => "conductor",
@@ -82,6 +86,7 @@ impl Material {
             Material::Ggx(m) => m.tangent,
             Material::Beckmann(m) => m.tangent,
             Material::Ward(m) => m.tangent,
+            Material::HeidrichSeidel(m) => m.tangent,
             Material::Mix(m) => m.components.iter().find_map(|(c, _)| c.tangent()),
             _ => None,
         }

@@ -10,7 +10,7 @@ use isolux_materials::validate::{albedo_quadrature, chi2_test, sidak};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, Diffuse, Fresnel, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{CookTorrance, Gaussian, Plastic, Ward};
+use isolux_materials::{CookTorrance, Gaussian, HeidrichSeidel, Plastic, Ward};
 
 fn gold() -> Fresnel {
     let (eta, k) = Metal::by_name("Au").unwrap().rgb();
@@ -136,6 +136,28 @@ fn models() -> Vec<(&'static str, Material)> {
         (
             "plastic rough 0.1",
             Material::Plastic(Plastic::new(1.33, Rgb::splat(0.6), Some(0.1))),
+        ),
+        (
+            "hs 40 mixed",
+            Material::HeidrichSeidel(HeidrichSeidel::new(
+                40.0,
+                Rgb::splat(0.5),
+                Rgb::splat(0.2),
+                Rgb::splat(0.3),
+            )),
+        ),
+        (
+            "hs 5",
+            Material::HeidrichSeidel(HeidrichSeidel::new(5.0, Rgb::WHITE, Rgb::BLACK, Rgb::BLACK)),
+        ),
+        (
+            "hs 200",
+            Material::HeidrichSeidel(HeidrichSeidel::new(
+                200.0,
+                Rgb::WHITE,
+                Rgb::BLACK,
+                Rgb::BLACK,
+            )),
         ),
         ("ggx 0.1 Au", Material::Ggx(Ggx::new(0.1, 0.1, gold()))),
         ("ggx 0.5", Material::Ggx(Ggx::new(0.5, 0.5, Fresnel::One))),

@@ -11,7 +11,7 @@ use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
     Gaussian, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{Plastic, Ward};
+use isolux_materials::{HeidrichSeidel, Plastic, Ward};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
@@ -25,6 +25,7 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "gaussian",
     "cook_torrance",
     "ward",
+    "heidrich_seidel",
     "ggx",
     "beckmann",
     "conductor",
@@ -305,6 +306,40 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
             let mut w = Ward::new(alpha("alpha_u")?, alpha("alpha_v")?, specular, diffuse);
             w.tangent = t.get("tangent").map(|v| direction(&v)).transpose()?;
             Ok(Material::Ward(w))
+        }
+        "heidrich_seidel" => {
+            allow(&[
+                "exponent",
+                "specular",
+                "isotropic",
+                "reflectance",
+                "tangent",
+            ])?;
+            let exponent = match t.get("exponent") {
+                Some(v) => {
+                    let n = v.f64()?;
+                    if !(n > 0.0 && n <= 1e4) {
+                        return Err(v.error(format!("exponent must lie in (0, 1e4], got {n}")));
+                    }
+                    n
+                }
+                None => 40.0,
+            };
+            let (specular, diffuse) = lobe_weights(t)?;
+            let iso = match t.get("isotropic") {
+                Some(v) => reflectance(&v)?,
+                None => Rgb::BLACK,
+            };
+            let sum = specular + diffuse + iso;
+            if sum.max_component() > 1.0 + 1e-12 {
+                return Err(t.error(format!(
+                    "reflectance + specular + isotropic = {:?} exceeds 1: the material would create energy",
+                    sum.to_array()
+                )));
+            }
+            let mut m = HeidrichSeidel::new(exponent, specular, iso, diffuse);
+            m.tangent = t.get("tangent").map(|v| direction(&v)).transpose()?;
+            Ok(Material::HeidrichSeidel(m))
         }
         "cook_torrance" => {
             let mut keys = vec!["roughness", "distribution", "masking", "reflectance"];
