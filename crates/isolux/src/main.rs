@@ -3,6 +3,7 @@
 //! (0 success, 1 runtime or input error, 2 usage error).
 
 mod bench;
+mod brdf_cmd;
 mod render_cmd;
 
 use clap::{Parser, Subcommand};
@@ -20,6 +21,8 @@ struct Cli {
 enum Command {
     /// Render a scene file to a PNG or EXR image.
     Render(render_cmd::RenderArgs),
+    /// Plot materials: lobes, directional albedo, lit spheres.
+    Brdf(brdf_cmd::BrdfArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),
 }
@@ -28,6 +31,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(a) => render_cmd::run(a),
+        Command::Brdf(a) => brdf_cmd::run(a),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

@@ -218,3 +218,178 @@ fn exposure_and_tonemap_change_png() {
         .success());
     assert_ne!(std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
 }
+
+const MATS: &str = r#"
+[[material]]
+name = "matte"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+[[material]]
+name = "glass"
+type = "dielectric"
+ior = 1.5
+[[material]]
+name = "gold"
+type = "ggx"
+roughness = 0.2
+metal = "Au"
+"#;
+
+#[test]
+fn brdf_plot_albedo_and_sphere_write_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), MATS);
+    let s = scene.to_str().unwrap();
+    let png = dir.path().join("lobe.png");
+    let st = isolux()
+        .args([
+            "brdf",
+            "plot",
+            s,
+            "--material",
+            "matte",
+            "--material",
+            "gold",
+            "--theta-i",
+            "30",
+            "-o",
+            png.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let svg = dir.path().join("lobe.svg");
+    let st = isolux()
+        .args([
+            "brdf",
+            "plot",
+            s,
+            "--material",
+            "gold",
+            "--theta-i",
+            "60",
+            "--plane",
+            "out",
+            "-o",
+            svg.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(st.status.success());
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("<svg") && text.contains("gold"));
+
+    // Albedo table: glass conserves energy (R + T = 1) at every angle, and
+    // a Lambertian surface reflects exactly its reflectance.
+    let out = dir.path().join("albedo.png");
+    let st = isolux()
+        .args([
+            "brdf",
+            "albedo",
+            s,
+            "--material",
+            "matte",
+            "--material",
+            "glass",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let table = String::from_utf8_lossy(&st.stdout);
+    let rows: Vec<Vec<f64>> = table
+        .lines()
+        .skip(2)
+        .map(|l| l.split('|').filter_map(|c| c.trim().parse().ok()).collect())
+        .collect();
+    assert_eq!(rows.len(), 11, "{table}");
+    for r in &rows {
+        assert!((r[1] - 0.5).abs() < 1e-9, "{table}");
+        assert!((r[2] - 1.0).abs() < 1e-9, "{table}");
+    }
+    assert!(out.exists());
+
+    let sphere = dir.path().join("sphere.png");
+    let st = isolux()
+        .args([
+            "brdf",
+            "sphere",
+            s,
+            "--material",
+            "gold",
+            "--size",
+            "48",
+            "-o",
+            sphere.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(sphere.exists());
+}
+
+#[test]
+fn brdf_errors_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), MATS);
+    let s = scene.to_str().unwrap();
+    for (args, want) in [
+        (
+            vec![
+                "brdf",
+                "plot",
+                s,
+                "--material",
+                "velvet",
+                "--theta-i",
+                "30",
+                "-o",
+                "x.png",
+            ],
+            "no material named \"velvet\" (defined: matte, glass, gold)",
+        ),
+        (
+            vec![
+                "brdf",
+                "plot",
+                s,
+                "--material",
+                "gold",
+                "--theta-i",
+                "95",
+                "-o",
+                "x.png",
+            ],
+            "--theta-i must lie in [0, 90) degrees",
+        ),
+        (
+            vec!["brdf", "albedo", s, "--material", "gold", "-o", "x.gif"],
+            "x.gif: unknown plot format: use a .png or .svg file name",
+        ),
+    ] {
+        let st = isolux()
+            .args(&args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert_eq!(st.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    // Nothing but the scene was left behind.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
