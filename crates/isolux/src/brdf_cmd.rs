@@ -96,7 +96,7 @@ struct SphereArgs {
     size: u32,
 }
 
-const COLOURS: [RGBColor; 8] = [
+const COLOURS: [RGBColor; 12] = [
     RGBColor(200, 30, 30),
     RGBColor(30, 90, 200),
     RGBColor(20, 150, 60),
@@ -105,6 +105,10 @@ const COLOURS: [RGBColor; 8] = [
     RGBColor(0, 160, 170),
     RGBColor(120, 120, 120),
     RGBColor(180, 150, 0),
+    RGBColor(240, 90, 170),
+    RGBColor(100, 60, 20),
+    RGBColor(0, 0, 0),
+    RGBColor(120, 200, 60),
 ];
 
 /// Runs `isolux brdf`.
