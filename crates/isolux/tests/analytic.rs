@@ -386,17 +386,25 @@ fn lobe_models_under_a_white_sky_do_not_create_energy() {
         ("blinn_phong", "type = \"blinn_phong\"\nexponent = 80\nspecular = [1.0, 1.0, 1.0]"),
         ("plastic", "type = \"plastic\"\nreflectance = [1.0, 1.0, 1.0]"),
         ("rough plastic", "type = \"plastic\"\nreflectance = [1.0, 1.0, 1.0]\nroughness = 0.3"),
+        ("ward", "type = \"ward\"\nalpha_u = 0.1\nalpha_v = 0.4\nspecular = [0.7, 0.7, 0.7]\nreflectance = [0.3, 0.3, 0.3]\ntangent = [0.0, 1.0, 0.0]"),
+        ("heidrich_seidel", "type = \"heidrich_seidel\"\nexponent = 30\nspecular = [0.6, 0.6, 0.6]\nisotropic = [0.2, 0.2, 0.2]\nreflectance = [0.2, 0.2, 0.2]\ntangent = [0.0, 1.0, 0.0]"),
+        ("mix", "type = \"mix\"\ncomponents = [{ material = \"white\", weight = 0.5 }, { material = \"shiny\", weight = 0.5 }]"),
         ("gaussian", "type = \"gaussian\"\nm = 0.3\nspecular = [0.6, 0.6, 0.6]\nreflectance = [0.4, 0.4, 0.4]"),
         ("cook_torrance", "type = \"cook_torrance\"\nroughness = 0.3\nreflectance = [1.0, 1.0, 1.0]\nior = 1.5"),
         ("cook_torrance_smith", "type = \"cook_torrance\"\nroughness = 0.4\ndistribution = \"ggx\"\nmasking = \"smith\"\nschlick = [1.0, 1.0, 1.0]"),
     ];
     for (name, params) in models {
+        // The mix refers to materials defined before it.
         let src = SPHERE_SCENE
             .replace(
                 "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
                 params,
             )
-            .replace("spp = 4", "spp = 64");
+            .replace("spp = 4", "spp = 64")
+            .replace(
+                "[[material]]\nname = \"grey\"",
+                "[[material]]\nname = \"white\"\ntype = \"diffuse\"\nreflectance = [1.0, 1.0, 1.0]\n\n[[material]]\nname = \"shiny\"\ntype = \"ggx\"\nroughness = 0.2\n\n[[material]]\nname = \"grey\"",
+            );
         let img = render_with(&scene(&src), 2);
         let vals: Vec<f64> = img
             .rgb
