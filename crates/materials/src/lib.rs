@@ -43,6 +43,7 @@ pub mod microfacet;
 pub mod mix;
 pub mod phong;
 pub mod plastic;
+pub mod subsurface;
 pub mod validate;
 pub mod ward;
 

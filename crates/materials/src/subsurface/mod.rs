@@ -1,0 +1,20 @@
+//! Subsurface scattering physics (SPEC §4, seed 000 eq. 17-19, seed 003).
+//!
+//! - [`diffusion`]: reduced coefficients, the diffusion constant, the
+//!   effective transport coefficient, the diffuse Fresnel reflectance (fit
+//!   and exact), the dipole profile `R_d(r)` and its closed-form total;
+//! - [`phase`]: the Henyey-Greenstein phase function and the
+//!   single-scattering term;
+//! - [`media`]: Jensen et al. 2001's measured media.
+//!
+//! Primary source: H. W. Jensen, S. R. Marschner, M. Levoy, P. Hanrahan,
+//! "A Practical Model for Subsurface Light Transport", SIGGRAPH 2001.
+//! Rendering with these (the `subsurface` materials) is the open part of
+//! the subsurface issue.
+
+pub mod diffusion;
+pub mod media;
+pub mod phase;
+
+pub use diffusion::Dipole;
+pub use media::{Medium, MEDIA};
