@@ -17,6 +17,7 @@
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
 //! | `plastic` | dielectric coat (smooth or GGX) over a diffuse base | [`plastic`] |
+//! | `subsurface_brdf` | translucent media, local approximation (dipole total + single scattering) | [`subsurface_brdf`] |
 //! | `mix` | weighted mixture of non-delta materials | [`mix`] |
 //! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |
 //!
@@ -44,6 +45,7 @@ pub mod mix;
 pub mod phong;
 pub mod plastic;
 pub mod subsurface;
+pub mod subsurface_brdf;
 pub mod validate;
 pub mod ward;
 
@@ -62,4 +64,5 @@ pub use material::Material;
 pub use mix::Mix;
 pub use phong::Phong;
 pub use plastic::Plastic;
+pub use subsurface_brdf::SubsurfaceBrdf;
 pub use ward::Ward;

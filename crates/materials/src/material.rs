@@ -4,7 +4,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
     Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx,
-    HeidrichSeidel, Mix, Phong, Plastic, Ward,
+    HeidrichSeidel, Mix, Phong, Plastic, SubsurfaceBrdf, Ward,
 };
 use isolux_core::{DVec3, Rgb};
 
@@ -35,6 +35,8 @@ pub enum Material {
     Dielectric(Dielectric),
     /// Coated diffuse (`type = "plastic"`).
     Plastic(Plastic),
+    /// Translucent medium, BRDF approximation (`type = "subsurface_brdf"`).
+    SubsurfaceBrdf(SubsurfaceBrdf),
     /// Weighted mixture (`type = "mix"`).
     Mix(Mix),
 }
@@ -55,6 +57,7 @@ macro_rules! dispatch {
             Material::Conductor($m) => $body,
             Material::Dielectric($m) => $body,
             Material::Plastic($m) => $body,
+            Material::SubsurfaceBrdf($m) => $body,
             Material::Mix($m) => $body,
         }
     };
@@ -76,6 +79,7 @@ impl Material {
             Material::Conductor(_) => "conductor",
             Material::Dielectric(_) => "dielectric",
             Material::Plastic(_) => "plastic",
+            Material::SubsurfaceBrdf(_) => "subsurface_brdf",
             Material::Mix(_) => "mix",
         }
     }

@@ -10,7 +10,7 @@ use isolux_materials::validate::{albedo_quadrature, chi2_test, sidak};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, Diffuse, Fresnel, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{CookTorrance, Gaussian, HeidrichSeidel, Plastic, Ward};
+use isolux_materials::{CookTorrance, Gaussian, HeidrichSeidel, Plastic, SubsurfaceBrdf, Ward};
 
 fn gold() -> Fresnel {
     let (eta, k) = Metal::by_name("Au").unwrap().rgb();
@@ -157,6 +157,24 @@ fn models() -> Vec<(&'static str, Material)> {
                 Rgb::WHITE,
                 Rgb::BLACK,
                 Rgb::BLACK,
+            )),
+        ),
+        (
+            "subsurface skimmilk",
+            Material::SubsurfaceBrdf(SubsurfaceBrdf::new(
+                Rgb::new(0.70, 1.22, 1.90),
+                Rgb::new(0.0014, 0.0025, 0.0142),
+                0.0,
+                1.3,
+            )),
+        ),
+        (
+            "subsurface ketchup g=0.5 (delta coat)",
+            Material::SubsurfaceBrdf(SubsurfaceBrdf::new(
+                Rgb::new(0.18, 0.07, 0.03),
+                Rgb::new(0.061, 0.97, 1.45),
+                0.5,
+                1.3,
             )),
         ),
         ("ggx 0.1 Au", Material::Ggx(Ggx::new(0.1, 0.1, gold()))),

@@ -7,11 +7,12 @@ use isolux_materials::cook_torrance::{Masking, NormalDistribution};
 use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::metals::Metal;
 use isolux_materials::microfacet::{Kind, Microfacet};
+use isolux_materials::subsurface::Medium;
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
     Gaussian, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{HeidrichSeidel, Plastic, Ward};
+use isolux_materials::{HeidrichSeidel, Plastic, SubsurfaceBrdf, Ward};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
@@ -31,6 +32,7 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "conductor",
     "dielectric",
     "plastic",
+    "subsurface_brdf",
     "mix",
 ];
 
@@ -491,6 +493,99 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 None => None,
             };
             Ok(Material::Plastic(Plastic::new(ior, rho, rough)))
+        }
+        "subsurface_brdf" => {
+            allow(&[
+                "medium",
+                "sigma_s",
+                "sigma_s_reduced",
+                "sigma_a",
+                "g",
+                "ior",
+                "scale",
+            ])?;
+            let g = match t.get("g") {
+                Some(v) => {
+                    let g = v.f64()?;
+                    if !(g > -1.0 && g < 1.0) {
+                        return Err(
+                            v.error(format!("g must lie strictly between -1 and 1, got {g}"))
+                        );
+                    }
+                    g
+                }
+                None => 0.0,
+            };
+            if let Some(v) = t.get("scale") {
+                v.positive()?;
+            }
+            let coefficients = |key: &str| -> Result<Option<Rgb>> {
+                match t.get(key) {
+                    Some(v) => {
+                        let c = v.numbers::<3>()?;
+                        if c.iter().any(|&x| x < 0.0) {
+                            return Err(v.error(format!("{key} must be non-negative, got {c:?}")));
+                        }
+                        Ok(Some(Rgb::from_array(c)))
+                    }
+                    None => Ok(None),
+                }
+            };
+            let explicit = ["sigma_s", "sigma_s_reduced", "sigma_a"]
+                .iter()
+                .any(|k| t.get(k).is_some());
+            let (ss_red, sa, mut eta) = match t.get("medium") {
+                Some(v) => {
+                    if explicit {
+                        return Err(
+                            t.error("give either `medium` or explicit coefficients, not both")
+                        );
+                    }
+                    let name = v.str()?;
+                    let m = Medium::by_name(name).ok_or_else(|| {
+                        v.error(format!(
+                            "unknown medium \"{name}\" (valid: {})",
+                            Medium::names().join(", ")
+                        ))
+                    })?;
+                    (
+                        Rgb::from_array(m.sigma_s_reduced),
+                        Rgb::from_array(m.sigma_a),
+                        m.eta,
+                    )
+                }
+                None => {
+                    let sa = coefficients("sigma_a")?.ok_or_else(|| {
+                        t.error("give `medium`, or `sigma_a` with `sigma_s` or `sigma_s_reduced`")
+                    })?;
+                    let red = match (coefficients("sigma_s")?, coefficients("sigma_s_reduced")?) {
+                        (Some(_), Some(_)) => {
+                            return Err(t.error("give `sigma_s` or `sigma_s_reduced`, not both"))
+                        }
+                        (Some(s), None) => s * (1.0 - g),
+                        (None, Some(r)) => r,
+                        (None, None) => {
+                            return Err(
+                                t.error("give `sigma_s` or `sigma_s_reduced` with `sigma_a`")
+                            )
+                        }
+                    };
+                    if (red + sa).max_component() <= 0.0 {
+                        return Err(t.error("the medium neither scatters nor absorbs"));
+                    }
+                    (red, sa, 1.3)
+                }
+            };
+            if let Some(v) = t.get("ior") {
+                let ior = v.f64()?;
+                if !(ior > 0.0) {
+                    return Err(v.error(format!("ior must be positive, got {ior}")));
+                }
+                eta = ior;
+            }
+            Ok(Material::SubsurfaceBrdf(SubsurfaceBrdf::new(
+                ss_red, sa, g, eta,
+            )))
         }
         "conductor" => {
             allow(FRESNEL_KEYS)?;
