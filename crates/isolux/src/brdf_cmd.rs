@@ -111,14 +111,19 @@ const COLOURS: [RGBColor; 12] = [
     RGBColor(120, 200, 60),
 ];
 
-/// Runs `isolux brdf`.
-pub fn run(a: BrdfArgs) -> Result<()> {
+/// Registers the bundled font for plot text (idempotent).
+pub fn register_font() -> Result<()> {
     plotters::style::register_font(
         "sans-serif",
         FontStyle::Normal,
         include_bytes!("../assets/DejaVuSans.ttf"),
     )
-    .map_err(|_| anyhow::anyhow!("the bundled font could not be loaded"))?;
+    .map_err(|_| anyhow::anyhow!("the bundled font could not be loaded"))
+}
+
+/// Runs `isolux brdf`.
+pub fn run(a: BrdfArgs) -> Result<()> {
+    register_font()?;
     match a.command {
         BrdfCommand::Plot(p) => plot(p),
         BrdfCommand::Albedo(p) => albedo(p),
@@ -173,7 +178,7 @@ fn kind(p: &Path) -> Result<Kind> {
 }
 
 /// Draws into a temporary file beside `out`, then renames it into place.
-fn atomic_plot(
+pub fn atomic_plot(
     out: &Path,
     size: (u32, u32),
     draw_png: impl FnOnce(DrawingArea<BitMapBackend, Shift>) -> Result<()>,

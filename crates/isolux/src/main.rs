@@ -5,6 +5,7 @@
 mod bench;
 mod brdf_cmd;
 mod render_cmd;
+mod sss_cmd;
 
 use clap::{Parser, Subcommand};
 
@@ -23,6 +24,8 @@ enum Command {
     Render(render_cmd::RenderArgs),
     /// Plot materials: lobes, directional albedo, lit spheres.
     Brdf(brdf_cmd::BrdfArgs),
+    /// Subsurface scattering: measured media, dipole profiles.
+    Sss(sss_cmd::SssArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),
 }
@@ -32,6 +35,7 @@ fn main() {
     let result = match cli.command {
         Command::Render(a) => render_cmd::run(a),
         Command::Brdf(a) => brdf_cmd::run(a),
+        Command::Sss(a) => sss_cmd::run(a),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

@@ -393,3 +393,57 @@ fn brdf_errors_are_clear() {
     // Nothing but the scene was left behind.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+#[test]
+fn sss_media_and_profile() {
+    let out = isolux().args(["sss", "media"]).output().unwrap();
+    assert!(out.status.success());
+    let table = String::from_utf8_lossy(&out.stdout);
+    for name in [
+        "apple",
+        "chicken1",
+        "chicken2",
+        "cream",
+        "ketchup",
+        "marble",
+        "potato",
+        "skimmilk",
+        "skin1",
+        "skin2",
+        "spectralon",
+        "wholemilk",
+    ] {
+        assert!(
+            table.contains(&format!("| {name} |")),
+            "{name} missing:\n{table}"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("profile.png");
+    let st = isolux()
+        .args([
+            "sss",
+            "profile",
+            "--medium",
+            "marble",
+            "--photons",
+            "5000",
+            "-o",
+            png.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(String::from_utf8_lossy(&st.stderr).contains("total diffuse reflectance dipole"));
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let st = isolux()
+        .args(["sss", "profile", "--medium", "jelly", "-o", "x.png"])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("unknown medium \"jelly\" (valid: apple,"));
+}

@@ -57,7 +57,7 @@ pub struct SubsurfaceBrdf {
     /// Total diffuse reflectance of the dipole, per channel.
     pub r_d: Rgb,
     /// Single-scattering albedo `sigma_s / sigma_t`, per channel.
-    pub albedo: Rgb,
+    pub single_albedo: Rgb,
     /// Mean cosine of the phase function.
     pub g: f64,
     /// Relative index of refraction.
@@ -78,7 +78,7 @@ impl SubsurfaceBrdf {
         let (b, ab) = ch(sigma_s_reduced.b, sigma_a.b);
         Self {
             r_d: Rgb::new(r, gg, b),
-            albedo: Rgb::new(ar, ag, ab),
+            single_albedo: Rgb::new(ar, ag, ab),
             g,
             eta,
         }
@@ -96,7 +96,7 @@ impl BxdfModel for SubsurfaceBrdf {
         }
         let t = (1.0 - dielectric(wi.z, self.eta)) * (1.0 - dielectric(wo.z, self.eta));
         let single = single_scattering(wo, wi, 1.0, self.g, self.eta);
-        self.r_d * (t * INV_PI) + self.albedo * single
+        self.r_d * (t * INV_PI) + self.single_albedo * single
     }
 
     fn sample(&self, wo: DVec3, uc: f64, u: [f64; 2]) -> Option<BsdfSample> {

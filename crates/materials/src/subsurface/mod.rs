@@ -5,7 +5,8 @@
 //!   and exact), the dipole profile `R_d(r)` and its closed-form total;
 //! - [`phase`]: the Henyey-Greenstein phase function and the
 //!   single-scattering term;
-//! - [`media`]: Jensen et al. 2001's measured media.
+//! - [`media`]: Jensen et al. 2001's measured media;
+//! - [`random_walk`]: the brute-force half-space reference.
 //!
 //! Primary source: H. W. Jensen, S. R. Marschner, M. Levoy, P. Hanrahan,
 //! "A Practical Model for Subsurface Light Transport", SIGGRAPH 2001.
@@ -15,6 +16,7 @@
 pub mod diffusion;
 pub mod media;
 pub mod phase;
+pub mod random_walk;
 
 pub use diffusion::Dipole;
 pub use media::{Medium, MEDIA};
