@@ -423,3 +423,57 @@ fn lobe_models_under_a_white_sky_do_not_create_energy() {
         assert!(img.rgb.iter().flatten().all(|v| v.is_finite()));
     }
 }
+
+fn channel_means(img: &Image) -> ([f64; 3], [f64; 3]) {
+    // Sphere pixels differ from the white background.
+    let px: Vec<&[f32; 3]> = img
+        .rgb
+        .iter()
+        .filter(|p| p.iter().any(|v| (v - 1.0).abs() > 1e-6))
+        .collect();
+    let n = px.len() as f64;
+    let mut mean = [0.0; 3];
+    let mut se = [0.0; 3];
+    for c in 0..3 {
+        let m = px.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+        let v = px.iter().map(|p| (p[c] as f64 - m).powi(2)).sum::<f64>() / n;
+        mean[c] = m;
+        se[c] = (v / n).sqrt();
+    }
+    (mean, se)
+}
+
+#[test]
+fn random_walk_medium_conserves_energy_under_a_white_sky() {
+    // A non-absorbing medium behind a glass boundary: every photon that
+    // enters leaves again, so the expected radiance is exactly the sky's,
+    // per channel (single-channel tracking adds colour noise only).
+    let src = SPHERE_SCENE
+        .replace(
+            "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
+            "type = \"subsurface\"\nsigma_s = [2.0, 1.0, 0.5]\nsigma_a = [0.0, 0.0, 0.0]\ng = 0.3\nscale = 1.0\nmode = \"random_walk\"",
+        )
+        .replace("spp = 4", "spp = 64");
+    let img = render_with(&scene(&src), 2);
+    let (mean, se) = channel_means(&img);
+    eprintln!("non-absorbing: {mean:?} +- {se:?}");
+    for c in 0..3 {
+        assert!(
+            (mean[c] - 1.0).abs() < 4.0 * se[c] + 1e-3,
+            "channel {c}: {} +- {}",
+            mean[c],
+            se[c]
+        );
+    }
+    assert!(img.rgb.iter().flatten().all(|v| v.is_finite()));
+
+    // With absorption every channel loses energy, most where it absorbs most.
+    let src = src.replace("sigma_a = [0.0, 0.0, 0.0]", "sigma_a = [0.05, 0.5, 2.0]");
+    let img = render_with(&scene(&src), 2);
+    let (mean, se) = channel_means(&img);
+    eprintln!("absorbing: {mean:?} +- {se:?}");
+    for c in 0..3 {
+        assert!(mean[c] < 1.0 - 4.0 * se[c], "channel {c}: {}", mean[c]);
+    }
+    assert!(mean[0] > mean[1] && mean[1] > mean[2], "{mean:?}");
+}

@@ -17,6 +17,7 @@
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
 //! | `plastic` | dielectric coat (smooth or GGX) over a diffuse base | [`plastic`] |
+//! | `subsurface` | translucent medium behind a smooth boundary (random walk) | [`subsurface_material`] |
 //! | `subsurface_brdf` | translucent media, local approximation (dipole total + single scattering) | [`subsurface_brdf`] |
 //! | `mix` | weighted mixture of non-delta materials | [`mix`] |
 //! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |
@@ -46,6 +47,7 @@ pub mod phong;
 pub mod plastic;
 pub mod subsurface;
 pub mod subsurface_brdf;
+pub mod subsurface_material;
 pub mod validate;
 pub mod ward;
 
@@ -65,4 +67,5 @@ pub use mix::Mix;
 pub use phong::Phong;
 pub use plastic::Plastic;
 pub use subsurface_brdf::SubsurfaceBrdf;
+pub use subsurface_material::Subsurface;
 pub use ward::Ward;

@@ -4,7 +4,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
     Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx,
-    HeidrichSeidel, Mix, Phong, Plastic, SubsurfaceBrdf, Ward,
+    HeidrichSeidel, Mix, Phong, Plastic, Subsurface, SubsurfaceBrdf, Ward,
 };
 use isolux_core::{DVec3, Rgb};
 
@@ -35,6 +35,8 @@ pub enum Material {
     Dielectric(Dielectric),
     /// Coated diffuse (`type = "plastic"`).
     Plastic(Plastic),
+    /// Translucent medium (`type = "subsurface"`).
+    Subsurface(Subsurface),
     /// Translucent medium, BRDF approximation (`type = "subsurface_brdf"`).
     SubsurfaceBrdf(SubsurfaceBrdf),
     /// Weighted mixture (`type = "mix"`).
@@ -57,6 +59,7 @@ macro_rules! dispatch {
             Material::Conductor($m) => $body,
             Material::Dielectric($m) => $body,
             Material::Plastic($m) => $body,
+            Material::Subsurface($m) => $body,
             Material::SubsurfaceBrdf($m) => $body,
             Material::Mix($m) => $body,
         }
@@ -79,8 +82,17 @@ impl Material {
             Material::Conductor(_) => "conductor",
             Material::Dielectric(_) => "dielectric",
             Material::Plastic(_) => "plastic",
+            Material::Subsurface(_) => "subsurface",
             Material::SubsurfaceBrdf(_) => "subsurface_brdf",
             Material::Mix(_) => "mix",
+        }
+    }
+
+    /// The participating medium behind the surface, if any.
+    pub fn medium(&self) -> Option<&Subsurface> {
+        match self {
+            Material::Subsurface(m) => Some(m),
+            _ => None,
         }
     }
 

@@ -17,14 +17,46 @@
 //! mistaken for absorption. Paths end after `max_depth` scattering
 //! events.
 //!
+//! **Participating media** (`subsurface` materials in `random_walk` mode):
+//! a path refracted into such an object samples exponential free flights
+//! `t = -ln(u) / sigma_t` inside it; a flight that ends before the surface
+//! scatters by the Henyey-Greenstein phase function (no next-event
+//! estimation inside: the boundary is a delta interface), one that reaches
+//! the surface meets the boundary's Fresnel reflection and refraction. The
+//! coefficients differ per colour channel, so the first entry picks one
+//! channel uniformly and carries it with weight 3 (unbiased; colour noise
+//! is the price). Events inside a medium do not count toward `max_depth`;
+//! a path is cut after 100,000 of them. Media do not nest.
+//!
 //! Spawned rays start at the hit point moved by `1e-7 (1 + |p|_inf)` along
 //! the geometric normal, to the side of the new direction: with the exact,
 //! double-precision intersector this removes self-intersection without
 //! hiding any feature thicker than that.
 
 use crate::Scene;
-use isolux_core::{sampling::power_heuristic, DVec3, Pcg32, Ray, Rgb};
-use isolux_materials::{Bsdf, BxdfModel};
+use isolux_core::{sampling::power_heuristic, DVec3, Frame, Pcg32, Ray, Rgb, PI};
+use isolux_materials::subsurface::phase::sample_hg_cos;
+use isolux_materials::{Bsdf, BxdfFlags, BxdfModel, Subsurface};
+
+/// Maximum scattering and boundary events of one path inside media.
+pub const MAX_MEDIUM_EVENTS: u32 = 100_000;
+
+fn channel(c: Rgb, i: usize) -> f64 {
+    match i {
+        0 => c.r,
+        1 => c.g,
+        _ => c.b,
+    }
+}
+
+fn only_channel(c: Rgb, i: usize, k: f64) -> Rgb {
+    let v = channel(c, i) * k;
+    match i {
+        0 => Rgb::new(v, 0.0, 0.0),
+        1 => Rgb::new(0.0, v, 0.0),
+        _ => Rgb::new(0.0, 0.0, v),
+    }
+}
 
 /// What the first camera-ray hit saw (for AOVs).
 #[derive(Clone, Copy, Debug, Default)]
@@ -59,8 +91,51 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
     let max_depth = scene.integrator.max_depth;
     let mut depth = 0u32;
     let mut eta_scale = 1.0;
+    // The medium the path is in, and the colour channel it carries.
+    let mut inside: Option<Subsurface> = None;
+    let mut path_channel: Option<usize> = None;
+    let mut medium_events = 0u32;
     loop {
-        let Some((obj, hit)) = scene.geometry.intersect(&ray, 0.0, f64::INFINITY) else {
+        // Free flight inside a medium limits the search for the surface.
+        let mut t_max = f64::INFINITY;
+        if let (Some(m), Some(c)) = (inside, path_channel) {
+            let st = channel(m.sigma_t(), c);
+            if st > 0.0 {
+                t_max = -(1.0 - rng.next_f64()).ln() / st;
+            }
+        }
+        let found = scene.geometry.intersect(&ray, 0.0, t_max);
+        if let (None, Some(m), Some(c)) = (found, inside, path_channel) {
+            if t_max.is_finite() {
+                // Scattering event inside the medium.
+                medium_events += 1;
+                if medium_events > MAX_MEDIUM_EVENTS {
+                    break;
+                }
+                let st = channel(m.sigma_t(), c);
+                beta *= channel(m.sigma_s, c) / st;
+                let q = (beta * eta_scale).max_component();
+                if q < 1.0 {
+                    if rng.next_f64() >= q {
+                        break;
+                    }
+                    beta = beta / q;
+                }
+                if beta.is_black() {
+                    break;
+                }
+                let p = ray.at(t_max);
+                let cos_t = sample_hg_cos(m.g, rng.next_f64());
+                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                let phi = 2.0 * PI * rng.next_f64();
+                let f = Frame::from_normal(ray.dir);
+                let dir = f.to_world(DVec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+                ray = Ray::new(p, dir.normalize());
+                prev_pdf = None;
+                continue;
+            }
+        }
+        let Some((obj, hit)) = found else {
             let le = env.eval(ray.dir);
             let w = match prev_pdf {
                 Some(p) if env.is_sampled() => power_heuristic(p, env.pdf(ray.dir)),
@@ -77,7 +152,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                 depth: hit.t,
             });
         }
-        if depth >= max_depth {
+        if depth >= max_depth && inside.is_none() {
             break;
         }
         let wo = -ray.dir;
@@ -130,13 +205,37 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
         };
         beta *= s.weight(s.wi.dot(ns));
         eta_scale *= s.eta * s.eta;
+        // Crossing a medium's boundary enters or leaves it.
+        if s.flags.contains(BxdfFlags::TRANSMISSION) {
+            if let Some(m) = material.medium() {
+                if inside.is_some() {
+                    inside = None;
+                } else {
+                    if path_channel.is_none() {
+                        let c = rng.next_below(3) as usize;
+                        path_channel = Some(c);
+                        beta = only_channel(beta, c, 3.0);
+                    }
+                    inside = Some(*m);
+                }
+            }
+        }
         prev_pdf = if s.flags.is_specular() {
             None
         } else {
             Some(s.pdf)
         };
         ray = Ray::new(offset_origin(hit.p, hit.n, s.wi), s.wi);
-        depth += 1;
+        if inside.is_some()
+            || material.medium().is_some() && s.flags.contains(BxdfFlags::TRANSMISSION)
+        {
+            medium_events += 1;
+            if medium_events > MAX_MEDIUM_EVENTS {
+                break;
+            }
+        } else {
+            depth += 1;
+        }
 
         if depth >= 3 {
             let q = (beta * eta_scale).max_component();

@@ -12,7 +12,7 @@ use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
     Gaussian, Ggx, Material, Mix, Phong,
 };
-use isolux_materials::{HeidrichSeidel, Plastic, SubsurfaceBrdf, Ward};
+use isolux_materials::{HeidrichSeidel, Plastic, Subsurface, SubsurfaceBrdf, Ward};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
 };
@@ -32,6 +32,7 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "conductor",
     "dielectric",
     "plastic",
+    "subsurface",
     "subsurface_brdf",
     "mix",
 ];
@@ -504,88 +505,43 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 "ior",
                 "scale",
             ])?;
-            let g = match t.get("g") {
-                Some(v) => {
-                    let g = v.f64()?;
-                    if !(g > -1.0 && g < 1.0) {
-                        return Err(
-                            v.error(format!("g must lie strictly between -1 and 1, got {g}"))
-                        );
-                    }
-                    g
-                }
-                None => 0.0,
-            };
-            if let Some(v) = t.get("scale") {
-                v.positive()?;
-            }
-            let coefficients = |key: &str| -> Result<Option<Rgb>> {
-                match t.get(key) {
-                    Some(v) => {
-                        let c = v.numbers::<3>()?;
-                        if c.iter().any(|&x| x < 0.0) {
-                            return Err(v.error(format!("{key} must be non-negative, got {c:?}")));
-                        }
-                        Ok(Some(Rgb::from_array(c)))
-                    }
-                    None => Ok(None),
-                }
-            };
-            let explicit = ["sigma_s", "sigma_s_reduced", "sigma_a"]
-                .iter()
-                .any(|k| t.get(k).is_some());
-            let (ss_red, sa, mut eta) = match t.get("medium") {
-                Some(v) => {
-                    if explicit {
-                        return Err(
-                            t.error("give either `medium` or explicit coefficients, not both")
-                        );
-                    }
-                    let name = v.str()?;
-                    let m = Medium::by_name(name).ok_or_else(|| {
-                        v.error(format!(
-                            "unknown medium \"{name}\" (valid: {})",
-                            Medium::names().join(", ")
-                        ))
-                    })?;
-                    (
-                        Rgb::from_array(m.sigma_s_reduced),
-                        Rgb::from_array(m.sigma_a),
-                        m.eta,
-                    )
-                }
-                None => {
-                    let sa = coefficients("sigma_a")?.ok_or_else(|| {
-                        t.error("give `medium`, or `sigma_a` with `sigma_s` or `sigma_s_reduced`")
-                    })?;
-                    let red = match (coefficients("sigma_s")?, coefficients("sigma_s_reduced")?) {
-                        (Some(_), Some(_)) => {
-                            return Err(t.error("give `sigma_s` or `sigma_s_reduced`, not both"))
-                        }
-                        (Some(s), None) => s * (1.0 - g),
-                        (None, Some(r)) => r,
-                        (None, None) => {
-                            return Err(
-                                t.error("give `sigma_s` or `sigma_s_reduced` with `sigma_a`")
-                            )
-                        }
-                    };
-                    if (red + sa).max_component() <= 0.0 {
-                        return Err(t.error("the medium neither scatters nor absorbs"));
-                    }
-                    (red, sa, 1.3)
-                }
-            };
-            if let Some(v) = t.get("ior") {
-                let ior = v.f64()?;
-                if !(ior > 0.0) {
-                    return Err(v.error(format!("ior must be positive, got {ior}")));
-                }
-                eta = ior;
-            }
+            let m = medium_coefficients(t)?;
             Ok(Material::SubsurfaceBrdf(SubsurfaceBrdf::new(
-                ss_red, sa, g, eta,
+                m.sigma_s_reduced,
+                m.sigma_a,
+                m.g,
+                m.eta,
             )))
+        }
+        "subsurface" => {
+            allow(&[
+                "medium",
+                "sigma_s",
+                "sigma_s_reduced",
+                "sigma_a",
+                "g",
+                "ior",
+                "scale",
+                "mode",
+            ])?;
+            let m = medium_coefficients(t)?;
+            let mode = match t.get("mode") {
+                Some(v) => (v.choice(&["dipole", "random_walk"])?, Some(v)),
+                None => ("dipole", None),
+            };
+            if mode.0 == "dipole" {
+                let msg = "mode = \"dipole\" (the default) is not implemented yet: use mode = \"random_walk\" (exact, slower) or type = \"subsurface_brdf\" (fast local approximation)";
+                return Err(match mode.1 {
+                    Some(v) => v.error(msg),
+                    None => t.error(msg),
+                });
+            }
+            Ok(Material::Subsurface(Subsurface {
+                boundary: Dielectric { ior: m.eta },
+                sigma_s: m.sigma_s * m.scale,
+                sigma_a: m.sigma_a * m.scale,
+                g: m.g,
+            }))
         }
         "conductor" => {
             allow(FRESNEL_KEYS)?;
@@ -595,6 +551,100 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
         }
         _ => unreachable!("choice() validated the type"),
     }
+}
+
+/// Coefficients of a homogeneous medium (per millimetre) and its settings.
+struct MediumSpec {
+    sigma_s: Rgb,
+    sigma_s_reduced: Rgb,
+    sigma_a: Rgb,
+    g: f64,
+    eta: f64,
+    scale: f64,
+}
+
+/// `medium`, or `sigma_a` with `sigma_s` or `sigma_s_reduced`; `g`, `ior`,
+/// `scale`.
+fn medium_coefficients(t: &Table) -> Result<MediumSpec> {
+    let g = match t.get("g") {
+        Some(v) => {
+            let g = v.f64()?;
+            if !(g > -1.0 && g < 1.0) {
+                return Err(v.error(format!("g must lie strictly between -1 and 1, got {g}")));
+            }
+            g
+        }
+        None => 0.0,
+    };
+    let scale = match t.get("scale") {
+        Some(v) => v.positive()?,
+        None => 1.0,
+    };
+    let coefficients = |key: &str| -> Result<Option<Rgb>> {
+        match t.get(key) {
+            Some(v) => {
+                let c = v.numbers::<3>()?;
+                if c.iter().any(|&x| x < 0.0) {
+                    return Err(v.error(format!("{key} must be non-negative, got {c:?}")));
+                }
+                Ok(Some(Rgb::from_array(c)))
+            }
+            None => Ok(None),
+        }
+    };
+    let explicit = ["sigma_s", "sigma_s_reduced", "sigma_a"]
+        .iter()
+        .any(|k| t.get(k).is_some());
+    let (sigma_s, sigma_s_reduced, sigma_a, mut eta) = match t.get("medium") {
+        Some(v) => {
+            if explicit {
+                return Err(t.error("give either `medium` or explicit coefficients, not both"));
+            }
+            let name = v.str()?;
+            let m = Medium::by_name(name).ok_or_else(|| {
+                v.error(format!(
+                    "unknown medium \"{name}\" (valid: {})",
+                    Medium::names().join(", ")
+                ))
+            })?;
+            let red = Rgb::from_array(m.sigma_s_reduced);
+            (red / (1.0 - g), red, Rgb::from_array(m.sigma_a), m.eta)
+        }
+        None => {
+            let sa = coefficients("sigma_a")?.ok_or_else(|| {
+                t.error("give `medium`, or `sigma_a` with `sigma_s` or `sigma_s_reduced`")
+            })?;
+            let (ss, red) = match (coefficients("sigma_s")?, coefficients("sigma_s_reduced")?) {
+                (Some(_), Some(_)) => {
+                    return Err(t.error("give `sigma_s` or `sigma_s_reduced`, not both"))
+                }
+                (Some(s), None) => (s, s * (1.0 - g)),
+                (None, Some(r)) => (r / (1.0 - g), r),
+                (None, None) => {
+                    return Err(t.error("give `sigma_s` or `sigma_s_reduced` with `sigma_a`"))
+                }
+            };
+            if (red + sa).max_component() <= 0.0 {
+                return Err(t.error("the medium neither scatters nor absorbs"));
+            }
+            (ss, red, sa, 1.3)
+        }
+    };
+    if let Some(v) = t.get("ior") {
+        let ior = v.f64()?;
+        if !(ior > 0.0) {
+            return Err(v.error(format!("ior must be positive, got {ior}")));
+        }
+        eta = ior;
+    }
+    Ok(MediumSpec {
+        sigma_s,
+        sigma_s_reduced,
+        sigma_a,
+        g,
+        eta,
+        scale,
+    })
 }
 
 /// `specular` (default 0.5) and `reflectance` (default 0), summing to <= 1.
