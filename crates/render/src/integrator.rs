@@ -69,6 +69,22 @@ pub struct FirstHit {
     pub depth: f64,
 }
 
+/// Russian roulette on the throughput `beta` with the refraction scale
+/// undone: survival probability `min(1, max(beta * eta_scale))`, survivors
+/// reweighted. `None` ends the path (also for a black throughput).
+fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
+    let q = (beta * eta_scale).max_component();
+    let beta = if q < 1.0 {
+        if rng.next_f64() >= q {
+            return None;
+        }
+        beta / q
+    } else {
+        beta
+    };
+    (!beta.is_black()).then_some(beta)
+}
+
 /// Moves `p` off the surface along `n` to the side of `w`.
 #[inline]
 pub fn offset_origin(p: DVec3, n: DVec3, w: DVec3) -> DVec3 {
@@ -114,15 +130,9 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                 }
                 let st = channel(m.sigma_t(), c);
                 beta *= channel(m.sigma_s, c) / st;
-                let q = (beta * eta_scale).max_component();
-                if q < 1.0 {
-                    if rng.next_f64() >= q {
-                        break;
-                    }
-                    beta = beta / q;
-                }
-                if beta.is_black() {
-                    break;
+                match russian_roulette(beta, eta_scale, rng) {
+                    Some(b) => beta = b,
+                    None => break,
                 }
                 let p = ray.at(t_max);
                 let cos_t = sample_hg_cos(m.g, rng.next_f64());
@@ -238,15 +248,11 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
         }
 
         if depth >= 3 {
-            let q = (beta * eta_scale).max_component();
-            if q < 1.0 {
-                if rng.next_f64() >= q {
-                    break;
-                }
-                beta = beta / q;
+            match russian_roulette(beta, eta_scale, rng) {
+                Some(b) => beta = b,
+                None => break,
             }
-        }
-        if beta.is_black() {
+        } else if beta.is_black() {
             break;
         }
     }

@@ -294,16 +294,7 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
         "ward" => {
             allow(&["alpha_u", "alpha_v", "specular", "reflectance", "tangent"])?;
             let alpha = |key: &str| -> Result<f64> {
-                match t.get(key) {
-                    Some(v) => {
-                        let a = v.f64()?;
-                        if !(a > 0.0 && a <= 10.0) {
-                            return Err(v.error(format!("{key} must lie in (0, 10], got {a}")));
-                        }
-                        Ok(a)
-                    }
-                    None => Ok(0.15),
-                }
+                t.get(key).map_or(Ok(0.15), |v| roughness_value(&v, key))
             };
             let (specular, diffuse) = lobe_weights(t)?;
             let mut w = Ward::new(alpha("alpha_u")?, alpha("alpha_v")?, specular, diffuse);
@@ -364,16 +355,9 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 },
                 None => Masking::VGroove,
             };
-            let rough = match t.get("roughness") {
-                Some(v) => {
-                    let r = v.f64()?;
-                    if !(r > 0.0 && r <= 10.0) {
-                        return Err(v.error(format!("roughness must lie in (0, 10], got {r}")));
-                    }
-                    r
-                }
-                None => 0.3,
-            };
+            let rough = t
+                .get("roughness")
+                .map_or(Ok(0.3), |v| roughness_value(&v, "roughness"))?;
             let distribution = match dist {
                 "ggx" => NormalDistribution::Analytic(Microfacet::isotropic(Kind::Ggx, rough)),
                 "beckmann" => {
@@ -483,16 +467,10 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 Some(v) => reflectance(&v)?,
                 None => Rgb::splat(0.5),
             };
-            let rough = match t.get("roughness") {
-                Some(v) => {
-                    let r = v.f64()?;
-                    if !(r > 0.0 && r <= 10.0) {
-                        return Err(v.error(format!("roughness must lie in (0, 10], got {r}")));
-                    }
-                    Some(r)
-                }
-                None => None,
-            };
+            let rough = t
+                .get("roughness")
+                .map(|v| roughness_value(&v, "roughness"))
+                .transpose()?;
             Ok(Material::Plastic(Plastic::new(ior, rho, rough)))
         }
         "subsurface_brdf" => {
@@ -667,25 +645,30 @@ fn lobe_weights(t: &Table) -> Result<(Rgb, Rgb)> {
     Ok((specular, diffuse))
 }
 
+/// A roughness value in (0, 10].
+fn roughness_value(v: &Value, key: &str) -> Result<f64> {
+    let r = v.f64()?;
+    if !(r > 0.0 && r <= 10.0) {
+        return Err(v.error(format!("{key} must lie in (0, 10], got {r}")));
+    }
+    Ok(r)
+}
+
 /// `roughness`, or `roughness_u` with `roughness_v`; default 0.2.
 fn roughness(t: &Table) -> Result<(f64, f64)> {
-    let check = |v: &Value| -> Result<f64> {
-        let r = v.f64()?;
-        if !(r > 0.0 && r <= 10.0) {
-            return Err(v.error(format!("roughness must lie in (0, 10], got {r}")));
-        }
-        Ok(r)
-    };
     match (
         t.get("roughness"),
         t.get("roughness_u"),
         t.get("roughness_v"),
     ) {
         (Some(r), None, None) => {
-            let a = check(&r)?;
+            let a = roughness_value(&r, "roughness")?;
             Ok((a, a))
         }
-        (None, Some(u), Some(v)) => Ok((check(&u)?, check(&v)?)),
+        (None, Some(u), Some(v)) => Ok((
+            roughness_value(&u, "roughness_u")?,
+            roughness_value(&v, "roughness_v")?,
+        )),
         (None, None, None) => Ok((0.2, 0.2)),
         (Some(_), _, _) => {
             Err(t.error("give either `roughness` or `roughness_u` with `roughness_v`, not both"))
