@@ -477,3 +477,88 @@ fn random_walk_medium_conserves_energy_under_a_white_sky() {
     }
     assert!(mean[0] > mean[1] && mean[1] > mean[2], "{mean:?}");
 }
+
+fn medium_scene(params: &str, spp: u32) -> Image {
+    let src = SPHERE_SCENE
+        .replace(
+            "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
+            params,
+        )
+        .replace("spp = 4", &format!("spp = {spp}"))
+        .replace("max_depth = 16", "max_depth = 32");
+    render_with(&scene(&src), 2)
+}
+
+#[test]
+fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
+    // Non-absorbing medium, optically large (radius 0.8 = 16 mean free
+    // paths): the dipole's total reflectance is 1, so under a white sky
+    // the sphere renders 1 less the profile's power-law tail that lies
+    // beyond the object: int_{r > 1.6} R_d 2 pi r dr ~ (z_r + z_v)/3.2 = 8%
+    // (measured: 0.935).
+    let white = medium_scene(
+        "type = \"subsurface\"\nsigma_s_reduced = [20.0, 20.0, 20.0]\nsigma_a = [0.0, 0.0, 0.0]\nmode = \"dipole\"",
+        16,
+    );
+    let (mean, se) = channel_means(&white);
+    eprintln!("dipole, no absorption: {mean:?} +- {se:?}");
+    for c in 0..3 {
+        assert!(
+            mean[c] > 0.9 && mean[c] < 1.0 + 4.0 * se[c] + 1e-3,
+            "channel {c}: {}",
+            mean[c]
+        );
+    }
+    // Dipole against the exact random walk where the dipole's assumptions
+    // hold: a half-space (a plane, the medium below, bounds far away) under
+    // the white sky, reduced albedo 0.99 / 0.9 / 0.7 per channel; the
+    // centre region seen from above.
+    let half_space = |mode: &str, spp: u32| {
+        let src = format!(
+            r#"
+[camera]
+position = [0.0, 3.0, 0.0]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov_y = 20.0
+[film]
+width = 24
+height = 24
+spp = {spp}
+[integrator]
+max_depth = 32
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "m"
+type = "subsurface"
+sigma_s_reduced = [20.0, 20.0, 20.0]
+sigma_a = [0.202, 2.222, 8.571]
+mode = "{mode}"
+[[object]]
+material = "m"
+base = {{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }}
+bounds = {{ min = [-40.0, -40.0, -40.0], max = [40.0, 1.0, 40.0] }}
+"#
+        );
+        render_with(&scene(&src), 2)
+    };
+    let means = |img: &Image| -> [f64; 3] {
+        let n = img.rgb.len() as f64;
+        [0, 1, 2].map(|c| img.rgb.iter().map(|p| p[c] as f64).sum::<f64>() / n)
+    };
+    let md = means(&half_space("dipole", 64));
+    let mw = means(&half_space("random_walk", 256));
+    eprintln!("half-space: dipole {md:?}, random walk {mw:?}");
+    // Measured: -1.5%, +3.3%, +12.4%: the dipole's known error (it
+    // overestimates more as the albedo falls; compare the half-space
+    // random walk of the materials crate: -1.8% at 0.99, +2.8% at 0.9).
+    let bounds = [(-0.06, 0.03), (-0.02, 0.08), (0.05, 0.20)];
+    for c in 0..3 {
+        let rel = md[c] / mw[c] - 1.0;
+        eprintln!("channel {c}: dipole / walk - 1 = {:+.1}%", rel * 100.0);
+        assert!(md[c] <= 1.0 && mw[c] <= 1.0);
+        assert!(rel > bounds[c].0 && rel < bounds[c].1, "channel {c}: {rel}");
+    }
+}

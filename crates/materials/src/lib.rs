@@ -17,7 +17,7 @@
 //! | `beckmann` | Beckmann microfacet reflection | [`beckmann`] |
 //! | `conductor` | smooth metal mirror | [`conductor`] |
 //! | `plastic` | dielectric coat (smooth or GGX) over a diffuse base | [`plastic`] |
-//! | `subsurface` | translucent medium behind a smooth boundary (random walk) | [`subsurface_material`] |
+//! | `subsurface` | translucent medium behind a smooth boundary (dipole BSSRDF or random walk) | [`subsurface_material`] |
 //! | `subsurface_brdf` | translucent media, local approximation (dipole total + single scattering) | [`subsurface_brdf`] |
 //! | `mix` | weighted mixture of non-delta materials | [`mix`] |
 //! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |

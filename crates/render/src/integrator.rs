@@ -35,7 +35,9 @@
 
 use crate::Scene;
 use isolux_core::{sampling::power_heuristic, DVec3, Frame, Pcg32, Ray, Rgb, PI};
+use isolux_geometry::Hit;
 use isolux_materials::subsurface::phase::sample_hg_cos;
+use isolux_materials::subsurface_material::SubsurfaceMode;
 use isolux_materials::{Bsdf, BxdfFlags, BxdfModel, Subsurface};
 
 /// Maximum scattering and boundary events of one path inside media.
@@ -67,6 +69,128 @@ pub struct FirstHit {
     pub normal: DVec3,
     /// Distance.
     pub depth: f64,
+}
+
+/// Next-event estimation at `p` (geometric normal `n`): point lights, and
+/// the environment map with multiple importance sampling against the
+/// scattering density. `f_cos_pdf(wi)` returns `f |cos|` and the density
+/// with which the path itself would continue toward `wi`.
+fn direct_light(
+    scene: &Scene,
+    p: DVec3,
+    n: DVec3,
+    rng: &mut Pcg32,
+    f_cos_pdf: impl Fn(DVec3) -> (Rgb, f64),
+) -> Rgb {
+    let mut l = Rgb::BLACK;
+    for light in &scene.lights {
+        let origin = offset_origin(p, n, light.position - p);
+        let d = light.position - origin;
+        let dist2 = d.length_squared();
+        if !(dist2 > 0.0) {
+            continue;
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let (fc, _) = f_cos_pdf(wi);
+        if fc.is_black() {
+            continue;
+        }
+        if !scene.geometry.occluded(&Ray::new(origin, wi), 0.0, dist) {
+            l += fc * light.intensity / dist2;
+        }
+    }
+    let env = &scene.environment;
+    if env.is_sampled() {
+        if let Some(s) = env.sample(rng.next_2d()) {
+            let (fc, pdf) = f_cos_pdf(s.wi);
+            if !fc.is_black() && !s.radiance.is_black() {
+                let origin = offset_origin(p, n, s.wi);
+                if !scene
+                    .geometry
+                    .occluded(&Ray::new(origin, s.wi), 0.0, f64::INFINITY)
+                {
+                    let w = power_heuristic(s.pdf, pdf);
+                    l += fc * s.radiance * (w / s.pdf);
+                }
+            }
+        }
+    }
+    l
+}
+
+/// Samples the entry point `x_i` of the dipole BSSRDF around the exit
+/// point `x_o` (pbrt-v3 §15.4): a colour channel, a projection axis (the
+/// normal with probability 1/2, each tangent 1/4), a radius from the
+/// channel's radial sampler, and a probe ray along the axis through the
+/// object, of which one of the `k` hits is chosen. Returns `x_i` and the
+/// weight `R_d(|x_i - x_o|) / pdf(x_i)`, the pdf summing every axis and
+/// channel that could have produced `x_i`.
+fn bssrdf_entry(
+    scene: &Scene,
+    obj: usize,
+    m: &Subsurface,
+    hit: &Hit,
+    rng: &mut Pcg32,
+) -> Option<(Hit, Rgb)> {
+    let object = &scene.geometry.objects()[obj];
+    let frame = Frame::from_normal(hit.n);
+    let axes = [
+        (frame.n, frame.s, frame.t, 0.5),
+        (frame.s, frame.t, frame.n, 0.25),
+        (frame.t, frame.n, frame.s, 0.25),
+    ];
+    let c = rng.next_below(3) as usize;
+    let ua = rng.next_f64();
+    let (axis, a1, a2, _) = if ua < 0.5 {
+        axes[0]
+    } else if ua < 0.75 {
+        axes[1]
+    } else {
+        axes[2]
+    };
+    let r = m.sample_radius(c, rng.next_f64(), rng.next_f64());
+    let r_max = m.r_max();
+    if !(r < r_max) {
+        return None;
+    }
+    let phi = 2.0 * PI * rng.next_f64();
+    let h = (r_max * r_max - r * r).sqrt();
+    let start = hit.p + r * (phi.cos() * a1 + phi.sin() * a2) + h * axis;
+    let probe = Ray::new(start, -axis);
+    let mut hits: Vec<Hit> = Vec::new();
+    let mut t0 = 0.0;
+    while hits.len() < 64 {
+        let Some(x) = object.intersect(&probe, t0, 2.0 * h) else {
+            break;
+        };
+        t0 = x.t + 1e-7 * (1.0 + x.p.abs().max_element());
+        hits.push(x);
+    }
+    if hits.is_empty() {
+        return None;
+    }
+    let k = hits.len();
+    let xi = hits[(rng.next_below(k as u32) as usize).min(k - 1)];
+    let d = xi.p - hit.p;
+    let mut pdf = 0.0;
+    for (ax, _, _, p_axis) in axes {
+        let along = d.dot(ax);
+        let r_proj = (d.length_squared() - along * along).max(0.0).sqrt();
+        if r_proj <= 0.0 || r_proj >= r_max {
+            continue;
+        }
+        let cos = ax.dot(xi.n).abs();
+        for ch in 0..3 {
+            pdf += p_axis / 3.0 * m.radial_pdf(ch, r_proj) / (2.0 * PI * r_proj) * cos;
+        }
+    }
+    pdf /= k as f64;
+    if !(pdf > 0.0) || !pdf.is_finite() {
+        return None;
+    }
+    let w = m.profile(d.length()) / pdf;
+    w.is_finite().then_some((xi, w))
 }
 
 /// Russian roulette on the throughput `beta` with the refraction scale
@@ -172,47 +296,55 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
         };
         let ns = bsdf.normal();
 
-        // Point lights.
-        for light in &scene.lights {
-            let origin = offset_origin(hit.p, hit.n, light.position - hit.p);
-            let d = light.position - origin;
-            let dist2 = d.length_squared();
-            if !(dist2 > 0.0) {
-                continue;
-            }
-            let dist = dist2.sqrt();
-            let wi = d / dist;
-            let f = bsdf.f(wo, wi);
-            if f.is_black() {
-                continue;
-            }
-            if !scene.geometry.occluded(&Ray::new(origin, wi), 0.0, dist) {
-                l += beta * f * light.intensity * (wi.dot(ns).abs() / dist2);
-            }
-        }
-
-        // Environment map light sampling.
-        if env.is_sampled() {
-            if let Some(s) = env.sample(rng.next_2d()) {
-                let f = bsdf.f(wo, s.wi);
-                if !f.is_black() && !s.radiance.is_black() {
-                    let origin = offset_origin(hit.p, hit.n, s.wi);
-                    if !scene
-                        .geometry
-                        .occluded(&Ray::new(origin, s.wi), 0.0, f64::INFINITY)
-                    {
-                        let w = power_heuristic(s.pdf, bsdf.pdf(wo, s.wi));
-                        l += beta * f * s.radiance * (s.wi.dot(ns).abs() * w / s.pdf);
-                    }
-                }
-            }
-        }
+        l += beta
+            * direct_light(scene, hit.p, hit.n, rng, |wi| {
+                (bsdf.f(wo, wi) * wi.dot(ns).abs(), bsdf.pdf(wo, wi))
+            });
 
         // BSDF sampling.
         let uc = rng.next_f64();
         let Some(s) = bsdf.sample(wo, uc, rng.next_2d()) else {
             break;
         };
+        // Dipole BSSRDF: light refracted into the medium re-emerges at x_o
+        // from an entry point x_i sampled around it (the choice of
+        // transmission, probability 1 - F(cos_o), cancels the factor
+        // 1 - F(cos_o) of S).
+        if let Some(m) = material.medium() {
+            if m.mode == SubsurfaceMode::Dipole && s.flags.contains(BxdfFlags::TRANSMISSION) {
+                let Some((xi, w)) = bssrdf_entry(scene, obj, m, &hit, rng) else {
+                    break;
+                };
+                beta *= w;
+                // At x_i: light arriving through the boundary, weighted by
+                // S_w(wi) = (1 - F(cos_i)) / (c pi).
+                l += beta
+                    * direct_light(scene, xi.p, xi.n, rng, |wi| {
+                        let c = wi.dot(xi.n);
+                        if c <= 0.0 {
+                            (Rgb::BLACK, 0.0)
+                        } else {
+                            (Rgb::splat(m.sw(c) * c), c * isolux_core::INV_PI)
+                        }
+                    });
+                let local = isolux_core::sampling::cosine_hemisphere(rng.next_2d());
+                if local.z <= 0.0 {
+                    break;
+                }
+                let wl = Frame::from_normal(xi.n).to_world(local);
+                beta *= m.sw(local.z) * PI;
+                prev_pdf = Some(local.z * isolux_core::INV_PI);
+                ray = Ray::new(offset_origin(xi.p, xi.n, wl), wl);
+                depth += 1;
+                if depth >= 3 {
+                    match russian_roulette(beta, eta_scale, rng) {
+                        Some(b) => beta = b,
+                        None => break,
+                    }
+                }
+                continue;
+            }
+        }
         beta *= s.weight(s.wi.dot(ns));
         eta_scale *= s.eta * s.eta;
         // Crossing a medium's boundary enters or leaves it.

@@ -8,6 +8,7 @@ use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::metals::Metal;
 use isolux_materials::microfacet::{Kind, Microfacet};
 use isolux_materials::subsurface::Medium;
+use isolux_materials::subsurface_material::SubsurfaceMode;
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
     Gaussian, Ggx, Material, Mix, Phong,
@@ -504,22 +505,19 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
             ])?;
             let m = medium_coefficients(t)?;
             let mode = match t.get("mode") {
-                Some(v) => (v.choice(&["dipole", "random_walk"])?, Some(v)),
-                None => ("dipole", None),
+                Some(v) => match v.choice(&["dipole", "random_walk"])? {
+                    "random_walk" => SubsurfaceMode::RandomWalk,
+                    _ => SubsurfaceMode::Dipole,
+                },
+                None => SubsurfaceMode::Dipole,
             };
-            if mode.0 == "dipole" {
-                let msg = "mode = \"dipole\" (the default) is not implemented yet: use mode = \"random_walk\" (exact, slower) or type = \"subsurface_brdf\" (fast local approximation)";
-                return Err(match mode.1 {
-                    Some(v) => v.error(msg),
-                    None => t.error(msg),
-                });
-            }
-            Ok(Material::Subsurface(Subsurface {
-                boundary: Dielectric { ior: m.eta },
-                sigma_s: m.sigma_s * m.scale,
-                sigma_a: m.sigma_a * m.scale,
-                g: m.g,
-            }))
+            Ok(Material::Subsurface(Subsurface::new(
+                m.sigma_s * m.scale,
+                m.sigma_a * m.scale,
+                m.g,
+                m.eta,
+                mode,
+            )))
         }
         "conductor" => {
             allow(FRESNEL_KEYS)?;

@@ -307,7 +307,6 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"s\"\ntype = \"subsurface_brdf\"\nmedium = \"marble\"\ng = 1.0\n", "s.toml:5:5: material[0].g: g must lie strictly between -1 and 1, got 1"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface_brdf\"\nmedium = \"marble\"\nior = 0\n", "s.toml:5:7: material[0].ior: ior must be positive, got 0"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface_brdf\"\nmedium = \"marble\"\nsigma_a = [1, 1, 1]\n", "s.toml:1:1: material[0]: give either `medium` or explicit coefficients, not both"),
-        ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\n", "s.toml:1:1: material[0]: mode = \"dipole\" (the default) is not implemented yet"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\nmode = \"diffusion\"\n", "s.toml:5:8: material[0].mode: unknown value \"diffusion\" (valid: dipole, random_walk)"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\nscale = 0\nmode = \"random_walk\"\n", "s.toml:5:9: material[0].scale: must be positive, got 0"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),

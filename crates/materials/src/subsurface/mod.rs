@@ -10,8 +10,8 @@
 //!
 //! Primary source: H. W. Jensen, S. R. Marschner, M. Levoy, P. Hanrahan,
 //! "A Practical Model for Subsurface Light Transport", SIGGRAPH 2001.
-//! Rendering with these (the `subsurface` materials) is the open part of
-//! the subsurface issue.
+//! The materials that render with them are `subsurface` and
+//! `subsurface_brdf`.
 
 pub mod diffusion;
 pub mod media;
