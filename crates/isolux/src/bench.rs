@@ -14,6 +14,8 @@ use std::time::Instant;
 pub enum Suite {
     /// Primary-ray casting of a bumpy sphere (SPEC §1).
     Geometry,
+    /// Subsurface: dipole against random walk at equal noise.
+    Sss,
 }
 
 /// Run benchmarks.
@@ -22,7 +24,7 @@ pub struct BenchArgs {
     /// Which benchmark.
     #[arg(value_enum)]
     pub suite: Suite,
-    /// Image edge in pixels (rays = size^2).
+    /// Image edge in pixels (rays = size^2; at most 256 for `sss`).
     #[arg(long, default_value_t = 1024)]
     pub size: u32,
     /// Bump counts to measure, comma separated.
@@ -58,6 +60,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         bail!("--size must be at least 1");
     }
     match a.suite {
+        Suite::Sss => sss(a.size.min(256))?,
         Suite::Geometry => {
             let threads = rayon::current_num_threads();
             println!(
@@ -82,5 +85,99 @@ pub fn run(a: BenchArgs) -> Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+/// Dipole vs random walk on a skim-milk sphere under the sky map.
+///
+/// Noise is measured as the RMS difference of two renders with different
+/// seeds over the sphere's pixels, divided by sqrt(2) (the standard
+/// deviation of one render); efficiency is `1 / (noise^2 * time)` (Monte
+/// Carlo noise falls as `1/sqrt(time)`), so the ratio of efficiencies is
+/// the speed-up at equal noise.
+fn sss(size: u32) -> Result<()> {
+    use isolux_core::{DVec3, Rgb};
+    use isolux_geometry::{Aggregate, Object, Quadric};
+    use isolux_materials::subsurface::Medium;
+    use isolux_materials::subsurface_material::SubsurfaceMode;
+    use isolux_materials::{Material, Subsurface};
+    use isolux_render::{
+        render, Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, RenderOptions, Scene,
+    };
+
+    let sky = isolux_io::read_rgb_image(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/env/sky.hdr"
+    )))?;
+    let texels = sky
+        .pixels
+        .iter()
+        .map(|p| Rgb::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    let env = Environment::Map(
+        EnvMap::new(sky.width, sky.height, texels, 0.5).map_err(anyhow::Error::msg)?,
+    );
+    let m = Medium::by_name("skimmilk").expect("skim milk is a named medium");
+    let scale = 20.0;
+    let make = |mode, spp, seed| Scene {
+        camera: Camera {
+            position: DVec3::new(0.0, 0.3, -3.0),
+            look_at: DVec3::ZERO,
+            up: DVec3::Y,
+            fov_y: 30.0,
+        },
+        film: FilmSettings {
+            width: size,
+            height: size,
+            spp,
+        },
+        integrator: IntegratorSettings { max_depth: 8, seed },
+        lights: vec![],
+        environment: env.clone(),
+        materials: vec![Material::Subsurface(Subsurface::new(
+            Rgb::from_array(m.sigma_s_reduced) * scale,
+            Rgb::from_array(m.sigma_a) * scale,
+            0.0,
+            m.eta,
+            mode,
+        ))],
+        material_names: vec!["milk".into()],
+        geometry: Aggregate::new(vec![Object::new(
+            Quadric::sphere(DVec3::ZERO, 0.6),
+            vec![],
+            None,
+        )
+        .expect("sphere")]),
+        object_material: vec![0],
+    };
+    println!("skim milk sphere (radius 0.6, 1 unit = {scale} mm) under the sky map, {size}x{size}; noise = RMS(seed 1 - seed 2)/sqrt(2) over the sphere");
+    println!("| mode | spp | time per render (s) | noise (std. dev.) | efficiency 1/(noise^2 t) |");
+    println!("|---|---:|---:|---:|---:|");
+    let mut eff = vec![];
+    for (name, mode, spp) in [
+        ("dipole", SubsurfaceMode::Dipole, 16u32),
+        ("random_walk", SubsurfaceMode::RandomWalk, 16u32),
+    ] {
+        let opts = RenderOptions { aov: true };
+        let t = Instant::now();
+        let (a, _) = render(&make(mode, spp, 1), &opts, &|_, _| {})?;
+        let secs = t.elapsed().as_secs_f64();
+        let (b, _) = render(&make(mode, spp, 2), &opts, &|_, _| {})?;
+        let depth = &a.aov.as_ref().expect("aov requested").depth;
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (i, (pa, pb)) in a.rgb.iter().zip(&b.rgb).enumerate() {
+            if depth[i] > 0.0 {
+                for c in 0..3 {
+                    sum += ((pa[c] - pb[c]) as f64).powi(2);
+                }
+                n += 3;
+            }
+        }
+        let noise = (sum / n.max(1) as f64).sqrt() / std::f64::consts::SQRT_2;
+        let e = 1.0 / (noise * noise * secs);
+        eff.push(e);
+        println!("| {name} | {spp} | {secs:.2} | {noise:.4} | {e:.1} |");
+    }
+    println!("\ndipole speed-up at equal noise: {:.0}x", eff[0] / eff[1]);
     Ok(())
 }
