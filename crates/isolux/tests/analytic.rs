@@ -495,12 +495,14 @@ fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
     // paths): the dipole's total reflectance is 1, so under a white sky
     // the sphere renders 1 less the profile's power-law tail that lies
     // beyond the object: int_{r > 1.6} R_d 2 pi r dr ~ (z_r + z_v)/3.2 = 8%
-    // (measured: 0.935).
-    let white = medium_scene(
-        "type = \"subsurface\"\nsigma_s_reduced = [20.0, 20.0, 20.0]\nsigma_a = [0.0, 0.0, 0.0]\nmode = \"dipole\"",
-        16,
-    );
-    let (mean, se) = channel_means(&white);
+    // (measured: 0.927).
+    let white = |single: bool| {
+        medium_scene(
+            &format!("type = \"subsurface\"\nsigma_s_reduced = [20.0, 20.0, 20.0]\nsigma_a = [0.0, 0.0, 0.0]\nmode = \"dipole\"\nsingle_scattering = {single}"),
+            16,
+        )
+    };
+    let (mean, se) = channel_means(&white(false));
     eprintln!("dipole, no absorption: {mean:?} +- {se:?}");
     for c in 0..3 {
         assert!(
@@ -509,8 +511,14 @@ fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
             mean[c]
         );
     }
-    // Dipole against the exact random walk where the dipole's assumptions
-    // hold: a half-space (a plane, the medium below, bounds far away) under
+    // Jensen's S^(1) + S_d double-counts low orders: measured 1.054. The
+    // bound guards the size of that known excess.
+    let (mean1, _) = channel_means(&white(true));
+    eprintln!("dipole + single scattering, no absorption: {mean1:?}");
+    assert!(mean1[0] > mean[0] && mean1[0] < 1.08, "{mean1:?}");
+    // Dipole (diffusion term alone: its known error is the diffusion
+    // approximation's) against the exact random walk where the dipole's
+    // assumptions hold: a half-space (a plane, the medium below, bounds far away) under
     // the white sky, reduced albedo 0.99 / 0.9 / 0.7 per channel; the
     // centre region seen from above.
     let half_space = |mode: &str, spp: u32| {
@@ -536,6 +544,7 @@ type = "subsurface"
 sigma_s_reduced = [20.0, 20.0, 20.0]
 sigma_a = [0.202, 2.222, 8.571]
 mode = "{mode}"
+single_scattering = false
 [[object]]
 material = "m"
 base = {{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }}
@@ -551,7 +560,7 @@ bounds = {{ min = [-40.0, -40.0, -40.0], max = [40.0, 1.0, 40.0] }}
     let md = means(&half_space("dipole", 64));
     let mw = means(&half_space("random_walk", 256));
     eprintln!("half-space: dipole {md:?}, random walk {mw:?}");
-    // Measured: -1.5%, +3.3%, +12.4%: the dipole's known error (it
+    // Measured: -1.8%, +2.3%, +11.9%: the dipole's known error (it
     // overestimates more as the albedo falls; compare the half-space
     // random walk of the materials crate: -1.8% at 0.99, +2.8% at 0.9).
     let bounds = [(-0.06, 0.03), (-0.02, 0.08), (0.05, 0.20)];

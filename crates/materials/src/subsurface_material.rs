@@ -21,11 +21,19 @@
 //!   integrates to one and the exit flux is the dipole's `R_d`). The
 //!   integrator samples the entry point `x_i` around the exit point: a
 //!   channel, a projection axis (the normal with probability 1/2, each
-//!   tangent with 1/4), a radius from a mixture of exponentials in
-//!   `sigma_tr` and `sigma_t'`, and a probe ray through the object that
+//!   tangent with 1/4), a radius from a table of the channel's own
+//!   `R_d(r) 2 pi r` (4096 bins in `x = sqrt(r / r_max)`), and a probe ray
+//!   through the object that
 //!   picks one of its `k` hits; the pdf combines all axes and channels.
 //!   Point lights and the environment are estimated at `x_i`. The
-//!   single-scattering term is not included in this mode.
+//!   single-scattering term (Jensen's `S^(1)`, see
+//!   [`crate::subsurface::phase`]) is added at `x_o` for direct light
+//!   (light sampling and a cosine-sampled sky direction, with MIS).
+//!   Jensen's sum `S^(1) + S_d` counts the lowest orders twice (the
+//!   diffusion term already approximates them): a non-absorbing sphere
+//!   under a white sky renders 1.054 with it and 0.927 without (the latter
+//!   below 1 by the profile lost beyond the object). `single_scattering =
+//!   false` drops the term for strictly energy-bounded renders.
 //!
 //! Coefficients are per millimetre; `scale` gives millimetres per scene
 //! unit, so `sigma` in 1/unit is `sigma_mm * scale`.
@@ -39,6 +47,7 @@
 //! | `ior` | number > 0 | medium's, else `1.3` | relative index of refraction |
 //! | `scale` | number > 0 | `1` | millimetres per scene unit |
 //! | `mode` | `"dipole"`, `"random_walk"` | `"dipole"` | see above |
+//! | `single_scattering` | boolean | `true` | add `S^(1)` in dipole mode |
 //!
 //! Sources: Jensen et al., SIGGRAPH 2001; pbrt-v4 §11 and §14 (volumetric
 //! path tracing).
@@ -60,7 +69,11 @@ use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::plastic::diffuse_fresnel_external;
 use crate::subsurface::Dipole;
 use crate::Dielectric;
-use isolux_core::{DVec3, Rgb, INV_PI};
+use isolux_core::{DVec3, Distribution1D, Rgb, INV_PI, PI};
+use std::sync::Arc;
+
+/// Bins of the tabulated radial sampler.
+const RADIAL_BINS: usize = 4096;
 
 /// How the medium is rendered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,7 +85,7 @@ pub enum SubsurfaceMode {
 }
 
 /// A translucent medium behind a smooth boundary.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Subsurface {
     /// The boundary.
     pub boundary: Dielectric,
@@ -88,6 +101,22 @@ pub struct Subsurface {
     pub dipoles: [Dipole; 3],
     /// `1 - F_dr,ext`: normalizes the entry-side angular factor.
     pub sw_norm: f64,
+    /// Add Jensen's single-scattering term in dipole mode.
+    pub single_scattering: bool,
+    /// Per-channel tables of `R_d(r) 2 pi r` in `x = sqrt(r / r_max)`.
+    radial: Arc<[Distribution1D; 3]>,
+    r_max: f64,
+}
+
+impl PartialEq for Subsurface {
+    fn eq(&self, o: &Self) -> bool {
+        self.boundary == o.boundary
+            && self.sigma_s == o.sigma_s
+            && self.sigma_a == o.sigma_a
+            && self.g == o.g
+            && self.mode == o.mode
+            && self.single_scattering == o.single_scattering
+    }
 }
 
 impl Subsurface {
@@ -95,18 +124,41 @@ impl Subsurface {
     /// (per scene unit), mean cosine `g` and relative index `eta`.
     pub fn new(sigma_s: Rgb, sigma_a: Rgb, g: f64, eta: f64, mode: SubsurfaceMode) -> Self {
         let red = sigma_s * (1.0 - g);
+        let dipoles = [
+            Dipole::new(red.r, sigma_a.r, eta),
+            Dipole::new(red.g, sigma_a.g, eta),
+            Dipole::new(red.b, sigma_a.b, eta),
+        ];
+        // The profile is ignored beyond r_max: where the slowest channel's
+        // exp(-sigma_tr r) has fallen to 1e-4 (sigma_tr floored at
+        // sigma_t'/30: without absorption the tail is a power law).
+        let r_max = dipoles
+            .iter()
+            .map(|d| 9.2 / d.sigma_tr.max(d.sigma_t_reduced / 30.0))
+            .fold(0.0f64, f64::max);
+        // Sample r = r_max x^2 from a table of R_d(r) 2 pi r dr/dx: the
+        // warp resolves the profile's core (a mean free path) and its tail.
+        let table = |d: &Dipole| {
+            let w: Vec<f64> = (0..RADIAL_BINS)
+                .map(|i| {
+                    let x = (i as f64 + 0.5) / RADIAL_BINS as f64;
+                    let r = r_max * x * x;
+                    d.r_d(r) * 2.0 * PI * r * 2.0 * r_max * x
+                })
+                .collect();
+            Distribution1D::new(&w)
+        };
         Self {
             boundary: Dielectric { ior: eta },
             sigma_s,
             sigma_a,
             g,
             mode,
-            dipoles: [
-                Dipole::new(red.r, sigma_a.r, eta),
-                Dipole::new(red.g, sigma_a.g, eta),
-                Dipole::new(red.b, sigma_a.b, eta),
-            ],
+            radial: Arc::new([table(&dipoles[0]), table(&dipoles[1]), table(&dipoles[2])]),
+            dipoles,
             sw_norm: 1.0 - diffuse_fresnel_external(eta),
+            single_scattering: true,
+            r_max,
         }
     }
 
@@ -125,34 +177,26 @@ impl Subsurface {
         (1.0 - crate::fresnel::dielectric(cos_i.abs(), self.boundary.ior)) * INV_PI / self.sw_norm
     }
 
-    /// The two radial sampling rates of channel `c`: the profile's tail
-    /// `sigma_tr` (at least `sigma_t' / 30`, since without absorption the
-    /// tail decays as a power law, not exponentially) and its core
-    /// `sigma_t'`.
-    pub fn rates(&self, c: usize) -> (f64, f64) {
-        let d = &self.dipoles[c];
-        (d.sigma_tr.max(d.sigma_t_reduced / 30.0), d.sigma_t_reduced)
-    }
-
-    /// Density of the radial sampler of channel `c` at radius `r`
-    /// (mixture of two exponentials).
+    /// Density of the radial sampler of channel `c` at radius `r`.
     pub fn radial_pdf(&self, c: usize, r: f64) -> f64 {
-        let (a, b) = self.rates(c);
-        0.5 * (a * (-a * r).exp() + b * (-b * r).exp())
+        if !(r > 0.0 && r < self.r_max) {
+            return 0.0;
+        }
+        let x = (r / self.r_max).sqrt();
+        self.radial[c].pdf(x) / (2.0 * self.r_max * x)
     }
 
-    /// Samples a radius for channel `c`.
-    pub fn sample_radius(&self, c: usize, u1: f64, u2: f64) -> f64 {
-        let (a, b) = self.rates(c);
-        let rate = if u1 < 0.5 { a } else { b };
-        -(1.0 - u2).ln() / rate
+    /// Samples a radius for channel `c` from its tabulated profile.
+    pub fn sample_radius(&self, c: usize, u: f64) -> f64 {
+        let (x, _, _) = self.radial[c].sample(u);
+        self.r_max * x * x
     }
 
-    /// Radius beyond which the profile is ignored: where the slowest
-    /// channel's tail sampler `exp(-rate r)` has fallen to 1e-4.
+    /// Radius beyond which the profile is ignored.
     pub fn r_max(&self) -> f64 {
-        (0..3).map(|c| 9.2 / self.rates(c).0).fold(0.0f64, f64::max)
+        self.r_max
     }
+
     /// Extinction per scene unit.
     pub fn sigma_t(&self) -> Rgb {
         self.sigma_s + self.sigma_a

@@ -119,6 +119,60 @@ fn direct_light(
     l
 }
 
+/// Direct light scattered once inside a medium and leaving at `hit`
+/// toward `wo`: `f_1 = T(cos_i) T(cos_o) a p(wi' . wo') / (cos_i' + cos_o')`
+/// per channel, estimated by light sampling (point lights, environment
+/// map) and one cosine-sampled direction toward the environment, combined
+/// by multiple importance sampling (the cosine sample alone covers a
+/// constant sky).
+fn single_scattering_light(
+    scene: &Scene,
+    m: &Subsurface,
+    hit: &Hit,
+    wo: DVec3,
+    rng: &mut Pcg32,
+) -> Rgb {
+    use isolux_materials::subsurface::phase::single_scattering;
+    let frame = Frame::from_normal(hit.n);
+    let wo_l = frame.to_local(wo);
+    let albedo = m.albedo();
+    let eta = m.boundary.ior;
+    let f1 = |wi: DVec3| -> Rgb {
+        let wl = frame.to_local(wi);
+        if wl.z <= 0.0 {
+            return Rgb::BLACK;
+        }
+        albedo * single_scattering(wo_l, wl, 1.0, m.g, eta)
+    };
+    let mut l = direct_light(scene, hit.p, hit.n, rng, |wi| {
+        let c = wi.dot(hit.n);
+        if c <= 0.0 {
+            (Rgb::BLACK, 0.0)
+        } else {
+            (f1(wi) * c, c * isolux_core::INV_PI)
+        }
+    });
+    let local = isolux_core::sampling::cosine_hemisphere(rng.next_2d());
+    if local.z > 0.0 {
+        let wi = frame.to_world(local);
+        let env = &scene.environment;
+        let origin = offset_origin(hit.p, hit.n, wi);
+        if !scene
+            .geometry
+            .occluded(&Ray::new(origin, wi), 0.0, f64::INFINITY)
+        {
+            let pdf = local.z * isolux_core::INV_PI;
+            let w = if env.is_sampled() {
+                power_heuristic(pdf, env.pdf(wi))
+            } else {
+                1.0
+            };
+            l += f1(wi) * env.eval(wi) * (PI * w);
+        }
+    }
+    l
+}
+
 /// Samples the entry point `x_i` of the dipole BSSRDF around the exit
 /// point `x_o` (pbrt-v3 §15.4): a colour channel, a projection axis (the
 /// normal with probability 1/2, each tangent 1/4), a radius from the
@@ -149,7 +203,7 @@ fn bssrdf_entry(
     } else {
         axes[2]
     };
-    let r = m.sample_radius(c, rng.next_f64(), rng.next_f64());
+    let r = m.sample_radius(c, rng.next_f64());
     let r_max = m.r_max();
     if !(r < r_max) {
         return None;
@@ -238,14 +292,14 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
     loop {
         // Free flight inside a medium limits the search for the surface.
         let mut t_max = f64::INFINITY;
-        if let (Some(m), Some(c)) = (inside, path_channel) {
+        if let (Some(m), Some(c)) = (&inside, path_channel) {
             let st = channel(m.sigma_t(), c);
             if st > 0.0 {
                 t_max = -(1.0 - rng.next_f64()).ln() / st;
             }
         }
         let found = scene.geometry.intersect(&ray, 0.0, t_max);
-        if let (None, Some(m), Some(c)) = (found, inside, path_channel) {
+        if let (None, Some(m), Some(c)) = (found, &inside, path_channel) {
             if t_max.is_finite() {
                 // Scattering event inside the medium.
                 medium_events += 1;
@@ -300,6 +354,13 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
             * direct_light(scene, hit.p, hit.n, rng, |wi| {
                 (bsdf.f(wo, wi) * wi.dot(ns).abs(), bsdf.pdf(wo, wi))
             });
+        // Single scattering of the dipole mode (Jensen's S^(1)), a local
+        // lobe at x_o, estimated here for direct light only.
+        if let Some(m) = material.medium() {
+            if m.mode == SubsurfaceMode::Dipole && m.single_scattering && wo.dot(hit.n) > 0.0 {
+                l += beta * single_scattering_light(scene, m, &hit, wo, rng);
+            }
+        }
 
         // BSDF sampling.
         let uc = rng.next_f64();
@@ -358,7 +419,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                         path_channel = Some(c);
                         beta = only_channel(beta, c, 3.0);
                     }
-                    inside = Some(*m);
+                    inside = Some(m.clone());
                 }
             }
         }

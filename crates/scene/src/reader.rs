@@ -220,6 +220,14 @@ impl<'d, 'a, 's> Value<'d, 'a, 's> {
         Ok(x as u64)
     }
 
+    /// A boolean.
+    pub fn bool(&self) -> Result<bool> {
+        match self.v.get_ref() {
+            DeValue::Boolean(b) => Ok(*b),
+            _ => Err(self.expected("a boolean (true or false)")),
+        }
+    }
+
     /// A string.
     pub fn str(&self) -> Result<&'a str> {
         match self.v.get_ref() {

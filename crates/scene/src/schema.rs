@@ -502,6 +502,7 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 "ior",
                 "scale",
                 "mode",
+                "single_scattering",
             ])?;
             let m = medium_coefficients(t)?;
             let mode = match t.get("mode") {
@@ -511,13 +512,12 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 },
                 None => SubsurfaceMode::Dipole,
             };
-            Ok(Material::Subsurface(Subsurface::new(
-                m.sigma_s * m.scale,
-                m.sigma_a * m.scale,
-                m.g,
-                m.eta,
-                mode,
-            )))
+            let mut sub =
+                Subsurface::new(m.sigma_s * m.scale, m.sigma_a * m.scale, m.g, m.eta, mode);
+            if let Some(v) = t.get("single_scattering") {
+                sub.single_scattering = v.bool()?;
+            }
+            Ok(Material::Subsurface(sub))
         }
         "conductor" => {
             allow(FRESNEL_KEYS)?;

@@ -309,6 +309,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"s\"\ntype = \"subsurface_brdf\"\nmedium = \"marble\"\nsigma_a = [1, 1, 1]\n", "s.toml:1:1: material[0]: give either `medium` or explicit coefficients, not both"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\nmode = \"diffusion\"\n", "s.toml:5:8: material[0].mode: unknown value \"diffusion\" (valid: dipole, random_walk)"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\nscale = 0\nmode = \"random_walk\"\n", "s.toml:5:9: material[0].scale: must be positive, got 0"),
+        ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\nsingle_scattering = 1\n", "s.toml:5:21: material[0].single_scattering: expected a boolean (true or false), found an integer"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
         ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),

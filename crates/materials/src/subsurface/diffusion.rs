@@ -21,6 +21,9 @@
 //! exactly (`int R_d(r) 2 pi r dr = R_d`, checked to 1e-6 by a test). Seed
 //! 003 states `int sin(theta) dtheta dphi = 1/(4 pi)`: it is `4 pi`.
 //!
+//! The energy crossing the boundary (seed 000 eq. 17) is
+//! `E = (1 - F(theta_i)) (1 - F(theta_o))` ([`energy_factor`]).
+//!
 //! `F_dr` is the medium's internal diffuse reflectance for relative index
 //! `eta = n_medium / n_outside`: by the fit of Egan and Hilgeman (1973),
 //! `-1.440/eta^2 + 0.710/eta + 0.668 + 0.0636 eta`, or exactly by
@@ -29,6 +32,15 @@
 
 use crate::plastic::diffuse_fresnel_external;
 use isolux_core::PI;
+
+/// The seed's energy factor (seed 000 eq. 17): the fraction of light that
+/// crosses the boundary on the way in and on the way out,
+/// `E = (1 - F(theta_i)) (1 - F(theta_o))`, with the exact dielectric
+/// Fresnel reflectance for relative index `eta`.
+pub fn energy_factor(cos_i: f64, cos_o: f64, eta: f64) -> f64 {
+    use crate::fresnel::dielectric;
+    (1.0 - dielectric(cos_i.abs(), eta)) * (1.0 - dielectric(cos_o.abs(), eta))
+}
 
 /// The Egan-Hilgeman fit of the internal diffuse Fresnel reflectance.
 pub fn f_dr_fit(eta: f64) -> f64 {
@@ -117,6 +129,18 @@ impl Dipole {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn energy_factor_limits() {
+        // Normal incidence on water-like eta = 1.3: (1 - 0.017)^2.
+        let r0 = ((1.3f64 - 1.0) / 2.3).powi(2);
+        assert!((energy_factor(1.0, 1.0, 1.3) - (1.0 - r0).powi(2)).abs() < 1e-12);
+        assert!(
+            energy_factor(1e-9, 1.0, 1.3) < 1e-6,
+            "grazing light does not enter"
+        );
+        assert_eq!(energy_factor(0.5, 0.7, 1.0), 1.0);
+    }
 
     #[test]
     fn fresnel_fit_agrees_with_integration() {
