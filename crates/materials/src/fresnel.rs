@@ -119,6 +119,27 @@ pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
     }
 }
 
+/// Hemispherical average `2 int_0^1 F(mu) mu dmu` of the dielectric
+/// reflectance for light arriving from outside (relative index `eta`),
+/// by Simpson's rule on 2048 intervals.
+pub fn diffuse_external(eta: f64) -> f64 {
+    let n = 2048;
+    let h = 1.0 / n as f64;
+    let g = |mu: f64| dielectric(mu, eta) * mu;
+    let mut s = g(0.0) + g(1.0);
+    for i in 1..n {
+        s += g(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    2.0 * s * h / 3.0
+}
+
+/// The same average for light inside the medium, total internal
+/// reflection included: `1 - (1 - F_ext) / eta^2` (the transmitted part
+/// scales by `1/eta^2` between the two sides).
+pub fn diffuse_internal(eta: f64) -> f64 {
+    1.0 - (1.0 - diffuse_external(eta)) / (eta * eta)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -59,23 +59,9 @@ pub struct Plastic {
     f_dr_int: f64,
 }
 
-/// Hemispherical average `2 int_0^1 F(mu) mu dmu` of the dielectric
-/// Fresnel reflectance seen from outside (Simpson, 2048 intervals).
-pub fn diffuse_fresnel_external(eta: f64) -> f64 {
-    let n = 2048;
-    let h = 1.0 / n as f64;
-    let g = |mu: f64| dielectric(mu, eta) * mu;
-    let mut s = g(0.0) + g(1.0);
-    for i in 1..n {
-        s += g(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
-    }
-    2.0 * s * h / 3.0
-}
-
 impl Plastic {
     /// A plastic material; `roughness` gives a rough GGX coat.
     pub fn new(ior: f64, reflectance: Rgb, roughness: Option<f64>) -> Self {
-        let f_ext = diffuse_fresnel_external(ior);
         Self {
             ior,
             reflectance,
@@ -83,7 +69,7 @@ impl Plastic {
                 distribution: Microfacet::isotropic(Kind::Ggx, a),
                 fresnel: Fresnel::Dielectric { ior },
             }),
-            f_dr_int: 1.0 - (1.0 - f_ext) / (ior * ior),
+            f_dr_int: crate::fresnel::diffuse_internal(ior),
         }
     }
 
@@ -198,7 +184,7 @@ mod tests {
             "{}",
             p.f_dr_internal()
         );
-        let f_ext = diffuse_fresnel_external(1.5);
+        let f_ext = crate::fresnel::diffuse_external(1.5);
         assert!((f_ext - 0.092).abs() < 0.002, "{f_ext}");
     }
 }

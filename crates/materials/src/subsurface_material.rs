@@ -66,7 +66,6 @@
 //! ```
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::plastic::diffuse_fresnel_external;
 use crate::subsurface::Dipole;
 use crate::Dielectric;
 use isolux_core::{DVec3, Distribution1D, Rgb, INV_PI, PI};
@@ -156,7 +155,7 @@ impl Subsurface {
             mode,
             radial: Arc::new([table(&dipoles[0]), table(&dipoles[1]), table(&dipoles[2])]),
             dipoles,
-            sw_norm: 1.0 - diffuse_fresnel_external(eta),
+            sw_norm: 1.0 - crate::fresnel::diffuse_external(eta),
             single_scattering: true,
             r_max,
         }

@@ -30,7 +30,6 @@
 //! integrating the Fresnel term, `1 - (1 - F_ext)/eta^2` with
 //! `F_ext = 2 int_0^1 F(mu) mu dmu`.
 
-use crate::plastic::diffuse_fresnel_external;
 use isolux_core::PI;
 
 /// The seed's energy factor (seed 000 eq. 17): the fraction of light that
@@ -50,7 +49,7 @@ pub fn f_dr_fit(eta: f64) -> f64 {
 /// The internal diffuse Fresnel reflectance by integration of the exact
 /// Fresnel term.
 pub fn f_dr_exact(eta: f64) -> f64 {
-    1.0 - (1.0 - diffuse_fresnel_external(eta)) / (eta * eta)
+    crate::fresnel::diffuse_internal(eta)
 }
 
 /// The single-colour dipole of a homogeneous medium.
