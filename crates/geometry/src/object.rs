@@ -210,9 +210,12 @@ impl Object {
     /// surface, say) is the rest of the ray gathered and searched.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         let (t0, t1) = self.bbox.clip(ray, t_min, t_max)?;
-        let base_q = self.base.along(ray);
-        let split = quadratic_crossings(base_q)
-            .into_iter()
+        // The base quadric's crossings, once per ray: they place the split
+        // and answer every segment without active perturbations.
+        let base_roots = quadratic_crossings(self.base.along(ray));
+        let split = base_roots
+            .iter()
+            .copied()
             .find(|&r| r > t0 && r < t1)
             .unwrap_or(t1);
         let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
@@ -243,7 +246,7 @@ impl Object {
                 if b <= a {
                     continue;
                 }
-                if let Some(t) = self.segment_root(ray, base_q, &cands, a, b) {
+                if let Some(t) = self.segment_root(ray, &base_roots, &cands, a, b) {
                     return Some(self.hit_at(ray, t, &cands));
                 }
                 a = b;
@@ -320,7 +323,7 @@ impl Object {
     fn segment_root(
         &self,
         ray: &Ray,
-        base_q: [f64; 3],
+        base_roots: &[f64],
         cands: &[Candidate],
         a: f64,
         b: f64,
@@ -339,9 +342,7 @@ impl Object {
             }
         };
         if !cands.iter().any(active) {
-            return quadratic_crossings(base_q)
-                .into_iter()
-                .find(|&r| r >= a && r <= b);
+            return base_roots.iter().copied().find(|&r| r >= a && r <= b);
         }
         debug_assert!(b.is_finite());
         // Local reparameterization t = a + s (b - a), s in [0, 1]: the base
