@@ -16,6 +16,8 @@ pub enum Suite {
     Geometry,
     /// Subsurface: dipole against random walk at equal noise.
     Sss,
+    /// Homomorphic factorization: fit time at 32 and 64 texels per side.
+    Factor,
 }
 
 /// Run benchmarks.
@@ -61,6 +63,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     match a.suite {
         Suite::Sss => sss(a.size.min(256))?,
+        Suite::Factor => factor(a.repeat)?,
         Suite::Geometry => {
             let threads = rayon::current_num_threads();
             println!(
@@ -83,6 +86,69 @@ pub fn run(a: BenchArgs) -> Result<()> {
                     rays / tn / 1e6
                 );
             }
+        }
+    }
+    Ok(())
+}
+
+/// Fit time of the homomorphic factorization of the three target
+/// materials at 32 and 64 texels per side (default settings: 200,000 fit
+/// samples, one Gauss-Newton step), all threads; the SVD baseline and the
+/// held-out errors are not timed.
+fn factor(repeat: u32) -> Result<()> {
+    use isolux_core::Rgb;
+    use isolux_factor::{draw, fit, FitOptions, Source};
+    use isolux_materials::cook_torrance::{Masking, NormalDistribution};
+    use isolux_materials::microfacet::{Kind, Microfacet};
+    use isolux_materials::{CookTorrance, Fresnel, Material, Ward};
+    let ct = |m: f64, kd: f64| {
+        Material::CookTorrance(CookTorrance {
+            distribution: NormalDistribution::Analytic(Microfacet::isotropic(Kind::Beckmann, m)),
+            masking: Masking::VGroove,
+            fresnel: Fresnel::Schlick {
+                f0: Rgb::splat(0.05),
+            },
+            reflectance: Rgb::splat(kd),
+        })
+    };
+    let cases = [
+        ("Cook-Torrance m 0.3, kd 0.3, F0 0.05", ct(0.3, 0.3)),
+        ("Cook-Torrance m 0.2, kd 0.1, F0 0.05", ct(0.2, 0.1)),
+        (
+            "Ward alpha 0.15, ks 0.5, kd 0.3",
+            Material::Ward(Ward::new(0.15, 0.15, Rgb::splat(0.5), Rgb::splat(0.3))),
+        ),
+    ];
+    println!(
+        "homomorphic factorization fit, 200,000 samples, {} threads (best of {repeat})",
+        rayon::current_num_threads()
+    );
+    println!("| material | res | unknowns | assembly (s) | Cholesky + solve (s) | total (s) |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for (name, m) in cases {
+        let src = Source::Material {
+            label: name.into(),
+            material: Box::new(m),
+        };
+        let samples = draw(&src, 200_000, 80.0, 1);
+        for res in [32, 64] {
+            let opts = FitOptions {
+                res,
+                ..Default::default()
+            };
+            let mut best = (f64::INFINITY, 0.0, 0.0, 0);
+            for _ in 0..repeat.max(1) {
+                let t = Instant::now();
+                let f = fit(&samples, &opts)?;
+                let total = t.elapsed().as_secs_f64();
+                if total < best.0 {
+                    best = (total, f.stats.assemble_s, f.stats.solve_s, f.stats.unknowns);
+                }
+            }
+            println!(
+                "| {name} | {res} | {} | {:.3} | {:.3} | {:.3} |",
+                best.3, best.1, best.2, best.0
+            );
         }
     }
     Ok(())

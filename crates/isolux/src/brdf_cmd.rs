@@ -131,7 +131,7 @@ pub fn run(a: BrdfArgs) -> Result<()> {
     }
 }
 
-fn materials(scene: &Path, names: &[String]) -> Result<Vec<(String, Material)>> {
+pub fn materials(scene: &Path, names: &[String]) -> Result<Vec<(String, Material)>> {
     let s = isolux_scene::load(scene)?;
     names
         .iter()
@@ -277,7 +277,7 @@ where
     Ok(())
 }
 
-fn local_dir(theta_deg: f64, phi_deg: f64) -> DVec3 {
+pub fn local_dir(theta_deg: f64, phi_deg: f64) -> DVec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
     DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
 }
@@ -409,15 +409,24 @@ fn albedo(a: AlbedoArgs) -> Result<()> {
 }
 
 fn sphere(a: SphereArgs) -> Result<()> {
+    if a.size == 0 || a.size > 8192 {
+        bail!("--size must lie in 1..=8192");
+    }
+    let (name, m) = materials(&a.scene, std::slice::from_ref(&a.material))?.remove(0);
+    let img = lit_sphere(name, m, a.size, 36)?;
+    isolux_io::write_image(&a.output, &img, 0.0, isolux_io::Tonemap::Reinhard)?;
+    eprintln!("isolux: wrote {}", a.output.display());
+    Ok(())
+}
+
+/// A unit sphere with material `m` under a point light and a dim sky,
+/// `size x size` pixels, path traced with `spp` samples per pixel.
+pub fn lit_sphere(name: String, m: Material, size: u32, spp: u32) -> Result<isolux_core::Image> {
     use isolux_geometry::{Aggregate, Object, Quadric};
     use isolux_render::{
         render, Camera, Environment, FilmSettings, IntegratorSettings, PointLight, RenderOptions,
         Scene,
     };
-    if a.size == 0 || a.size > 8192 {
-        bail!("--size must lie in 1..=8192");
-    }
-    let (name, m) = materials(&a.scene, std::slice::from_ref(&a.material))?.remove(0);
     let sphere = Object::new(Quadric::sphere(DVec3::ZERO, 1.0), vec![], None)?;
     let scene = Scene {
         camera: Camera {
@@ -427,9 +436,9 @@ fn sphere(a: SphereArgs) -> Result<()> {
             fov_y: 38.0,
         },
         film: FilmSettings {
-            width: a.size,
-            height: a.size,
-            spp: 36,
+            width: size,
+            height: size,
+            spp,
         },
         integrator: IntegratorSettings {
             max_depth: 8,
@@ -446,7 +455,5 @@ fn sphere(a: SphereArgs) -> Result<()> {
         object_material: vec![0],
     };
     let (img, _) = render(&scene, &RenderOptions::default(), &|_, _| {})?;
-    isolux_io::write_image(&a.output, &img, 0.0, isolux_io::Tonemap::Reinhard)?;
-    eprintln!("isolux: wrote {}", a.output.display());
-    Ok(())
+    Ok(img)
 }

@@ -4,6 +4,7 @@
 
 mod bench;
 mod brdf_cmd;
+mod factor_cmd;
 mod render_cmd;
 mod sss_cmd;
 
@@ -26,6 +27,8 @@ enum Command {
     Brdf(brdf_cmd::BrdfArgs),
     /// Subsurface scattering: measured media, dipole profiles.
     Sss(sss_cmd::SssArgs),
+    /// Factor a BRDF into positive textures p(wo) q(h) p(wi) (homomorphic factorization).
+    Factor(factor_cmd::FactorArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),
 }
@@ -36,6 +39,7 @@ fn main() {
         Command::Render(a) => render_cmd::run(a),
         Command::Brdf(a) => brdf_cmd::run(a),
         Command::Sss(a) => sss_cmd::run(a),
+        Command::Factor(a) => factor_cmd::run(a),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

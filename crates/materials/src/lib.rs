@@ -21,10 +21,12 @@
 //! | `subsurface_brdf` | translucent media, local approximation (dipole total + single scattering) | [`subsurface_brdf`] |
 //! | `mix` | weighted mixture of non-delta materials | [`mix`] |
 //! | `dielectric` | smooth glass: Fresnel reflection and refraction | [`dielectric`] |
+//! | `factored` | homomorphic factorization `p(wo) q(h) p(wi)` from textures | [`factored`] |
+//! | `merl` | measured isotropic BRDF (MERL `.binary`) | [`merl`] |
 //!
 //! Shared machinery: [`fresnel`] (dielectric, conductor, Schlick),
 //! [`metals`] (measured `n + ik`), [`microfacet`] (distributions, masking,
-//! visible-normal sampling); statistical checks in [`validate`].
+//! visible-normal sampling), [`parabolic`] (hemisphere maps); statistical checks in [`validate`].
 #![warn(missing_docs)]
 
 pub mod beckmann;
@@ -34,15 +36,18 @@ pub mod conductor;
 pub mod cook_torrance;
 pub mod dielectric;
 pub mod diffuse;
+pub mod factored;
 pub mod fresnel;
 pub mod gaussian;
 pub mod ggx;
 pub mod heidrich_seidel;
 pub mod lobe;
 pub mod material;
+pub mod merl;
 pub mod metals;
 pub mod microfacet;
 pub mod mix;
+pub mod parabolic;
 pub mod phong;
 pub mod plastic;
 pub mod subsurface;
@@ -58,11 +63,13 @@ pub use conductor::Conductor;
 pub use cook_torrance::CookTorrance;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use factored::Factored;
 pub use fresnel::Fresnel;
 pub use gaussian::Gaussian;
 pub use ggx::Ggx;
 pub use heidrich_seidel::HeidrichSeidel;
 pub use material::Material;
+pub use merl::Merl;
 pub use mix::Mix;
 pub use phong::Phong;
 pub use plastic::Plastic;

@@ -3,8 +3,8 @@
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
-    Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Gaussian, Ggx,
-    HeidrichSeidel, Mix, Phong, Plastic, Subsurface, SubsurfaceBrdf, Ward,
+    Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Factored, Gaussian, Ggx,
+    HeidrichSeidel, Merl, Mix, Phong, Plastic, Subsurface, SubsurfaceBrdf, Ward,
 };
 use isolux_core::{DVec3, Rgb};
 
@@ -41,6 +41,10 @@ pub enum Material {
     SubsurfaceBrdf(SubsurfaceBrdf),
     /// Weighted mixture (`type = "mix"`).
     Mix(Mix),
+    /// Homomorphic factorization from textures (`type = "factored"`).
+    Factored(Factored),
+    /// Measured MERL table (`type = "merl"`).
+    Merl(Merl),
 }
 
 /// Applies `$body` to the model inside any variant.
@@ -62,6 +66,8 @@ macro_rules! dispatch {
             Material::Subsurface($m) => $body,
             Material::SubsurfaceBrdf($m) => $body,
             Material::Mix($m) => $body,
+            Material::Factored($m) => $body,
+            Material::Merl($m) => $body,
         }
     };
 }
@@ -85,6 +91,8 @@ impl Material {
             Material::Subsurface(_) => "subsurface",
             Material::SubsurfaceBrdf(_) => "subsurface_brdf",
             Material::Mix(_) => "mix",
+            Material::Factored(_) => "factored",
+            Material::Merl(_) => "merl",
         }
     }
 

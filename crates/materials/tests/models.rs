@@ -201,7 +201,51 @@ fn models() -> Vec<(&'static str, Material)> {
             "beckmann aniso 0.3/0.08 glass",
             Material::Beckmann(Beckmann::new(0.3, 0.08, Fresnel::Dielectric { ior: 1.5 })),
         ),
+        ("factored synthetic", synthetic_factored()),
+        ("merl synthetic", Material::Merl(synthetic_merl().clone())),
     ]
+}
+
+/// A factored BRDF from smooth positive maps: a diffuse-like `p` and a
+/// highlight in `q` (value at most about 0.3, so the albedo stays below 1).
+fn synthetic_factored() -> Material {
+    use isolux_materials::parabolic::ParabolicGrid;
+    let res = 16;
+    let g = ParabolicGrid::new(res).unwrap();
+    let p: Vec<Rgb> = (0..g.len())
+        .map(|i| {
+            let v = g.texel_direction(g.alias(i));
+            Rgb::new(0.6 + 0.4 * v.z, 0.8, 0.5 + 0.5 * v.z * v.z)
+        })
+        .collect();
+    let q: Vec<Rgb> = (0..g.len())
+        .map(|i| {
+            let h = g.texel_direction(g.alias(i));
+            Rgb::splat(0.15 + (40.0 * (h.z - 1.0)).exp())
+        })
+        .collect();
+    Material::Factored(isolux_materials::Factored::new(res, &p, &q, Rgb::splat(0.25)).unwrap())
+}
+
+/// A MERL table of a diffuse base plus a soft highlight, built once.
+fn synthetic_merl() -> &'static isolux_materials::Merl {
+    use isolux_materials::merl::{Merl, PLANE, SCALE};
+    static M: std::sync::OnceLock<Merl> = std::sync::OnceLock::new();
+    M.get_or_init(|| {
+        let mut raw = vec![0.0; 3 * PLANE];
+        for th in 0..90 {
+            let t = (th as f64 / 90.0).powi(2) * std::f64::consts::FRAC_PI_2;
+            for td in 0..90 {
+                for pd in 0..180 {
+                    let f = 0.2 / std::f64::consts::PI + 0.5 * (-(t / 0.2).powi(2)).exp();
+                    for c in 0..3 {
+                        raw[c * PLANE + pd + 180 * td + 16200 * th] = f / SCALE[c];
+                    }
+                }
+            }
+        }
+        Merl::from_bytes(&Merl::encode(&raw)).unwrap()
+    })
 }
 
 fn wo_at(theta_deg: f64) -> DVec3 {

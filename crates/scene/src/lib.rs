@@ -11,9 +11,11 @@
 //! ```
 #![warn(missing_docs)]
 
+mod factored_files;
 mod reader;
 mod schema;
 
+pub use factored_files::load_factored;
 pub use reader::SceneError;
 pub use schema::parse_str;
 

@@ -36,6 +36,8 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "subsurface",
     "subsurface_brdf",
     "mix",
+    "factored",
+    "merl",
 ];
 
 /// Quadric `type` names.
@@ -100,7 +102,7 @@ pub fn parse_str(
             if scene.material_names.iter().any(|n| n == name) {
                 return Err(name_v.error(format!("duplicate material name \"{name}\"")));
             }
-            let mat = material(&m, &scene.material_names, &scene.materials)?;
+            let mat = material(&m, &scene.material_names, &scene.materials, base_dir)?;
             scene.materials.push(mat);
             scene.material_names.push(name.to_string());
         }
@@ -242,7 +244,12 @@ fn environment(t: &Table, base_dir: &Path) -> Result<Environment> {
 /// Keys that select a Fresnel term.
 const FRESNEL_KEYS: &[&str] = &["metal", "eta", "k", "ior", "schlick"];
 
-fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Material> {
+fn material(
+    t: &Table,
+    names: &[String],
+    earlier: &[Material],
+    base_dir: &Path,
+) -> Result<Material> {
     let ty = t.req("type")?.choice(MATERIAL_TYPES)?;
     let allow = |extra: &[&str]| {
         let mut keys = vec!["name", "type"];
@@ -381,6 +388,20 @@ fn material(t: &Table, names: &[String], earlier: &[Material]) -> Result<Materia
                 fresnel,
                 reflectance,
             }))
+        }
+        "factored" => {
+            allow(&["dir"])?;
+            let dv = t.req("dir")?;
+            let dir = base_dir.join(dv.str()?);
+            let m = crate::factored_files::load_factored(&dir).map_err(|e| dv.error(e))?;
+            Ok(Material::Factored(m))
+        }
+        "merl" => {
+            allow(&["file"])?;
+            let fv = t.req("file")?;
+            let file = base_dir.join(fv.str()?);
+            let m = isolux_materials::Merl::read(&file).map_err(|e| fv.error(e))?;
+            Ok(Material::Merl(m))
         }
         "mix" => {
             allow(&["components"])?;

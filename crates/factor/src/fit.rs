@@ -1,0 +1,501 @@
+//! The homomorphic fit: `ln f = ln p(wo) + ln q(h) + ln p(wi)` by linear
+//! least squares over scattered samples, with a Laplacian smoothness term.
+//!
+//! Unknowns are the logarithms of the *valid* texels of the two maps
+//! (centre inside the unit disk; the others are stand-ins, see
+//! [`isolux_materials::parabolic`]), `2 n_v` in all. Each sample gives one
+//! row with twelve bilinear taps (four per lookup); the objective is
+//!
+//! ```text
+//! (1/M) sum_s (row_s . x - ln f_s)^2  +  (lambda/n_v) sum_maps sum_i (L x)_i^2  +  eps |x|^2
+//! ```
+//!
+//! where `(L x)_i = sum_{j ~ i} (x_i - x_j)` over the valid 4-neighbours
+//! (the graph Laplacian of each map), `lambda` is `--smoothness` and the
+//! tiny ridge `eps` (1e-9 of the mean diagonal) fixes the one exact
+//! degeneracy, `p -> c p, q -> q / c^2`. The normal matrix is dense (any
+//! `wo` texel meets any `wi` texel), so it is assembled column-parallel
+//! and factored once by a dense Cholesky (faer) for all colour channels
+//! that share the same set of usable samples; the right-hand sides of
+//! those channels are solved together.
+
+use crate::source::Sample;
+use crate::FactorError;
+use faer::linalg::solvers::Solve;
+use faer::{Mat, MatRef, Side};
+use isolux_core::Rgb;
+use isolux_materials::parabolic::ParabolicGrid;
+use isolux_materials::Factored;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Settings of a fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Texels per side of each map.
+    pub res: usize,
+    /// Weight `lambda` of the Laplacian term.
+    pub smoothness: f64,
+    /// Largest polar angle of `wo` and `wi` in the fit, degrees.
+    pub theta_max_deg: f64,
+    /// Gauss-Newton iterations toward the relative error after the log fit.
+    pub refine: usize,
+}
+
+/// The default `--smoothness`.
+pub const DEFAULT_SMOOTHNESS: f64 = 1e-3;
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            res: 32,
+            smoothness: DEFAULT_SMOOTHNESS,
+            theta_max_deg: 80.0,
+            refine: 1,
+        }
+    }
+}
+
+impl FitOptions {
+    /// Checks the ranges: `res` in 4..=512, `theta_max` in (0, 90],
+    /// `smoothness` finite and non-negative.
+    pub fn validate(&self) -> Result<(), FactorError> {
+        let bad = |field: &str, message: String| {
+            Err(FactorError::Input {
+                what: field.to_string(),
+                message,
+            })
+        };
+        if !isolux_materials::parabolic::RES_RANGE.contains(&self.res) {
+            return bad("--res", format!("must lie in 4..=512, got {}", self.res));
+        }
+        let nv = ParabolicGrid::new(self.res)
+            .map_err(FactorError::Fit)?
+            .valid()
+            .len();
+        let (res, n) = (self.res, 2 * nv);
+        let bytes = (n * n * 8) as f64;
+        if bytes > MAX_MATRIX_BYTES {
+            return Err(FactorError::Input {
+            what: "--res".into(),
+            message: format!(
+                "{res} needs a dense {n} x {n} normal matrix ({:.1} GiB); the dense Cholesky solver is limited to {:.1} GiB, that is --res {} at most",
+                bytes / GIB,
+                MAX_MATRIX_BYTES / GIB,
+                max_dense_res()
+            ),
+        });
+        }
+        if !(self.theta_max_deg > 0.0 && self.theta_max_deg <= 90.0) {
+            return bad(
+                "--theta-max",
+                format!("must lie in (0, 90] degrees, got {}", self.theta_max_deg),
+            );
+        }
+        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
+            return bad(
+                "--smoothness",
+                format!("must be finite and non-negative, got {}", self.smoothness),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A fitted factorization: `f = scale * p(wo) q(h) p(wi)`.
+#[derive(Clone, Debug)]
+pub struct Factorization {
+    /// Texels per side.
+    pub res: usize,
+    /// Fit domain, degrees.
+    pub theta_max_deg: f64,
+    /// `p` texels (`res^2`, row 0 at the top), largest value 1 per channel.
+    pub p: Vec<Rgb>,
+    /// `q` texels, largest value 1 per channel.
+    pub q: Vec<Rgb>,
+    /// Per-channel scale.
+    pub scale: Rgb,
+    /// Bookkeeping.
+    pub stats: FitStats,
+}
+
+/// What a fit used and how long it took.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FitStats {
+    /// Samples offered.
+    pub samples: usize,
+    /// Per channel: samples used in the log fit.
+    pub used: [usize; 3],
+    /// Per channel: samples excluded (missing, non-positive or
+    /// non-finite value).
+    pub excluded: [usize; 3],
+    /// Cholesky factorizations computed (1 when all channels share their
+    /// samples).
+    pub factorizations: usize,
+    /// Unknowns (`2 n_v`).
+    pub unknowns: usize,
+    /// Seconds assembling the normal equations.
+    pub assemble_s: f64,
+    /// Seconds in the Cholesky factorization and solves.
+    pub solve_s: f64,
+}
+
+impl Factorization {
+    /// The renderable material (the same texel values as the files, after
+    /// rounding to `f32`).
+    pub fn material(&self) -> Result<Factored, FactorError> {
+        let r = |v: &[Rgb]| -> Vec<Rgb> { v.iter().map(|c| c.map(|x| x as f32 as f64)).collect() };
+        Factored::new(self.res, &r(&self.p), &r(&self.q), self.scale).map_err(|e| {
+            FactorError::Fit(format!("the fitted factors are not a valid material: {e}"))
+        })
+    }
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// Largest dense normal matrix the solver builds (1.5 GiB).
+pub const MAX_MATRIX_BYTES: f64 = 1.5 * GIB;
+
+/// The largest resolution whose normal matrix fits [`MAX_MATRIX_BYTES`].
+pub fn max_dense_res() -> usize {
+    (4..=512)
+        .take_while(|&r| {
+            let nv = ParabolicGrid::new(r).map(|g| g.valid().len()).unwrap_or(0);
+            (2 * nv * 2 * nv * 8) as f64 <= MAX_MATRIX_BYTES
+        })
+        .last()
+        .unwrap_or(4)
+}
+
+/// Logarithms below this (relative to a map's largest value) are clamped,
+/// so that every texel stays a normal positive `f32`.
+pub const MIN_LOG: f64 = -80.0;
+
+/// Fits `p` and `q` to `samples`.
+pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, FactorError> {
+    opts.validate()?;
+    let grid = ParabolicGrid::new(opts.res).map_err(FactorError::Fit)?;
+    let res = opts.res;
+    let valid = grid.valid();
+    let nv = valid.len();
+    let n = 2 * nv;
+    let mut ord = vec![u32::MAX; grid.len()];
+    for (k, &i) in valid.iter().enumerate() {
+        ord[i as usize] = k as u32;
+    }
+    let t0 = Instant::now();
+    // Rows: twelve taps per sample, as unknown indices.
+    let rows: Vec<[(u32, f64); 12]> = samples
+        .par_iter()
+        .map(|s| {
+            let h = (s.wo + s.wi).normalize();
+            let mut row = [(0u32, 0.0); 12];
+            for (k, (i, w)) in grid
+                .taps(s.wo)
+                .into_iter()
+                .chain(grid.taps(s.wi))
+                .enumerate()
+            {
+                row[k] = (ord[i as usize], w);
+            }
+            for (k, (i, w)) in grid.taps(h).into_iter().enumerate() {
+                row[8 + k] = (ord[i as usize] + nv as u32, w);
+            }
+            row
+        })
+        .collect();
+    // Usable samples per channel, and channel groups sharing them.
+    let usable = |s: &Sample, c: usize| {
+        s.f.is_some_and(|f| {
+            let v = f.to_array()[c];
+            v > 0.0 && v.is_finite()
+        })
+    };
+    let masks: Vec<Vec<bool>> = (0..3)
+        .map(|c| samples.iter().map(|s| usable(s, c)).collect())
+        .collect();
+    let mut stats = FitStats {
+        samples: samples.len(),
+        unknowns: n,
+        ..Default::default()
+    };
+    for c in 0..3 {
+        stats.used[c] = masks[c].iter().filter(|m| **m).count();
+        stats.excluded[c] = samples.len() - stats.used[c];
+        if stats.used[c] < 16 {
+            return Err(FactorError::Fit(format!(
+                "channel {} has {} usable samples of {} (values must be positive and finite): too few to fit",
+                ["R", "G", "B"][c],
+                stats.used[c],
+                samples.len()
+            )));
+        }
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for c in 0..3 {
+        match groups.iter_mut().find(|g| masks[g[0]] == masks[c]) {
+            Some(g) => g.push(c),
+            None => groups.push(vec![c]),
+        }
+    }
+    let lap = laplacian_rows(&grid, &ord, nv);
+    let mut log_p = vec![[0.0; 3]; nv];
+    let mut log_q = vec![[0.0; 3]; nv];
+    let mut solver = Solver {
+        rows: &rows,
+        lap: &lap,
+        n,
+        lam: opts.smoothness / nv as f64,
+        assemble_s: t0.elapsed().as_secs_f64(),
+        solve_s: 0.0,
+        factorizations: 0,
+    };
+    for g in &groups {
+        let mask = &masks[g[0]];
+        let weights: Vec<f64> = mask.iter().map(|m| if *m { 1.0 } else { 0.0 }).collect();
+        let targets: Vec<Vec<f64>> = g
+            .iter()
+            .map(|&c| {
+                samples
+                    .iter()
+                    .zip(mask)
+                    .map(|(s, m)| {
+                        if *m {
+                            s.f.expect("usable").to_array()[c].ln()
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let x = solver.solve(&weights, &targets)?;
+        for (k, &c) in g.iter().enumerate() {
+            for t in 0..nv {
+                log_p[t][c] = x[k][t];
+                log_q[t][c] = x[k][nv + t];
+            }
+        }
+    }
+    // Gauss-Newton refinement toward the relative error: linearizing
+    // exp(d) - 1 about the current log residual d gives a weighted log fit
+    // with weights exp(2d) and targets a.x - (1 - exp(-d)).
+    // Channels with bit-identical data (grey materials) are solved once.
+    let twin = |c: usize| -> Option<usize> {
+        (0..c).find(|&d| {
+            samples.iter().all(|s| {
+                s.f.is_none_or(|f| f.to_array()[c].to_bits() == f.to_array()[d].to_bits())
+            })
+        })
+    };
+    let twins: Vec<Option<usize>> = (0..3).map(twin).collect();
+    for _ in 0..opts.refine {
+        for c in 0..3 {
+            if let Some(d) = twins[c] {
+                for t in 0..nv {
+                    log_p[t][c] = log_p[t][d];
+                    log_q[t][c] = log_q[t][d];
+                }
+                continue;
+            }
+            let mask = &masks[c];
+            let x: Vec<f64> = (0..nv)
+                .map(|t| log_p[t][c])
+                .chain((0..nv).map(|t| log_q[t][c]))
+                .collect();
+            let mut weights = vec![0.0; samples.len()];
+            let mut target = vec![0.0; samples.len()];
+            for (k, ((row, s), m)) in rows.iter().zip(samples).zip(mask).enumerate() {
+                if !*m {
+                    continue;
+                }
+                let ax: f64 = row.iter().map(|(i, w)| w * x[*i as usize]).sum();
+                let d = (ax - s.f.expect("usable").to_array()[c].ln()).clamp(-3.0, 3.0);
+                weights[k] = (2.0 * d).exp();
+                target[k] = ax - (1.0 - (-d).exp());
+            }
+            let xn = solver.solve(&weights, &[target])?;
+            for t in 0..nv {
+                log_p[t][c] = xn[0][t];
+                log_q[t][c] = xn[0][nv + t];
+            }
+        }
+    }
+    stats.factorizations = solver.factorizations;
+    let (assemble_s, solve_s) = (solver.assemble_s, solver.solve_s);
+    stats.assemble_s = assemble_s;
+    stats.solve_s = solve_s;
+    if log_p
+        .iter()
+        .chain(&log_q)
+        .any(|v| v.iter().any(|x| !x.is_finite()))
+    {
+        return Err(FactorError::Fit(
+            "the solve produced non-finite values; try a larger --smoothness".into(),
+        ));
+    }
+    // Normalize each map's largest value to 1, moving the rest to scale.
+    let mut scale = [0.0; 3];
+    let mut pmax = [f64::NEG_INFINITY; 3];
+    let mut qmax = [f64::NEG_INFINITY; 3];
+    for t in 0..nv {
+        for c in 0..3 {
+            pmax[c] = pmax[c].max(log_p[t][c]);
+            qmax[c] = qmax[c].max(log_q[t][c]);
+        }
+    }
+    for c in 0..3 {
+        scale[c] = (2.0 * pmax[c] + qmax[c]).exp();
+    }
+    let expand = |logs: &[[f64; 3]], max: [f64; 3]| -> Vec<Rgb> {
+        (0..grid.len())
+            .map(|i| {
+                let v = logs[ord[grid.alias(i)] as usize];
+                Rgb::new(
+                    (v[0] - max[0]).max(MIN_LOG).exp(),
+                    (v[1] - max[1]).max(MIN_LOG).exp(),
+                    (v[2] - max[2]).max(MIN_LOG).exp(),
+                )
+            })
+            .collect()
+    };
+    let scale = Rgb::from_array(scale);
+    if !(scale.r > 0.0 && scale.g > 0.0 && scale.b > 0.0 && scale.is_finite()) {
+        return Err(FactorError::Fit(format!(
+            "the fitted scale {:?} is out of range",
+            scale.to_array()
+        )));
+    }
+    Ok(Factorization {
+        res,
+        theta_max_deg: opts.theta_max_deg,
+        p: expand(&log_p, pmax),
+        q: expand(&log_q, qmax),
+        scale,
+        stats,
+    })
+}
+
+/// Assembles and solves the weighted normal equations.
+struct Solver<'a> {
+    rows: &'a [[(u32, f64); 12]],
+    lap: &'a [Vec<(u32, f64)>],
+    n: usize,
+    lam: f64,
+    assemble_s: f64,
+    solve_s: f64,
+    factorizations: usize,
+}
+
+impl Solver<'_> {
+    /// Minimizes `sum_s w_s (a_s.x - y_s)^2 / sum w + lam |L x|^2 + eps |x|^2`
+    /// for each target vector `y` (one Cholesky factorization for all).
+    fn solve(
+        &mut self,
+        weights: &[f64],
+        targets: &[Vec<f64>],
+    ) -> Result<Vec<Vec<f64>>, FactorError> {
+        let t1 = Instant::now();
+        let n = self.n;
+        let rows = self.rows;
+        let wsum: f64 = weights.iter().sum();
+        let wdata = 1.0 / wsum;
+        // Lower triangle, column-major: column j holds rows i >= j.
+        let mut ata = vec![0.0f64; n * n];
+        let cols_per_chunk = n.div_ceil(rayon::current_num_threads().max(1) * 8).max(1);
+        ata.par_chunks_mut(cols_per_chunk * n)
+            .enumerate()
+            .for_each(|(chunk, buf)| {
+                let j0 = chunk * cols_per_chunk;
+                let j1 = (j0 + cols_per_chunk).min(n);
+                for (row, &ws) in rows.iter().zip(weights) {
+                    if ws == 0.0 {
+                        continue;
+                    }
+                    for &(j, wj) in row {
+                        let j = j as usize;
+                        if j < j0 || j >= j1 {
+                            continue;
+                        }
+                        let col = &mut buf[(j - j0) * n..(j - j0 + 1) * n];
+                        let wj = wj * ws * wdata;
+                        for &(i, wi) in row {
+                            if (i as usize) >= j {
+                                col[i as usize] += wi * wj;
+                            }
+                        }
+                    }
+                }
+            });
+        // A tap pair (a, b) with equal indices lands twice on the
+        // diagonal, once per order, exactly as in the outer product of the
+        // summed row; off-diagonal pairs land once in the lower triangle.
+        for r in self.lap {
+            for &(j, wj) in r {
+                for &(i, wi) in r {
+                    if i >= j {
+                        ata[j as usize * n + i as usize] += self.lam * wi * wj;
+                    }
+                }
+            }
+        }
+        let mean_diag = (0..n).map(|i| ata[i * n + i]).sum::<f64>() / n as f64;
+        let eps = 1e-9 * mean_diag.max(f64::MIN_POSITIVE);
+        for i in 0..n {
+            ata[i * n + i] += eps;
+        }
+        let mut atb = Mat::<f64>::zeros(n, targets.len());
+        for (k, y) in targets.iter().enumerate() {
+            for ((row, &ws), &yk) in rows.iter().zip(weights).zip(y) {
+                if ws == 0.0 {
+                    continue;
+                }
+                for &(i, w) in row {
+                    atb[(i as usize, k)] += w * ws * wdata * yk;
+                }
+            }
+        }
+        self.assemble_s += t1.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        let a = MatRef::from_column_major_slice(&ata, n, n);
+        let llt = a.llt(Side::Lower).map_err(|e| {
+            FactorError::Fit(format!(
+                "the normal matrix is not positive definite ({e:?}); try a larger --smoothness"
+            ))
+        })?;
+        let x = llt.solve(&atb);
+        self.solve_s += t2.elapsed().as_secs_f64();
+        self.factorizations += 1;
+        Ok((0..targets.len())
+            .map(|k| (0..n).map(|i| x[(i, k)]).collect())
+            .collect())
+    }
+}
+
+/// Graph-Laplacian rows of both maps, over unknown indices.
+fn laplacian_rows(grid: &ParabolicGrid, ord: &[u32], nv: usize) -> Vec<Vec<(u32, f64)>> {
+    let res = grid.res();
+    let mut out = Vec::with_capacity(2 * nv);
+    for offset in [0, nv as u32] {
+        for &i in grid.valid() {
+            let (c, r) = ((i as usize) % res, (i as usize) / res);
+            let mut row = vec![(ord[i as usize] + offset, 0.0)];
+            for (dc, dr) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                let (cc, rr) = (c as i64 + dc, r as i64 + dr);
+                if cc < 0 || rr < 0 || cc >= res as i64 || rr >= res as i64 {
+                    continue;
+                }
+                let j = rr as usize * res + cc as usize;
+                if ord[j] == u32::MAX {
+                    continue;
+                }
+                row.push((ord[j] + offset, -1.0));
+                row[0].1 += 1.0;
+            }
+            if row.len() > 1 {
+                out.push(row);
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,252 @@
+//! # isolux-factor
+//!
+//! Homomorphic factorization of BRDFs (McCool, Ang and Ahmad, SIGGRAPH
+//! 2001; seed 004): any BRDF, analytic or measured, as
+//!
+//! ```text
+//! f(wo, wi) ~= scale * p(wo) * q(h) * p(wi)        per colour channel
+//! ```
+//!
+//! with `p` and `q` positive parabolic-map textures, found by linear least
+//! squares on `ln f` ([`fit`]). Positive by construction (the unknowns are
+//! logarithms), reciprocal by construction (`p` appears at both ends), and
+//! the error it minimizes is relative. [`svd`] is the baseline, Kautz and
+//! McCool's separable approximation; [`metrics`] measures both on held-out
+//! samples; [`output`] writes the files the `factored` material reads.
+//!
+//! ```
+//! use isolux_factor::{factorize, RunOptions, Source};
+//! use isolux_materials::{Diffuse, Material};
+//! let source = Source::Material {
+//!     label: "chalk".into(),
+//!     material: Box::new(Material::Diffuse(Diffuse::default())),
+//! };
+//! let mut opts = RunOptions::default();
+//! opts.fit.res = 8;
+//! opts.samples = 2_000;
+//! opts.held_out = 500;
+//! opts.svd_ranks = 0;
+//! let (fact, report) = factorize(&source, &opts).unwrap();
+//! // A constant BRDF is exactly a product of constants.
+//! assert!(report.factored.relative_rms < 1e-6);
+//! assert!((fact.scale.r * fact.p[0].r.powi(2) * fact.q[0].r - 0.5 / std::f64::consts::PI).abs() < 1e-6);
+//! ```
+#![warn(missing_docs)]
+
+pub mod fit;
+pub mod metrics;
+pub mod output;
+pub mod source;
+pub mod svd;
+
+pub use fit::{fit, Factorization, FitOptions, FitStats};
+pub use metrics::{evaluate, Metrics};
+pub use output::write_dir;
+pub use source::{draw, read_csv, Sample, Source};
+pub use svd::Separable;
+
+use std::fmt;
+
+/// Errors of a factorization, each naming what was wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum FactorError {
+    /// A bad file, flag or value: `what` names it.
+    #[error("{what}: {message}")]
+    Input {
+        /// The file (with line) or flag.
+        what: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The fit could not be computed.
+    #[error("factorization failed: {0}")]
+    Fit(String),
+    /// Writing the results failed.
+    #[error(transparent)]
+    Io(#[from] isolux_io::IoError),
+}
+
+/// Settings of a whole run: the fit, the samples, the baseline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunOptions {
+    /// The fit itself.
+    pub fit: FitOptions,
+    /// Fitting samples drawn from an evaluable source (ignored for CSV
+    /// data, which is used as given).
+    pub samples: usize,
+    /// Held-out samples drawn from an evaluable source (for CSV data,
+    /// every fifth row is held out instead).
+    pub held_out: usize,
+    /// Seed of the sample directions.
+    pub seed: u64,
+    /// Largest SVD rank reported (0: no baseline). The baseline is
+    /// computed for evaluable sources at `res <= 64`.
+    pub svd_ranks: usize,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            fit: FitOptions::default(),
+            samples: 200_000,
+            held_out: 50_000,
+            seed: 1,
+            svd_ranks: 2,
+        }
+    }
+}
+
+/// One baseline row of the report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Baseline {
+    /// SVD rank.
+    pub rank: usize,
+    /// Texels stored per channel (`2 rank res^2`).
+    pub storage_texels: usize,
+    /// Held-out errors.
+    pub metrics: Metrics,
+}
+
+/// What a run measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// The source, described.
+    pub source: String,
+    /// Texels per side.
+    pub res: usize,
+    /// The smoothness weight used.
+    pub smoothness: f64,
+    /// Held-out samples.
+    pub held_out: usize,
+    /// Errors of the homomorphic factors.
+    pub factored: Metrics,
+    /// Texels stored per channel by the factors (`2 res^2`).
+    pub storage_texels: usize,
+    /// SVD baselines, by rank.
+    pub baselines: Vec<Baseline>,
+    /// Why there is no baseline, when there is none.
+    pub baseline_note: Option<String>,
+    /// CSV rows outside the domain.
+    pub outside: usize,
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "held-out errors ({} samples, {}):",
+            self.held_out, self.source
+        )?;
+        writeln!(
+            f,
+            "| method | texels per channel | relative RMS | cosine-weighted abs RMS (1/sr) |"
+        )?;
+        writeln!(f, "|---|---:|---:|---:|")?;
+        writeln!(
+            f,
+            "| homomorphic p(wo) q(h) p(wi), {r} x {r} | {} | {:.4} | {:.4} |",
+            self.storage_texels,
+            self.factored.relative_rms,
+            self.factored.cosine_abs_rms,
+            r = self.res
+        )?;
+        for b in &self.baselines {
+            writeln!(
+                f,
+                "| SVD rank {} (Kautz-McCool, h/d){} | {} | {:.4} | {:.4} |",
+                b.rank,
+                if b.storage_texels == self.storage_texels {
+                    ", equal storage"
+                } else {
+                    ""
+                },
+                b.storage_texels,
+                b.metrics.relative_rms,
+                b.metrics.cosine_abs_rms
+            )?;
+        }
+        if let Some(n) = &self.baseline_note {
+            writeln!(f, "(no SVD baseline: {n})")?;
+        }
+        Ok(())
+    }
+}
+
+/// Runs the whole pipeline: samples, fit, held-out errors, baseline.
+pub fn factorize(
+    source: &Source,
+    opts: &RunOptions,
+) -> Result<(Factorization, Report), FactorError> {
+    opts.fit.validate()?;
+    let theta = opts.fit.theta_max_deg;
+    let (train, held, outside) = match source {
+        Source::Samples {
+            samples, outside, ..
+        } => {
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            for (k, s) in samples.iter().enumerate() {
+                if k % 5 == 4 {
+                    b.push(*s);
+                } else {
+                    a.push(*s);
+                }
+            }
+            (a, b, *outside)
+        }
+        _ => {
+            if opts.samples < 16 {
+                return Err(FactorError::Input {
+                    what: "--samples".into(),
+                    message: format!("must be at least 16, got {}", opts.samples),
+                });
+            }
+            (
+                draw(source, opts.samples, theta, opts.seed),
+                draw(source, opts.held_out, theta, opts.seed.wrapping_add(0x9E37)),
+                0,
+            )
+        }
+    };
+    let fact = fit(&train, &opts.fit)?;
+    let material = fact.material()?;
+    use isolux_materials::BxdfModel;
+    let factored = evaluate(&held, |wo, wi| material.f(wo, wi));
+    let storage = 2 * opts.fit.res * opts.fit.res;
+    let (baselines, baseline_note) = if opts.svd_ranks == 0 {
+        (Vec::new(), Some("disabled".to_string()))
+    } else if !source.is_evaluable() {
+        (
+            Vec::new(),
+            Some("scattered samples cannot be resampled on the SVD's grid".to_string()),
+        )
+    } else if opts.fit.res > 64 {
+        (
+            Vec::new(),
+            Some("computed only up to res 64 (its matrix has res^4 entries)".to_string()),
+        )
+    } else {
+        let fits = Separable::fit(source, opts.fit.res, theta, opts.svd_ranks).unwrap_or_default();
+        (
+            fits.iter()
+                .map(|s| Baseline {
+                    rank: s.rank(),
+                    storage_texels: s.storage_texels(),
+                    metrics: evaluate(&held, |wo, wi| s.eval(wo, wi)),
+                })
+                .collect(),
+            None,
+        )
+    };
+    let report = Report {
+        source: source.describe(),
+        res: opts.fit.res,
+        smoothness: opts.fit.smoothness,
+        held_out: held.len(),
+        factored,
+        storage_texels: storage,
+        baselines,
+        baseline_note,
+        outside,
+    };
+    Ok((fact, report))
+}

@@ -1,0 +1,48 @@
+//! Error metrics on held-out samples.
+
+use crate::source::Sample;
+use isolux_core::{DVec3, Rgb};
+use rayon::prelude::*;
+
+/// Errors of an approximation over held-out samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Metrics {
+    /// `sqrt(mean(((f_hat - f) / f)^2))` over samples and channels with
+    /// `f > 0`.
+    pub relative_rms: f64,
+    /// `sqrt(mean(((f_hat - f) cos(theta_i))^2))` over the same terms (1/sr).
+    pub cosine_abs_rms: f64,
+    /// Terms (sample x channel) averaged.
+    pub terms: usize,
+}
+
+/// Measures `approx` against the held-out samples.
+pub fn evaluate(held: &[Sample], approx: impl Fn(DVec3, DVec3) -> Rgb + Sync) -> Metrics {
+    let (rel, abs, n) = held
+        .par_iter()
+        .map(|s| {
+            let Some(f) = s.f else {
+                return (0.0, 0.0, 0usize);
+            };
+            let g = approx(s.wo, s.wi).to_array();
+            let f = f.to_array();
+            let (mut rel, mut abs, mut n) = (0.0, 0.0, 0);
+            for c in 0..3 {
+                if f[c] > 0.0 && f[c].is_finite() {
+                    rel += ((g[c] - f[c]) / f[c]).powi(2);
+                    abs += ((g[c] - f[c]) * s.wi.z).powi(2);
+                    n += 1;
+                }
+            }
+            (rel, abs, n)
+        })
+        .reduce(|| (0.0, 0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    if n == 0 {
+        return Metrics::default();
+    }
+    Metrics {
+        relative_rms: (rel / n as f64).sqrt(),
+        cosine_abs_rms: (abs / n as f64).sqrt(),
+        terms: n,
+    }
+}

@@ -1,0 +1,235 @@
+//! The baseline: Kautz and McCool's separable approximation (1999),
+//! `f(wo, wi) ~= sum_k u_k(h) v_k(d)`, with `h` the half vector and `d`
+//! the incident direction in `h`'s frame (Rusinkiewicz's change of
+//! variables, the paper's best parameterization), both as parabolic maps
+//! of the same resolution as the homomorphic factors.
+//!
+//! The terms minimize the *absolute* squared error over the valid entries
+//! of the `n_v x n_v` matrix of `f` at texel centres (entries whose
+//! `wo` or `wi` leave the fit domain, or where a table has no data, are
+//! left out rather than zero-filled). Each term is the best rank-1 fit of
+//! the residual of the terms before it, found by 30 alternating
+//! least-squares sweeps (power iterations); with no entry missing this is
+//! the truncated SVD (Eckart-Young), with some missing it is the weighted
+//! analogue. Factors are signed, as the SVD's are; lookups interpolate
+//! bilinearly.
+
+use crate::source::Source;
+use isolux_core::{DVec3, Rgb};
+use isolux_materials::parabolic::ParabolicGrid;
+use rayon::prelude::*;
+
+/// A rank-`k` separable approximation, per colour channel.
+#[derive(Clone, Debug)]
+pub struct Separable {
+    grid: ParabolicGrid,
+    ord: Vec<u32>,
+    /// `u[c][k][t]`, over valid texels.
+    u: Vec<Vec<Vec<f64>>>,
+    /// `v[c][k][t]`.
+    v: Vec<Vec<Vec<f64>>>,
+}
+
+/// `(h, d)`: the half vector, and `wi` in the frame where `h` is `+z`
+/// (rotate by `-phi_h` about `z`, then by `-theta_h` about `y`).
+pub fn half_diff_vectors(wo: DVec3, wi: DVec3) -> (DVec3, DVec3) {
+    let h = (wo + wi).normalize();
+    let (th, ph) = (h.z.clamp(-1.0, 1.0).acos(), h.y.atan2(h.x));
+    let (s, c) = (-ph).sin_cos();
+    let t = DVec3::new(c * wi.x - s * wi.y, s * wi.x + c * wi.y, wi.z);
+    let (s, c) = (-th).sin_cos();
+    (h, DVec3::new(c * t.x + s * t.z, t.y, -s * t.x + c * t.z))
+}
+
+/// The inverse of [`half_diff_vectors`]: `(wo, wi)` from `h` and `d`.
+pub fn from_half_diff(h: DVec3, d: DVec3) -> (DVec3, DVec3) {
+    let (th, ph) = (h.z.clamp(-1.0, 1.0).acos(), h.y.atan2(h.x));
+    let (s, c) = th.sin_cos();
+    let t = DVec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z);
+    let (s, c) = ph.sin_cos();
+    let wi = DVec3::new(c * t.x - s * t.y, s * t.x + c * t.y, t.z);
+    let wo = 2.0 * wi.dot(h) * h - wi;
+    (wo, wi)
+}
+
+impl Separable {
+    /// Fits ranks `1..=max_rank` at once; returns one approximation per
+    /// rank. `None` when the source cannot be evaluated (scattered data).
+    pub fn fit(
+        source: &Source,
+        res: usize,
+        theta_max_deg: f64,
+        max_rank: usize,
+    ) -> Option<Vec<Self>> {
+        if !source.is_evaluable() || max_rank == 0 {
+            return None;
+        }
+        let grid = ParabolicGrid::new(res).ok()?;
+        let valid = grid.valid().to_vec();
+        let nv = valid.len();
+        let mut ord = vec![u32::MAX; grid.len()];
+        for (k, &i) in valid.iter().enumerate() {
+            ord[i as usize] = k as u32;
+        }
+        let cos_max = theta_max_deg.to_radians().cos() - 1e-9;
+        // The matrix of f over (h texel, d texel); NaN marks a left-out entry.
+        let m: Vec<[f32; 3]> = (0..nv * nv)
+            .into_par_iter()
+            .map(|e| {
+                let (a, b) = (e / nv, e % nv);
+                let h = grid.texel_direction(valid[a] as usize);
+                let d = grid.texel_direction(valid[b] as usize);
+                let (wo, wi) = from_half_diff(h, d);
+                if wo.z < cos_max || wi.z < cos_max {
+                    return [f32::NAN; 3];
+                }
+                match source.eval(wo, wi).flatten() {
+                    Some(f) if f.is_finite() => f.to_array().map(|x| x as f32),
+                    _ => [f32::NAN; 3],
+                }
+            })
+            .collect();
+        let centres: Vec<(f64, f64)> = valid
+            .iter()
+            .map(|&i| grid.center(i as usize % res, i as usize / res))
+            .collect();
+        let mut u = vec![Vec::new(); 3];
+        let mut v = vec![Vec::new(); 3];
+        let mut out = Vec::new();
+        for c in 0..3 {
+            let entry = |a: usize, b: usize| -> Option<f64> {
+                let x = m[a * nv + b][c];
+                (!x.is_nan()).then_some(x as f64)
+            };
+            let (uc, vc) = als(nv, &entry, max_rank, &centres);
+            u[c] = uc;
+            v[c] = vc;
+        }
+        for rank in 1..=max_rank {
+            out.push(Separable {
+                grid: grid.clone(),
+                ord: ord.clone(),
+                u: u.iter().map(|x| x[..rank].to_vec()).collect(),
+                v: v.iter().map(|x| x[..rank].to_vec()).collect(),
+            });
+        }
+        Some(out)
+    }
+
+    /// Rank of the approximation.
+    pub fn rank(&self) -> usize {
+        self.u[0].len()
+    }
+
+    /// Texels stored (all channels): `2 rank res^2 * 3`.
+    pub fn storage_texels(&self) -> usize {
+        2 * self.rank() * self.grid.len()
+    }
+
+    /// The approximation at a direction pair (may be negative).
+    pub fn eval(&self, wo: DVec3, wi: DVec3) -> Rgb {
+        let (h, d) = half_diff_vectors(wo, wi);
+        let (th, td) = (self.grid.taps(h), self.grid.taps(d));
+        let mut out = [0.0; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            for k in 0..self.rank() {
+                let a: f64 = th
+                    .iter()
+                    .map(|(i, w)| w * self.u[c][k][self.ord[*i as usize] as usize])
+                    .sum();
+                let b: f64 = td
+                    .iter()
+                    .map(|(i, w)| w * self.v[c][k][self.ord[*i as usize] as usize])
+                    .sum();
+                *o += a * b;
+            }
+        }
+        Rgb::from_array(out)
+    }
+}
+
+/// Weighted low-rank fit of an `n x n` matrix with missing entries.
+fn als(
+    n: usize,
+    entry: &(dyn Fn(usize, usize) -> Option<f64> + Sync),
+    rank: usize,
+    centres: &[(f64, f64)],
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let mut us: Vec<Vec<f64>> = Vec::new();
+    let mut vs: Vec<Vec<f64>> = Vec::new();
+    // Successive rank-1 fits of the residual.
+    for _ in 0..rank {
+        let resid = |a: usize, b: usize| -> Option<f64> {
+            entry(a, b).map(|x| x - (0..us.len()).map(|k| us[k][a] * vs[k][b]).sum::<f64>())
+        };
+        let mut v = vec![1.0; n];
+        let mut u = vec![0.0; n];
+        for _ in 0..30 {
+            u = (0..n)
+                .into_par_iter()
+                .map(|a| {
+                    let (mut num, mut den) = (0.0, 0.0);
+                    for (b, vb) in v.iter().enumerate() {
+                        if let Some(x) = resid(a, b) {
+                            num += x * vb;
+                            den += vb * vb;
+                        }
+                    }
+                    if den > 0.0 {
+                        num / den
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            v = (0..n)
+                .into_par_iter()
+                .map(|b| {
+                    let (mut num, mut den) = (0.0, 0.0);
+                    for (a, ua) in u.iter().enumerate() {
+                        if let Some(x) = resid(a, b) {
+                            num += x * ua;
+                            den += ua * ua;
+                        }
+                    }
+                    if den > 0.0 {
+                        num / den
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+        }
+        fill_empty(&mut u, |a| (0..n).any(|b| entry(a, b).is_some()), centres);
+        fill_empty(&mut v, |b| (0..n).any(|a| entry(a, b).is_some()), centres);
+        us.push(u);
+        vs.push(v);
+    }
+    (us, vs)
+}
+
+/// Texels without a single valid entry (beyond the reach of the fit
+/// domain) take the value of the nearest texel that has one, so that
+/// bilinear lookups near the domain's edge do not blend in zeros.
+fn fill_empty(x: &mut [f64], has_data: impl Fn(usize) -> bool + Sync, centres: &[(f64, f64)]) {
+    let has: Vec<bool> = (0..x.len()).into_par_iter().map(&has_data).collect();
+    let src = x.to_vec();
+    for (a, xa) in x.iter_mut().enumerate() {
+        if has[a] {
+            continue;
+        }
+        let (ca, best) = (
+            centres[a],
+            (0..src.len()).filter(|b| has[*b]).min_by(|&b, &c| {
+                let d = |k: usize| {
+                    (centres[k].0 - centres[a].0).powi(2) + (centres[k].1 - centres[a].1).powi(2)
+                };
+                d(b).total_cmp(&d(c))
+            }),
+        );
+        let _ = ca;
+        if let Some(b) = best {
+            *xa = src[b];
+        }
+    }
+}
