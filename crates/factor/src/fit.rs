@@ -239,8 +239,8 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         }
     }
     let lap = laplacian_rows(&grid, &ord, nv);
-    let mut log_p = vec![[0.0; 3]; nv];
-    let mut log_q = vec![[0.0; 3]; nv];
+    // Per channel, the unknowns: `ln p` at the valid texels, then `ln q`.
+    let mut x: [Vec<f64>; 3] = Default::default();
     let mut solver = Solver {
         rows: &rows,
         lap: &lap,
@@ -250,6 +250,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         solve_s: 0.0,
         factorizations: 0,
     };
+    let ln_f = |s: &Sample, c: usize| s.f.expect("usable").to_array()[c].ln();
     for g in &groups {
         let mask = &masks[g[0]];
         let weights: Vec<f64> = mask.iter().map(|m| if *m { 1.0 } else { 0.0 }).collect();
@@ -259,22 +260,12 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
                 samples
                     .iter()
                     .zip(mask)
-                    .map(|(s, m)| {
-                        if *m {
-                            s.f.expect("usable").to_array()[c].ln()
-                        } else {
-                            0.0
-                        }
-                    })
+                    .map(|(s, m)| if *m { ln_f(s, c) } else { 0.0 })
                     .collect()
             })
             .collect();
-        let x = solver.solve(&weights, &targets)?;
-        for (k, &c) in g.iter().enumerate() {
-            for t in 0..nv {
-                log_p[t][c] = x[k][t];
-                log_q[t][c] = x[k][nv + t];
-            }
+        for (xc, &c) in solver.solve(&weights, &targets)?.into_iter().zip(g) {
+            x[c] = xc;
         }
     }
     // Gauss-Newton refinement toward the relative error: linearizing
@@ -292,85 +283,61 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
     for _ in 0..opts.refine {
         for c in 0..3 {
             if let Some(d) = twins[c] {
-                for t in 0..nv {
-                    log_p[t][c] = log_p[t][d];
-                    log_q[t][c] = log_q[t][d];
-                }
+                x[c] = x[d].clone();
                 continue;
             }
-            let mask = &masks[c];
-            let x: Vec<f64> = (0..nv)
-                .map(|t| log_p[t][c])
-                .chain((0..nv).map(|t| log_q[t][c]))
-                .collect();
             let mut weights = vec![0.0; samples.len()];
             let mut target = vec![0.0; samples.len()];
-            for (k, ((row, s), m)) in rows.iter().zip(samples).zip(mask).enumerate() {
+            for (k, ((row, s), m)) in rows.iter().zip(samples).zip(&masks[c]).enumerate() {
                 if !*m {
                     continue;
                 }
-                let ax: f64 = row.iter().map(|(i, w)| w * x[*i as usize]).sum();
-                let d = (ax - s.f.expect("usable").to_array()[c].ln()).clamp(-3.0, 3.0);
+                let ax: f64 = row.iter().map(|(i, w)| w * x[c][*i as usize]).sum();
+                let d = (ax - ln_f(s, c)).clamp(-3.0, 3.0);
                 weights[k] = (2.0 * d).exp();
                 target[k] = ax - (1.0 - (-d).exp());
             }
-            let xn = solver.solve(&weights, &[target])?;
-            for t in 0..nv {
-                log_p[t][c] = xn[0][t];
-                log_q[t][c] = xn[0][nv + t];
-            }
+            x[c] = solver.solve(&weights, &[target])?.remove(0);
         }
     }
     stats.factorizations = solver.factorizations;
-    let (assemble_s, solve_s) = (solver.assemble_s, solver.solve_s);
-    stats.assemble_s = assemble_s;
-    stats.solve_s = solve_s;
-    if log_p
-        .iter()
-        .chain(&log_q)
-        .any(|v| v.iter().any(|x| !x.is_finite()))
-    {
+    stats.assemble_s = solver.assemble_s;
+    stats.solve_s = solver.solve_s;
+    if x.iter().flatten().any(|v| !v.is_finite()) {
         return Err(FactorError::Fit(
             "the solve produced non-finite values; try a larger --smoothness".into(),
         ));
     }
     // Normalize each map's largest value to 1, moving the rest to scale.
-    let mut scale = [0.0; 3];
-    let mut pmax = [f64::NEG_INFINITY; 3];
-    let mut qmax = [f64::NEG_INFINITY; 3];
-    for t in 0..nv {
-        for c in 0..3 {
-            pmax[c] = pmax[c].max(log_p[t][c]);
-            qmax[c] = qmax[c].max(log_q[t][c]);
-        }
-    }
-    for c in 0..3 {
-        scale[c] = (2.0 * pmax[c] + qmax[c]).exp();
-    }
-    let expand = |logs: &[[f64; 3]], max: [f64; 3]| -> Vec<Rgb> {
-        (0..grid.len())
-            .map(|i| {
-                let v = logs[ord[grid.alias(i)] as usize];
-                Rgb::new(
-                    (v[0] - max[0]).max(MIN_LOG).exp(),
-                    (v[1] - max[1]).max(MIN_LOG).exp(),
-                    (v[2] - max[2]).max(MIN_LOG).exp(),
-                )
-            })
-            .collect()
-    };
-    let scale = Rgb::from_array(scale);
+    let max = |xc: &[f64]| xc.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let pmax = x.each_ref().map(|xc| max(&xc[..nv]));
+    let qmax = x.each_ref().map(|xc| max(&xc[nv..]));
+    let scale = Rgb::new(
+        (2.0 * pmax[0] + qmax[0]).exp(),
+        (2.0 * pmax[1] + qmax[1]).exp(),
+        (2.0 * pmax[2] + qmax[2]).exp(),
+    );
     if !(scale.r > 0.0 && scale.g > 0.0 && scale.b > 0.0 && scale.is_finite()) {
         return Err(FactorError::Fit(format!(
             "the fitted scale {:?} is out of range",
             scale.to_array()
         )));
     }
+    // Every texel of a map (offset 0 for p, nv for q), stand-ins included.
+    let expand = |offset: usize, max: [f64; 3]| -> Vec<Rgb> {
+        (0..grid.len())
+            .map(|i| {
+                let t = offset + ord[grid.alias(i)] as usize;
+                let v = |c: usize| (x[c][t] - max[c]).max(MIN_LOG).exp();
+                Rgb::new(v(0), v(1), v(2))
+            })
+            .collect()
+    };
     Ok(Factorization {
         res,
         theta_max_deg: opts.theta_max_deg,
-        p: expand(&log_p, pmax),
-        q: expand(&log_q, qmax),
+        p: expand(0, pmax),
+        q: expand(nv, qmax),
         scale,
         stats,
     })

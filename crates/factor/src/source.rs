@@ -125,7 +125,8 @@ pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> 
     let cos_max = theta_max_deg.to_radians().cos() - 1e-12;
     let mut samples = Vec::new();
     let mut outside = 0;
-    let mut first_data = true;
+    // Until the first data row, a non-numeric line is the header.
+    let mut header_allowed = true;
     for (k, line) in text.lines().enumerate() {
         let err = |message: String| FactorError::Input {
             what: format!("{}:{}", path.display(), k + 1),
@@ -139,8 +140,8 @@ pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> 
         let nums: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
         let nums = match nums {
             Ok(v) => v,
-            Err(_) if first_data && samples.is_empty() => {
-                first_data = false; // a header
+            Err(_) if header_allowed => {
+                header_allowed = false;
                 continue;
             }
             Err(_) => {
@@ -155,7 +156,7 @@ pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> 
                 )));
             }
         };
-        first_data = false;
+        header_allowed = false;
         if nums.len() != 9 {
             return Err(err(format!(
                 "expected 9 fields (wo_x, wo_y, wo_z, wi_x, wi_y, wi_z, r, g, b), got {}",

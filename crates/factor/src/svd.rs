@@ -16,6 +16,7 @@
 
 use crate::source::Source;
 use isolux_core::{DVec3, Rgb};
+use isolux_materials::merl::half_diff_vectors;
 use isolux_materials::parabolic::ParabolicGrid;
 use rayon::prelude::*;
 
@@ -28,17 +29,6 @@ pub struct Separable {
     u: Vec<Vec<Vec<f64>>>,
     /// `v[c][k][t]`.
     v: Vec<Vec<Vec<f64>>>,
-}
-
-/// `(h, d)`: the half vector, and `wi` in the frame where `h` is `+z`
-/// (rotate by `-phi_h` about `z`, then by `-theta_h` about `y`).
-pub fn half_diff_vectors(wo: DVec3, wi: DVec3) -> (DVec3, DVec3) {
-    let h = (wo + wi).normalize();
-    let (th, ph) = (h.z.clamp(-1.0, 1.0).acos(), h.y.atan2(h.x));
-    let (s, c) = (-ph).sin_cos();
-    let t = DVec3::new(c * wi.x - s * wi.y, s * wi.x + c * wi.y, wi.z);
-    let (s, c) = (-th).sin_cos();
-    (h, DVec3::new(c * t.x + s * t.z, t.y, -s * t.x + c * t.z))
 }
 
 /// The inverse of [`half_diff_vectors`]: `(wo, wi)` from `h` and `d`.
@@ -155,6 +145,15 @@ fn als(
     rank: usize,
     centres: &[(f64, f64)],
 ) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    // Rows and columns with at least one valid entry.
+    let row_has: Vec<bool> = (0..n)
+        .into_par_iter()
+        .map(|a| (0..n).any(|b| entry(a, b).is_some()))
+        .collect();
+    let col_has: Vec<bool> = (0..n)
+        .into_par_iter()
+        .map(|b| (0..n).any(|a| entry(a, b).is_some()))
+        .collect();
     let mut us: Vec<Vec<f64>> = Vec::new();
     let mut vs: Vec<Vec<f64>> = Vec::new();
     // Successive rank-1 fits of the residual.
@@ -165,70 +164,56 @@ fn als(
         let mut v = vec![1.0; n];
         let mut u = vec![0.0; n];
         for _ in 0..30 {
-            u = (0..n)
-                .into_par_iter()
-                .map(|a| {
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for (b, vb) in v.iter().enumerate() {
-                        if let Some(x) = resid(a, b) {
-                            num += x * vb;
-                            den += vb * vb;
-                        }
-                    }
-                    if den > 0.0 {
-                        num / den
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            v = (0..n)
-                .into_par_iter()
-                .map(|b| {
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for (a, ua) in u.iter().enumerate() {
-                        if let Some(x) = resid(a, b) {
-                            num += x * ua;
-                            den += ua * ua;
-                        }
-                    }
-                    if den > 0.0 {
-                        num / den
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
+            u = best_side(n, &v, resid);
+            v = best_side(n, &u, |b, a| resid(a, b));
         }
-        fill_empty(&mut u, |a| (0..n).any(|b| entry(a, b).is_some()), centres);
-        fill_empty(&mut v, |b| (0..n).any(|a| entry(a, b).is_some()), centres);
+        fill_empty(&mut u, &row_has, centres);
+        fill_empty(&mut v, &col_has, centres);
         us.push(u);
         vs.push(v);
     }
     (us, vs)
 }
 
+/// One alternating step: for each row `a`, the `x_a` minimizing
+/// `sum_b (m(a, b) - x_a y_b)^2` over the valid entries (0 for a row
+/// without any).
+fn best_side(n: usize, y: &[f64], m: impl Fn(usize, usize) -> Option<f64> + Sync) -> Vec<f64> {
+    (0..n)
+        .into_par_iter()
+        .map(|a| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (b, yb) in y.iter().enumerate() {
+                if let Some(x) = m(a, b) {
+                    num += x * yb;
+                    den += yb * yb;
+                }
+            }
+            if den > 0.0 {
+                num / den
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 /// Texels without a single valid entry (beyond the reach of the fit
 /// domain) take the value of the nearest texel that has one, so that
 /// bilinear lookups near the domain's edge do not blend in zeros.
-fn fill_empty(x: &mut [f64], has_data: impl Fn(usize) -> bool + Sync, centres: &[(f64, f64)]) {
-    let has: Vec<bool> = (0..x.len()).into_par_iter().map(&has_data).collect();
+fn fill_empty(x: &mut [f64], has: &[bool], centres: &[(f64, f64)]) {
     let src = x.to_vec();
+    let dist = |a: usize, b: usize| {
+        (centres[a].0 - centres[b].0).powi(2) + (centres[a].1 - centres[b].1).powi(2)
+    };
     for (a, xa) in x.iter_mut().enumerate() {
         if has[a] {
             continue;
         }
-        let (ca, best) = (
-            centres[a],
-            (0..src.len()).filter(|b| has[*b]).min_by(|&b, &c| {
-                let d = |k: usize| {
-                    (centres[k].0 - centres[a].0).powi(2) + (centres[k].1 - centres[a].1).powi(2)
-                };
-                d(b).total_cmp(&d(c))
-            }),
-        );
-        let _ = ca;
-        if let Some(b) = best {
+        let nearest = (0..src.len())
+            .filter(|b| has[*b])
+            .min_by(|&b, &c| dist(a, b).total_cmp(&dist(a, c)));
+        if let Some(b) = nearest {
             *xa = src[b];
         }
     }

@@ -160,8 +160,6 @@ fn svd_baseline_recovers_a_separable_brdf() {
     // d.z): rank 1 fits it up to interpolation error, and the fit is far
     // better than for Cook-Torrance.
     use isolux_factor::Separable;
-    let g = ParabolicGrid::new(32).unwrap();
-    let _ = g;
     let merl = {
         let mut raw = vec![0.0; 3 * PLANE];
         for th in 0..90 {

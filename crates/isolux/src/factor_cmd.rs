@@ -61,6 +61,17 @@ pub struct FactorArgs {
 
 /// Runs `isolux factor`.
 pub fn run(a: FactorArgs) -> Result<()> {
+    // Flags first, so that a bad one fails before a 35 MB MERL file is read.
+    let mut opts = RunOptions::default();
+    opts.fit.res = a.res;
+    opts.fit.smoothness = a.smoothness;
+    opts.fit.refine = a.refine;
+    opts.fit.theta_max_deg = a.theta_max;
+    opts.samples = a.fit_samples;
+    opts.held_out = a.held_out;
+    opts.svd_ranks = a.svd_rank;
+    opts.seed = a.seed;
+    opts.fit.validate()?;
     let source = if let Some(name) = &a.material {
         let Some(scene) = &a.scene else {
             bail!("--material needs the scene file that defines it: isolux factor SCENE.toml --material {name} -o DIR");
@@ -100,16 +111,6 @@ pub fn run(a: FactorArgs) -> Result<()> {
             read_csv(p, a.theta_max)?
         }
     };
-    let mut opts = RunOptions::default();
-    opts.fit.res = a.res;
-    opts.fit.smoothness = a.smoothness;
-    opts.fit.refine = a.refine;
-    opts.fit.theta_max_deg = a.theta_max;
-    opts.samples = a.fit_samples;
-    opts.held_out = a.held_out;
-    opts.svd_ranks = a.svd_rank;
-    opts.seed = a.seed;
-    opts.fit.validate()?;
     if let Source::Samples {
         samples, outside, ..
     } = &source

@@ -73,6 +73,28 @@ pub struct BsdfSample {
 }
 
 impl BsdfSample {
+    /// A reflected direction scored by the model's whole `f` and `pdf`
+    /// (the usual ending of a mixture's `sample`, whichever lobe drew
+    /// `wi`): `None` when `wi` lies below the horizon, `flags` is the lobe
+    /// that drew it (`REFLECTION` is added).
+    pub fn reflected<M: BxdfModel + ?Sized>(
+        model: &M,
+        wo: DVec3,
+        wi: DVec3,
+        flags: BxdfFlags,
+    ) -> Option<Self> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        Some(Self {
+            wi,
+            f: model.f(wo, wi),
+            pdf: model.pdf(wo, wi),
+            flags: BxdfFlags::REFLECTION | flags,
+            eta: 1.0,
+        })
+    }
+
     /// The Monte Carlo weight `f |cos| / pdf`.
     pub fn weight(&self, cos_theta: f64) -> Rgb {
         self.f * (cos_theta.abs() / self.pdf)

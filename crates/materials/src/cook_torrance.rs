@@ -177,21 +177,12 @@ impl BxdfModel for CookTorrance {
         } else {
             sampling::cosine_hemisphere(u)
         };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.f(wo, wi),
-            pdf: self.pdf(wo, wi),
-            flags: BxdfFlags::REFLECTION
-                | if uc < ps {
-                    BxdfFlags::GLOSSY
-                } else {
-                    BxdfFlags::DIFFUSE
-                },
-            eta: 1.0,
-        })
+        let lobe = if uc < ps {
+            BxdfFlags::GLOSSY
+        } else {
+            BxdfFlags::DIFFUSE
+        };
+        BsdfSample::reflected(self, wo, wi, lobe)
     }
 
     fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {

@@ -217,16 +217,7 @@ impl BxdfModel for Factored {
             }
             reflect(wo, h)
         };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.f(wo, wi),
-            pdf: self.pdf(wo, wi),
-            flags: BxdfFlags::REFLECTION | BxdfFlags::GLOSSY,
-            eta: 1.0,
-        })
+        BsdfSample::reflected(self, wo, wi, BxdfFlags::GLOSSY)
     }
 
     fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {

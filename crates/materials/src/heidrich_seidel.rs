@@ -211,16 +211,7 @@ impl BxdfModel for HeidrichSeidel {
                 BxdfFlags::GLOSSY,
             )
         };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.f(wo, wi),
-            pdf: self.pdf(wo, wi),
-            flags: BxdfFlags::REFLECTION | flags,
-            eta: 1.0,
-        })
+        BsdfSample::reflected(self, wo, wi, flags)
     }
 
     fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {

@@ -213,17 +213,22 @@ impl Merl {
 /// Rusinkiewicz's half/difference angles `(theta_h, theta_d, phi_d)` of a
 /// direction pair, `phi_d` folded into `[0, pi)`.
 pub fn half_diff(wo: DVec3, wi: DVec3) -> (f64, f64, f64) {
-    let h = (wo + wi).normalize();
+    let (h, d) = half_diff_vectors(wo, wi);
     let theta_h = h.z.clamp(-1.0, 1.0).acos();
-    let phi_h = h.y.atan2(h.x);
-    // Rotate wi by -phi_h about z, then by -theta_h about y.
-    let (s, c) = (-phi_h).sin_cos();
-    let t = DVec3::new(c * wi.x - s * wi.y, s * wi.x + c * wi.y, wi.z);
-    let (s, c) = (-theta_h).sin_cos();
-    let d = DVec3::new(c * t.x + s * t.z, t.y, -s * t.x + c * t.z);
     let theta_d = d.z.clamp(-1.0, 1.0).acos();
     let phi_d = d.y.atan2(d.x).rem_euclid(PI);
     (theta_h, theta_d, phi_d)
+}
+
+/// `(h, d)`: the half vector, and `wi` in the frame where `h` is `+z`
+/// (rotated by `-phi_h` about `z`, then by `-theta_h` about `y`).
+pub fn half_diff_vectors(wo: DVec3, wi: DVec3) -> (DVec3, DVec3) {
+    let h = (wo + wi).normalize();
+    let (theta_h, phi_h) = (h.z.clamp(-1.0, 1.0).acos(), h.y.atan2(h.x));
+    let (s, c) = (-phi_h).sin_cos();
+    let t = DVec3::new(c * wi.x - s * wi.y, s * wi.x + c * wi.y, wi.z);
+    let (s, c) = (-theta_h).sin_cos();
+    (h, DVec3::new(c * t.x + s * t.z, t.y, -s * t.x + c * t.z))
 }
 
 impl BxdfModel for Merl {
@@ -238,17 +243,7 @@ impl BxdfModel for Merl {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = sampling::cosine_hemisphere(u);
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.f(wo, wi),
-            pdf: sampling::cosine_hemisphere_pdf(wi.z),
-            flags: BxdfFlags::REFLECTION | BxdfFlags::GLOSSY,
-            eta: 1.0,
-        })
+        BsdfSample::reflected(self, wo, sampling::cosine_hemisphere(u), BxdfFlags::GLOSSY)
     }
 
     fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {

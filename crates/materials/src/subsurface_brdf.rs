@@ -115,16 +115,7 @@ impl BxdfModel for SubsurfaceBrdf {
             });
         }
         let wi = sampling::cosine_hemisphere(u);
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.f(wo, wi),
-            pdf: self.pdf(wo, wi),
-            flags: BxdfFlags::REFLECTION | BxdfFlags::DIFFUSE,
-            eta: 1.0,
-        })
+        BsdfSample::reflected(self, wo, wi, BxdfFlags::DIFFUSE)
     }
 
     fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
