@@ -18,6 +18,8 @@ pub enum Suite {
     Sss,
     /// Homomorphic factorization: fit time at 32 and 64 texels per side.
     Factor,
+    /// Wave optics: time per BRDF query, one and eight wavelengths.
+    Wave,
 }
 
 /// Run benchmarks.
@@ -64,6 +66,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     match a.suite {
         Suite::Sss => sss(a.size.min(256))?,
         Suite::Factor => factor(a.repeat)?,
+        Suite::Wave => wave(a.repeat)?,
         Suite::Geometry => {
             let threads = rayon::current_num_threads();
             println!(
@@ -245,5 +248,82 @@ fn sss(size: u32) -> Result<()> {
         println!("| {name} | {spp} | {secs:.2} | {noise:.4} | {e:.1} |");
     }
     println!("\ndipole speed-up at equal noise: {:.0}x", eff[0] / eff[1]);
+    Ok(())
+}
+
+/// Per-query CPU time of the wave-optics BRDF on one core: a 1024 x 1024
+/// isotropic-noise heightfield (RMS 0.1 um, correlation 1 um) of 0.25 um
+/// texels, sigma = 2.5 um, a 128 x 128 image of outgoing directions, one
+/// wavelength (0.5 um) and eight (the visible comb), with and without the
+/// quadtree, all on a one-thread pool.
+fn wave(repeat: u32) -> Result<()> {
+    use isolux_core::DVec3;
+    use isolux_wave::generate::{generate, Kind};
+    use isolux_wave::{Comb, Footprint, GaborSurface, Model, Settings};
+    let t = Instant::now();
+    let field = generate(
+        &Kind::Noise {
+            rms_um: 0.1,
+            corr_um: 1.0,
+        },
+        1024,
+        1024,
+        0.25,
+        1,
+    )?;
+    let gen = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let s = GaborSurface::new(field);
+    let build = t.elapsed().as_secs_f64();
+    let fp = Footprint {
+        center_um: [128.0, 128.0],
+        sigma_um: 2.5,
+    };
+    let wi = DVec3::new(0.3, 0.0, (1.0f64 - 0.09).sqrt());
+    let res = 128;
+    let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let run = |comb: &Comb, set: &Settings| -> (f64, usize) {
+        let mut out = vec![0.0; comb.n];
+        best_of(repeat, || {
+            let mut q = 0;
+            for r in 0..res {
+                for c in 0..res {
+                    let x = (c as f64 + 0.5) / res as f64 * 2.0 - 1.0;
+                    let y = 1.0 - (r as f64 + 0.5) / res as f64 * 2.0;
+                    if x * x + y * y < 1.0 {
+                        let wo = DVec3::new(x, y, (1.0 - x * x - y * y).sqrt());
+                        s.eval(&fp, Model::Ghs, wi, wo, comb, set, &mut out);
+                        q += 1;
+                    }
+                }
+            }
+            q
+        })
+    };
+    let on = Settings::default();
+    let off = Settings {
+        hierarchy: false,
+        ..on
+    };
+    let c1 = Comb::single(0.5);
+    let c8 = Comb::visible(8);
+    let radius = fp.sigma_um * (2.0 * (1.0 / on.eps).ln()).sqrt();
+    let in_disk = std::f64::consts::PI * (radius / 0.25).powi(2);
+    println!(
+        "wave-optics BRDF: 1024 x 1024 noise heightfield, 0.25 um texels (generated in {gen:.2} s, kernels and quadtree built in {build:.3} s), sigma 2.5 um (~{in_disk:.0} kernels within 3 sigma), {res} x {res} directions, 1 thread, best of {repeat}"
+    );
+    println!("| wavelengths | quadtree | us / query | vs 1 wavelength |");
+    println!("|---:|---|---:|---:|");
+    let mut base = 0.0;
+    for (name, comb) in [("1", &c1), ("8", &c8)] {
+        for (h, set) in [("on", &on), ("off", &off)] {
+            let (t, q) = single.install(|| run(comb, set));
+            let us = t / q as f64 * 1e6;
+            if comb.n == 1 && h == "on" {
+                base = us;
+            }
+            println!("| {name} | {h} | {us:.1} | {:.2}x |", us / base);
+        }
+    }
     Ok(())
 }

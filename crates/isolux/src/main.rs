@@ -7,6 +7,7 @@ mod brdf_cmd;
 mod factor_cmd;
 mod render_cmd;
 mod sss_cmd;
+mod wave_cmd;
 
 use clap::{Parser, Subcommand};
 
@@ -29,6 +30,10 @@ enum Command {
     Sss(sss_cmd::SssArgs),
     /// Factor a BRDF into positive textures p(wo) q(h) p(wi) (homomorphic factorization).
     Factor(factor_cmd::FactorArgs),
+    /// Micron-scale heightfields for wave optics.
+    Heightfield(wave_cmd::HeightfieldArgs),
+    /// Wave-optics diffraction BRDF of a heightfield.
+    Wave(wave_cmd::WaveArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),
 }
@@ -40,6 +45,8 @@ fn main() {
         Command::Brdf(a) => brdf_cmd::run(a),
         Command::Sss(a) => sss_cmd::run(a),
         Command::Factor(a) => factor_cmd::run(a),
+        Command::Heightfield(a) => wave_cmd::run_heightfield(a),
+        Command::Wave(a) => wave_cmd::run_wave(a),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

@@ -55,6 +55,7 @@ pub mod subsurface_brdf;
 pub mod subsurface_material;
 pub mod validate;
 pub mod ward;
+pub mod wave;
 
 pub use beckmann::Beckmann;
 pub use blinn_phong::BlinnPhong;
@@ -76,3 +77,4 @@ pub use plastic::Plastic;
 pub use subsurface_brdf::SubsurfaceBrdf;
 pub use subsurface_material::Subsurface;
 pub use ward::Ward;
+pub use wave::Wave;

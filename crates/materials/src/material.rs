@@ -4,9 +4,10 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::{
     Beckmann, BlinnPhong, Conductor, CookTorrance, Dielectric, Diffuse, Factored, Gaussian, Ggx,
-    HeidrichSeidel, Merl, Mix, Phong, Plastic, Subsurface, SubsurfaceBrdf, Ward,
+    HeidrichSeidel, Merl, Mix, Phong, Plastic, Subsurface, SubsurfaceBrdf, Ward, Wave,
 };
 use isolux_core::{DVec3, Rgb};
+use std::borrow::Cow;
 
 /// A named material of a scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,6 +46,8 @@ pub enum Material {
     Factored(Factored),
     /// Measured MERL table (`type = "merl"`).
     Merl(Merl),
+    /// Wave-optics diffraction from a heightfield (`type = "wave"`).
+    Wave(Wave),
 }
 
 /// Applies `$body` to the model inside any variant.
@@ -68,6 +71,7 @@ macro_rules! dispatch {
             Material::Mix($m) => $body,
             Material::Factored($m) => $body,
             Material::Merl($m) => $body,
+            Material::Wave($m) => $body,
         }
     };
 }
@@ -93,6 +97,29 @@ impl Material {
             Material::Mix(_) => "mix",
             Material::Factored(_) => "factored",
             Material::Merl(_) => "merl",
+            Material::Wave(_) => "wave",
+        }
+    }
+
+    /// Whether the BxDF depends on the shading point (call
+    /// [`Material::at_point`] before shading).
+    pub fn is_spatially_varying(&self) -> bool {
+        matches!(self, Material::Wave(_))
+    }
+
+    /// The material placed at world point `p`: spatially varying models
+    /// (`wave`) query their own neighbourhood, with the pixel footprint
+    /// `footprint` (scene units, camera rays only) and a random number
+    /// from `xi` (drawn only by them); every other model is borrowed as is.
+    pub fn at_point(
+        &self,
+        p: DVec3,
+        footprint: Option<f64>,
+        xi: impl FnOnce() -> f64,
+    ) -> Cow<'_, Material> {
+        match self {
+            Material::Wave(w) => Cow::Owned(Material::Wave(w.at_point(p, footprint, xi()))),
+            _ => Cow::Borrowed(self),
         }
     }
 
@@ -112,6 +139,7 @@ impl Material {
             Material::Ward(m) => m.tangent,
             Material::HeidrichSeidel(m) => m.tangent,
             Material::Mix(m) => m.components.iter().find_map(|(c, _)| c.tangent()),
+            Material::Wave(m) => Some(m.query.tangent),
             _ => None,
         }
     }

@@ -23,6 +23,7 @@
 pub const RGB_WAVELENGTHS_NM: [f64; 3] = [612.0, 549.0, 465.0];
 
 /// A tabulated metal: rows of (wavelength um, n, k).
+#[derive(Debug, PartialEq)]
 pub struct Metal {
     /// Chemical symbol used in scene files.
     pub name: &'static str,

@@ -73,14 +73,14 @@ pub struct FirstHit {
 
 /// Next-event estimation at `p` (geometric normal `n`): point lights, and
 /// the environment map with multiple importance sampling against the
-/// scattering density. `f_cos_pdf(wi)` returns `f |cos|` and the density
-/// with which the path itself would continue toward `wi`.
+/// scattering density. `f_cos_pdf(wi, need_pdf)` returns `f |cos|` and (when
+/// `need_pdf`) the density with which the path would continue toward `wi`.
 fn direct_light(
     scene: &Scene,
     p: DVec3,
     n: DVec3,
     rng: &mut Pcg32,
-    f_cos_pdf: impl Fn(DVec3) -> (Rgb, f64),
+    f_cos_pdf: impl Fn(DVec3, bool) -> (Rgb, f64),
 ) -> Rgb {
     let mut l = Rgb::BLACK;
     for light in &scene.lights {
@@ -92,7 +92,7 @@ fn direct_light(
         }
         let dist = dist2.sqrt();
         let wi = d / dist;
-        let (fc, _) = f_cos_pdf(wi);
+        let (fc, _) = f_cos_pdf(wi, false);
         if fc.is_black() {
             continue;
         }
@@ -103,7 +103,7 @@ fn direct_light(
     let env = &scene.environment;
     if env.is_sampled() {
         if let Some(s) = env.sample(rng.next_2d()) {
-            let (fc, pdf) = f_cos_pdf(s.wi);
+            let (fc, pdf) = f_cos_pdf(s.wi, true);
             if !fc.is_black() && !s.radiance.is_black() {
                 let origin = offset_origin(p, n, s.wi);
                 if !scene
@@ -144,7 +144,7 @@ fn single_scattering_light(
         }
         albedo * single_scattering(wo_l, wl, 1.0, m.g, eta)
     };
-    let mut l = direct_light(scene, hit.p, hit.n, rng, |wi| {
+    let mut l = direct_light(scene, hit.p, hit.n, rng, |wi, _| {
         let c = wi.dot(hit.n);
         if c <= 0.0 {
             (Rgb::BLACK, 0.0)
@@ -332,7 +332,16 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
             l += beta * le * w;
             break;
         };
-        let material = &scene.materials[scene.object_material[obj]];
+        // Spatially varying materials (wave optics) are placed at the hit:
+        // camera rays narrow their query to the pixel footprint, the
+        // angle of one pixel times the distance.
+        let footprint = (depth == 0).then(|| {
+            hit.t * 2.0 * (0.5 * scene.camera.fov_y.to_radians()).tan()
+                / scene.film.height.max(1) as f64
+        });
+        let placed = scene.materials[scene.object_material[obj]]
+            .at_point(hit.p, footprint, || rng.next_f64());
+        let material: &isolux_materials::Material = &placed;
         if depth == 0 {
             first = Some(FirstHit {
                 albedo: material.albedo(),
@@ -351,8 +360,11 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
         let ns = bsdf.normal();
 
         l += beta
-            * direct_light(scene, hit.p, hit.n, rng, |wi| {
-                (bsdf.f(wo, wi) * wi.dot(ns).abs(), bsdf.pdf(wo, wi))
+            * direct_light(scene, hit.p, hit.n, rng, |wi, need_pdf| {
+                // The density only weighs environment samples (MIS); point
+                // lights skip it (costly for wave-optics materials).
+                let pdf = if need_pdf { bsdf.pdf(wo, wi) } else { 0.0 };
+                (bsdf.f(wo, wi) * wi.dot(ns).abs(), pdf)
             });
         // Single scattering of the dipole mode (Jensen's S^(1)), a local
         // lobe at x_o, estimated here for direct light only.
@@ -380,7 +392,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                 // At x_i: light arriving through the boundary, weighted by
                 // S_w(wi) = (1 - F(cos_i)) / (c pi).
                 l += beta
-                    * direct_light(scene, xi.p, xi.n, rng, |wi| {
+                    * direct_light(scene, xi.p, xi.n, rng, |wi, _| {
                         let c = wi.dot(xi.n);
                         if c <= 0.0 {
                             (Rgb::BLACK, 0.0)

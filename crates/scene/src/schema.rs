@@ -38,6 +38,7 @@ pub const MATERIAL_TYPES: &[&str] = &[
     "mix",
     "factored",
     "merl",
+    "wave",
 ];
 
 /// Quadric `type` names.
@@ -403,6 +404,24 @@ fn material(
             let m = isolux_materials::Merl::read(&file).map_err(|e| fv.error(e))?;
             Ok(Material::Merl(m))
         }
+        "wave" => {
+            allow(&[
+                "heightfield",
+                "texel_um",
+                "vertical_scale",
+                "raw_size",
+                "model",
+                "metal",
+                "ior",
+                "coherence_um",
+                "mapping",
+                "axis",
+                "center",
+                "um_per_unit",
+                "wavelengths",
+            ])?;
+            wave_material(t, base_dir)
+        }
         "mix" => {
             allow(&["components"])?;
             let cv = t.req("components")?;
@@ -697,6 +716,93 @@ fn roughness(t: &Table) -> Result<(f64, f64)> {
 }
 
 /// One of `metal`, `eta` + `k`, `ior`, `schlick`; none means `F = 1`.
+/// `type = "wave"` (see `isolux_materials::wave` for the keys).
+fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
+    use isolux_materials::wave::{Mapping, Wave, WaveFresnel};
+    use isolux_wave::{GaborSurface, Heightfield, LoadOptions, Model};
+    let hv = t.req("heightfield")?;
+    let file = base_dir.join(hv.str()?);
+    let mut opts = LoadOptions::default();
+    if let Some(v) = t.get("texel_um") {
+        opts.texel_um = Some(v.positive()?);
+    }
+    if let Some(v) = t.get("vertical_scale") {
+        opts.vertical_scale = v.f64()?;
+    }
+    if let Some(v) = t.get("raw_size") {
+        let [w, h] = v.numbers::<2>()?;
+        if !(w >= 1.0 && h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0) {
+            return Err(v.error(format!(
+                "raw_size must be two positive integers, got [{w}, {h}]"
+            )));
+        }
+        opts.raw_size = Some((w as usize, h as usize));
+    }
+    let field = Heightfield::load(&file, &opts).map_err(|e| hv.error(e.to_string()))?;
+    let model = match t.get("model") {
+        Some(v) => Model::parse(v.choice(&["ghs", "ohs"])?).unwrap_or_default(),
+        None => Model::Ghs,
+    };
+    if t.get("metal").is_some() && t.get("ior").is_some() {
+        return Err(t.error("conflicting Fresnel keys: give only one of `metal`, `ior`"));
+    }
+    let fresnel = if let Some(v) = t.get("metal") {
+        let name = v.str()?;
+        WaveFresnel::Metal(Metal::by_name(name).ok_or_else(|| {
+            v.error(format!(
+                "unknown metal \"{name}\" (valid: {})",
+                Metal::names().join(", ")
+            ))
+        })?)
+    } else if let Some(v) = t.get("ior") {
+        WaveFresnel::Dielectric(v.positive()?)
+    } else {
+        WaveFresnel::None
+    };
+    let mut m = Wave::new(
+        std::sync::Arc::new(GaborSurface::new(field)),
+        model,
+        fresnel,
+    );
+    if let Some(v) = t.get("coherence_um") {
+        m.coherence_um = v.positive()?;
+    }
+    if let Some(v) = t.get("um_per_unit") {
+        m.um_per_unit = v.positive()?;
+    }
+    if let Some(v) = t.get("wavelengths") {
+        m.wavelengths = v.uint(1, 16)? as usize;
+    }
+    let center = match t.get("center") {
+        Some(v) => vec3(&v)?,
+        None => DVec3::ZERO,
+    };
+    let mapping = match t.get("mapping") {
+        Some(v) => v.choice(&["planar", "spherical", "cylindrical"])?,
+        None => "planar",
+    };
+    if mapping != "planar" && t.get("axis").is_some() {
+        return Err(t.error("`axis` applies to mapping = \"planar\" only"));
+    }
+    m.mapping = match mapping {
+        "spherical" => Mapping::Spherical(center),
+        "cylindrical" => Mapping::Cylindrical(center),
+        _ => {
+            let axis = match t.get("axis") {
+                Some(v) => match v.choice(&["x", "y", "z"])? {
+                    "x" => 0,
+                    "y" => 1,
+                    _ => 2,
+                },
+                None => 2,
+            };
+            Mapping::Planar(axis)
+        }
+    };
+    m.query.sigma_um = m.coherence_um;
+    Ok(Material::Wave(m))
+}
+
 fn fresnel(t: &Table) -> Result<Fresnel> {
     let groups = [
         t.get("metal").is_some(),

@@ -273,7 +273,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
-        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ward, heidrich_seidel, ggx, beckmann, conductor, dielectric, plastic, subsurface, subsurface_brdf, mix, factored, merl)"),
+        ("[[material]]\nname = \"m\"\ntype = \"velvet\"\n", "s.toml:3:8: material[0].type: unknown value \"velvet\" (valid: diffuse, phong, blinn_phong, gaussian, cook_torrance, ward, heidrich_seidel, ggx, beckmann, conductor, dielectric, plastic, subsurface, subsurface_brdf, mix, factored, merl, wave)"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\nreflectance = [1.2, 0.5, 0.5]\n", "s.toml:4:15: material[0].reflectance: reflectance above 1 would create energy"),
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\n", "s.toml:5:8: material[1].name: duplicate material name \"m\""),
         ("[[object]]\nmaterial = \"x\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 1 }\n", "s.toml:2:12: object[0].material: unknown material \"x\": the scene defines no [[material]]"),

@@ -1,0 +1,409 @@
+//! Procedural heightfields for `isolux heightfield gen`.
+//!
+//! | kind | parameters | construction |
+//! |---|---|---|
+//! | `noise` | RMS height, correlation length | white noise filtered in Fourier space by a Gaussian, so that the autocorrelation is `rms^2 exp(-r^2 / corr^2)`; rescaled to the exact RMS |
+//! | `brushed` | RMS height, correlation lengths along and across, direction | the same with an anisotropic Gaussian: long streaks along the direction |
+//! | `scratches` | count, depth, width, length, base noise RMS | V-shaped grooves along random segments (wrapped periodically) over optional base noise |
+//! | `grating` | period, amplitude, direction | `A sin(2 pi (s . d) / P)`; seamless when the field spans whole periods |
+//!
+//! All heights are in um, about a zero mean. Deterministic for a seed.
+
+use crate::heightfield::{Heightfield, HeightfieldError};
+use isolux_core::Pcg32;
+use rustfft::num_complex::Complex64;
+use rustfft::FftPlanner;
+
+/// What to generate.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Kind {
+    /// Isotropic Gaussian-filtered noise.
+    Noise {
+        /// RMS height (um).
+        rms_um: f64,
+        /// Correlation length (um).
+        corr_um: f64,
+    },
+    /// Anisotropic noise: brushed metal.
+    Brushed {
+        /// RMS height (um).
+        rms_um: f64,
+        /// Correlation length along the brushing direction (um).
+        along_um: f64,
+        /// Correlation length across it (um).
+        across_um: f64,
+        /// Brushing direction, degrees from +x toward +y.
+        direction_deg: f64,
+    },
+    /// Random scratches over base noise.
+    Scratches {
+        /// Number of scratches.
+        count: usize,
+        /// Groove depth (um).
+        depth_um: f64,
+        /// Groove half-width (um).
+        width_um: f64,
+        /// Scratch length (um).
+        length_um: f64,
+        /// RMS of the isotropic base noise (um); 0 for none.
+        base_rms_um: f64,
+        /// Correlation length of the base noise (um).
+        base_corr_um: f64,
+    },
+    /// Sinusoidal grating.
+    Grating {
+        /// Period (um).
+        period_um: f64,
+        /// Amplitude (um).
+        amplitude_um: f64,
+        /// Direction of the grating vector, degrees from +x toward +y.
+        direction_deg: f64,
+    },
+}
+
+fn positive(name: &str, v: f64) -> Result<(), HeightfieldError> {
+    if !(v > 0.0) || !v.is_finite() {
+        return Err(HeightfieldError::Invalid(format!(
+            "{name} must be positive and finite, got {v}"
+        )));
+    }
+    Ok(())
+}
+
+fn non_negative(name: &str, v: f64) -> Result<(), HeightfieldError> {
+    if !(v >= 0.0) || !v.is_finite() {
+        return Err(HeightfieldError::Invalid(format!(
+            "{name} must be non-negative and finite, got {v}"
+        )));
+    }
+    Ok(())
+}
+
+/// Generates a `width x height` field of `texel_um` texels.
+pub fn generate(
+    kind: &Kind,
+    width: usize,
+    height: usize,
+    texel_um: f64,
+    seed: u64,
+) -> Result<Heightfield, HeightfieldError> {
+    positive("texel size", texel_um)?;
+    if width == 0 || height == 0 || width.saturating_mul(height) > crate::heightfield::MAX_TEXELS {
+        return Err(HeightfieldError::Invalid(format!(
+            "invalid size {width} x {height}"
+        )));
+    }
+    let data = match *kind {
+        Kind::Noise { rms_um, corr_um } => {
+            non_negative("rms", rms_um)?;
+            positive("correlation length", corr_um)?;
+            filtered_noise(width, height, texel_um, seed, rms_um, corr_um, corr_um, 0.0)
+        }
+        Kind::Brushed {
+            rms_um,
+            along_um,
+            across_um,
+            direction_deg,
+        } => {
+            non_negative("rms", rms_um)?;
+            positive("correlation length along", along_um)?;
+            positive("correlation length across", across_um)?;
+            filtered_noise(
+                width,
+                height,
+                texel_um,
+                seed,
+                rms_um,
+                along_um,
+                across_um,
+                direction_deg.to_radians(),
+            )
+        }
+        Kind::Scratches {
+            count,
+            depth_um,
+            width_um,
+            length_um,
+            base_rms_um,
+            base_corr_um,
+        } => {
+            positive("scratch width", width_um)?;
+            positive("scratch length", length_um)?;
+            non_negative("scratch depth", depth_um)?;
+            non_negative("base rms", base_rms_um)?;
+            let mut h = if base_rms_um > 0.0 {
+                positive("base correlation length", base_corr_um)?;
+                filtered_noise(
+                    width,
+                    height,
+                    texel_um,
+                    seed,
+                    base_rms_um,
+                    base_corr_um,
+                    base_corr_um,
+                    0.0,
+                )
+            } else {
+                vec![0.0; width * height]
+            };
+            scratch(
+                &mut h, width, height, texel_um, seed, count, depth_um, width_um, length_um,
+            );
+            h
+        }
+        Kind::Grating {
+            period_um,
+            amplitude_um,
+            direction_deg,
+        } => {
+            positive("period", period_um)?;
+            non_negative("amplitude", amplitude_um)?;
+            let (s, c) = direction_deg.to_radians().sin_cos();
+            let mut h = vec![0.0f32; width * height];
+            for r in 0..height {
+                for col in 0..width {
+                    let x = (col as f64 + 0.5) * texel_um;
+                    let y = (r as f64 + 0.5) * texel_um;
+                    let ph = 2.0 * std::f64::consts::PI * (x * c + y * s) / period_um;
+                    h[r * width + col] = (amplitude_um * ph.sin()) as f32;
+                }
+            }
+            h
+        }
+    };
+    Heightfield::new(width, height, texel_um, data)
+}
+
+fn gauss(rng: &mut Pcg32) -> f64 {
+    let u1 = 1.0 - rng.next_f64();
+    let u2 = rng.next_f64();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn filtered_noise(
+    w: usize,
+    h: usize,
+    texel: f64,
+    seed: u64,
+    rms: f64,
+    along: f64,
+    across: f64,
+    angle: f64,
+) -> Vec<f32> {
+    let mut rng = Pcg32::new(seed, 0x6e6f697365);
+    let mut buf: Vec<Complex64> = (0..w * h)
+        .map(|_| Complex64::new(gauss(&mut rng), 0.0))
+        .collect();
+    let mut planner = FftPlanner::<f64>::new();
+    fft2(&mut buf, w, h, &mut planner, false);
+    // Filter: the Fourier transform of the kernel exp(-2 |s|^2 / L^2) is
+    // proportional to exp(-pi^2 L^2 f^2 / 2); the filtered noise then has
+    // the autocorrelation exp(-r^2 / L^2), per axis of the rotated frame.
+    let (sn, cs) = angle.sin_cos();
+    for r in 0..h {
+        let fy = freq(r, h) / (h as f64 * texel);
+        for c in 0..w {
+            let fx = freq(c, w) / (w as f64 * texel);
+            let fa = fx * cs + fy * sn;
+            let fc = -fx * sn + fy * cs;
+            let g = (-std::f64::consts::PI.powi(2)
+                * (along * along * fa * fa + across * across * fc * fc)
+                / 2.0)
+                .exp();
+            buf[r * w + c] *= g;
+        }
+    }
+    buf[0] = Complex64::new(0.0, 0.0);
+    fft2(&mut buf, w, h, &mut planner, true);
+    let v: Vec<f64> = buf.iter().map(|z| z.re).collect();
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let cur = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+    let k = if cur > 0.0 { rms / cur } else { 0.0 };
+    v.iter().map(|x| ((x - mean) * k) as f32).collect()
+}
+
+/// Signed frequency index of bin `i` of `n`.
+fn freq(i: usize, n: usize) -> f64 {
+    if i <= n / 2 {
+        i as f64
+    } else {
+        i as f64 - n as f64
+    }
+}
+
+/// In-place 2-D FFT (rows, then columns); `inverse` is unnormalized.
+pub(crate) fn fft2(
+    buf: &mut [Complex64],
+    w: usize,
+    h: usize,
+    planner: &mut FftPlanner<f64>,
+    inverse: bool,
+) {
+    let fr = if inverse {
+        planner.plan_fft_inverse(w)
+    } else {
+        planner.plan_fft_forward(w)
+    };
+    for row in buf.chunks_exact_mut(w) {
+        fr.process(row);
+    }
+    let fc = if inverse {
+        planner.plan_fft_inverse(h)
+    } else {
+        planner.plan_fft_forward(h)
+    };
+    let mut col = vec![Complex64::new(0.0, 0.0); h];
+    for c in 0..w {
+        for r in 0..h {
+            col[r] = buf[r * w + c];
+        }
+        fc.process(&mut col);
+        for r in 0..h {
+            buf[r * w + c] = col[r];
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn scratch(
+    h: &mut [f32],
+    w: usize,
+    hh: usize,
+    texel: f64,
+    seed: u64,
+    count: usize,
+    depth: f64,
+    half_width: f64,
+    length: f64,
+) {
+    let mut rng = Pcg32::new(seed, 0x736372617463);
+    let (pw, ph) = (w as f64 * texel, hh as f64 * texel);
+    for _ in 0..count {
+        let a = [rng.next_f64() * pw, rng.next_f64() * ph];
+        let ang = rng.next_f64() * std::f64::consts::PI;
+        let d = [ang.cos(), ang.sin()];
+        let b = [a[0] + d[0] * length, a[1] + d[1] * length];
+        let lo = [a[0].min(b[0]) - half_width, a[1].min(b[1]) - half_width];
+        let hi = [a[0].max(b[0]) + half_width, a[1].max(b[1]) + half_width];
+        let c0 = (lo[0] / texel - 0.5).floor() as i64;
+        let c1 = (hi[0] / texel - 0.5).ceil() as i64;
+        let r0 = (lo[1] / texel - 0.5).floor() as i64;
+        let r1 = (hi[1] / texel - 0.5).ceil() as i64;
+        for r in r0..=r1 {
+            for c in c0..=c1 {
+                let p = [(c as f64 + 0.5) * texel, (r as f64 + 0.5) * texel];
+                let t = ((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]).clamp(0.0, length);
+                let q = [a[0] + d[0] * t - p[0], a[1] + d[1] * t - p[1]];
+                let dist = (q[0] * q[0] + q[1] * q[1]).sqrt();
+                if dist < half_width {
+                    let cc = c.rem_euclid(w as i64) as usize;
+                    let rr = r.rem_euclid(hh as i64) as usize;
+                    let v = -(depth * (1.0 - dist / half_width)) as f32;
+                    let e = &mut h[rr * w + cc];
+                    *e = e.min(v);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn noise_has_the_requested_rms_and_correlation() {
+        let f = generate(
+            &Kind::Noise {
+                rms_um: 0.1,
+                corr_um: 2.0,
+            },
+            128,
+            96,
+            0.5,
+            3,
+        )
+        .unwrap();
+        assert!((f.rms() - 0.1).abs() < 1e-6);
+        // Autocorrelation at lag L (4 texels along x): exp(-1) of the variance.
+        let mut c = 0.0;
+        for r in 0..96 {
+            for col in 0..128 {
+                c += f.at(col, r) as f64 * f.at(col + 4, r) as f64;
+            }
+        }
+        let rho = c / (128.0 * 96.0) / 0.01;
+        assert!((rho - (-1.0f64).exp()).abs() < 0.08, "{rho}");
+    }
+
+    #[test]
+    fn brushed_is_longer_along_its_direction() {
+        let k = Kind::Brushed {
+            rms_um: 0.1,
+            along_um: 20.0,
+            across_um: 1.0,
+            direction_deg: 90.0,
+        };
+        let f = generate(&k, 128, 128, 0.5, 1).unwrap();
+        let corr = |dc: i64, dr: i64| {
+            let mut s = 0.0;
+            for r in 0..128 {
+                for c in 0..128 {
+                    s += f.at(c, r) as f64 * f.at(c + dc, r + dr) as f64;
+                }
+            }
+            s / (128.0 * 128.0) / 0.01
+        };
+        // Along y (90 degrees) the field stays correlated; across x it does not.
+        assert!(
+            corr(0, 8) > 0.8 && corr(8, 0) < 0.1,
+            "{} {}",
+            corr(0, 8),
+            corr(8, 0)
+        );
+    }
+
+    #[test]
+    fn grating_and_scratches() {
+        let g = generate(
+            &Kind::Grating {
+                period_um: 4.0,
+                amplitude_um: 0.2,
+                direction_deg: 0.0,
+            },
+            16,
+            4,
+            0.5,
+            0,
+        )
+        .unwrap();
+        assert!(
+            (g.at(1, 0) as f64 - 0.2 * (2.0 * std::f64::consts::PI * 0.75 / 4.0).sin()).abs()
+                < 1e-6
+        );
+        let s = Kind::Scratches {
+            count: 5,
+            depth_um: 0.3,
+            width_um: 1.0,
+            length_um: 20.0,
+            base_rms_um: 0.0,
+            base_corr_um: 1.0,
+        };
+        let f = generate(&s, 64, 64, 0.5, 9).unwrap();
+        let min = f.heights.iter().cloned().fold(0.0f32, f32::min);
+        assert!((-0.3..-0.25).contains(&min), "{min}");
+        assert!(generate(
+            &Kind::Noise {
+                rms_um: 0.1,
+                corr_um: 0.0
+            },
+            8,
+            8,
+            1.0,
+            0
+        )
+        .is_err());
+    }
+}
