@@ -124,6 +124,7 @@ fn grating_orders_sit_at_the_grating_equation() {
             // with angles measured on the mirror side).
             let expect = -wi.x + m as f64 * lambda / 4.0;
             let got = peak_near(&s, &fp, wi, lambda, expect);
+            eprintln!("theta {theta} m {m}: peak at {got:.5}, expected {expect:.5}");
             assert!(
                 (got - expect).abs() < 0.002,
                 "theta {theta} m {m}: {got} vs {expect}"
@@ -154,6 +155,7 @@ fn grating_order_energies_match_thin_phase_grating_theory() {
             let c3 = wi.z + wo.z;
             let j = libm::jn(m, 2.0 * PI * amplitude * c3 / lambda);
             let expect = j * j * wo.z / wi.z;
+            eprintln!("theta {theta} m {m}: energy {e:.4}, thin grating {expect:.4}");
             assert!(
                 (e - expect).abs() < 0.03,
                 "theta {theta} m {m}: {e} vs {expect}"
