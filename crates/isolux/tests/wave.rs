@@ -29,9 +29,22 @@ fn heightfield_gen_writes_an_exr_with_its_texel_size() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("g.exr");
     let o = run(&[
-        "heightfield", "gen", "--kind", "grating", "--width", "32", "--height", "4",
-        "--texel-um", "0.25", "--period-um", "2", "--amplitude-um", "0.1",
-        "-o", out.to_str().unwrap(),
+        "heightfield",
+        "gen",
+        "--kind",
+        "grating",
+        "--width",
+        "32",
+        "--height",
+        "4",
+        "--texel-um",
+        "0.25",
+        "--period-um",
+        "2",
+        "--amplitude-um",
+        "0.1",
+        "-o",
+        out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let h = isolux_wave::Heightfield::load(&out, &Default::default()).unwrap();
@@ -41,7 +54,16 @@ fn heightfield_gen_writes_an_exr_with_its_texel_size() {
     assert!((h.at(1, 2) as f64 - want).abs() < 1e-6);
     // Not an EXR name: refused, nothing written.
     let bad = dir.path().join("g.png");
-    let o = run(&["heightfield", "gen", "--kind", "noise", "--width", "8", "-o", bad.to_str().unwrap()]);
+    let o = run(&[
+        "heightfield",
+        "gen",
+        "--kind",
+        "noise",
+        "--width",
+        "8",
+        "-o",
+        bad.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(!bad.exists());
 }
@@ -53,10 +75,28 @@ fn wave_brdf_of_a_flat_mirror_is_one_peak_holding_the_fresnel_energy() {
     let out = dir.path().join("b.exr");
     // Incident from +x at about 23.6 degrees: the mirror peak sits at wo.x = -0.4.
     let o = run(&[
-        "wave", "brdf", "--heightfield", field.to_str().unwrap(), "--raw-size", "64x64",
-        "--texel-um", "0.5", "--center-um", "3,4", "--sigma-um", "4",
-        "--incident", "0.4,0,0.9165", "--lambda-um", "0.5", "--res", "200",
-        "--fresnel", "Au", "-o", out.to_str().unwrap(),
+        "wave",
+        "brdf",
+        "--heightfield",
+        field.to_str().unwrap(),
+        "--raw-size",
+        "64x64",
+        "--texel-um",
+        "0.5",
+        "--center-um",
+        "3,4",
+        "--sigma-um",
+        "4",
+        "--incident",
+        "0.4,0,0.9165",
+        "--lambda-um",
+        "0.5",
+        "--res",
+        "200",
+        "--fresnel",
+        "Au",
+        "-o",
+        out.to_str().unwrap(),
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -74,14 +114,26 @@ fn wave_brdf_of_a_flat_mirror_is_one_peak_holding_the_fresnel_energy() {
     let (c, r) = (at % 200, at / 200);
     let x = (c as f64 + 0.5) / 200.0 * 2.0 - 1.0;
     let y = 1.0 - (r as f64 + 0.5) / 200.0 * 2.0;
-    assert!((x + 0.4).abs() < 0.011 && y.abs() < 0.011, "peak at ({x}, {y})");
+    assert!(
+        (x + 0.4).abs() < 0.011 && y.abs() < 0.011,
+        "peak at ({x}, {y})"
+    );
     // Its energy is gold's reflectance at 500 nm (about 0.4) and the
     // printed albedo says the same.
-    let albedo: f64 = img.pixels.iter().map(|p| p[0] as f64 * (2.0f64 / 200.0).powi(2)).sum();
-    let (n, k) = isolux_materials::metals::Metal::by_name("Au").unwrap().nk(500.0);
+    let albedo: f64 = img
+        .pixels
+        .iter()
+        .map(|p| p[0] as f64 * (2.0f64 / 200.0).powi(2))
+        .sum();
+    let (n, k) = isolux_materials::metals::Metal::by_name("Au")
+        .unwrap()
+        .nk(500.0);
     let f = isolux_materials::fresnel::conductor(0.9165, n, k);
     assert!((albedo / f - 1.0).abs() < 0.02, "{albedo} vs {f}");
-    assert!(stdout.contains(&format!("directional albedo: {albedo:.3}")), "{stdout}");
+    assert!(
+        stdout.contains(&format!("directional albedo: {albedo:.3}")),
+        "{stdout}"
+    );
     assert!(stdout.contains("time per query"), "{stdout}");
 }
 
@@ -91,9 +143,26 @@ fn wave_brdf_spectral_flat_mirror_is_white() {
     let field = flat_field(dir.path());
     let out = dir.path().join("s.exr");
     let o = run(&[
-        "wave", "brdf", "--heightfield", field.to_str().unwrap(), "--raw-size", "64x64",
-        "--texel-um", "0.5", "--center-um", "0,0", "--sigma-um", "4",
-        "--incident", "0,0,1", "--spectral", "8", "--res", "160", "-o", out.to_str().unwrap(),
+        "wave",
+        "brdf",
+        "--heightfield",
+        field.to_str().unwrap(),
+        "--raw-size",
+        "64x64",
+        "--texel-um",
+        "0.5",
+        "--center-um",
+        "0,0",
+        "--sigma-um",
+        "4",
+        "--incident",
+        "0,0,1",
+        "--spectral",
+        "8",
+        "--res",
+        "160",
+        "-o",
+        out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let img = read_exr(&out);
@@ -124,8 +193,18 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
     let f = field.to_str().unwrap();
     let base = |hf: &str| -> Vec<String> {
         [
-            "wave", "brdf", "--heightfield", hf, "--raw-size", "64x64", "--center-um", "0,0",
-            "--res", "4", "-o", out.to_str().unwrap(),
+            "wave",
+            "brdf",
+            "--heightfield",
+            hf,
+            "--raw-size",
+            "64x64",
+            "--center-um",
+            "0,0",
+            "--res",
+            "4",
+            "-o",
+            out.to_str().unwrap(),
         ]
         .iter()
         .map(|s| s.to_string())
@@ -133,13 +212,52 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
     };
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["--incident", "0,0,1", "--lambda-um", "0.5"], ""),
-        (vec!["--incident", "0.5,0,-1", "--lambda-um", "0.5"], "below the surface"),
-        (vec!["--incident", "0,0,1", "--lambda-um", "3"], "outside 0.2-2 um"),
-        (vec!["--incident", "0,0,1", "--lambda-um", "0.1"], "outside 0.2-2 um"),
-        (vec!["--incident", "0,0,1", "--lambda-um", "0.5", "--sigma-um", "0"], "--sigma-um must be positive"),
-        (vec!["--incident", "0,0,1", "--lambda-um", "0.5", "--texel-um", "0"], "texel-um must be positive"),
+        (
+            vec!["--incident", "0.5,0,-1", "--lambda-um", "0.5"],
+            "below the surface",
+        ),
+        (
+            vec!["--incident", "0,0,1", "--lambda-um", "3"],
+            "outside 0.2-2 um",
+        ),
+        (
+            vec!["--incident", "0,0,1", "--lambda-um", "0.1"],
+            "outside 0.2-2 um",
+        ),
+        (
+            vec![
+                "--incident",
+                "0,0,1",
+                "--lambda-um",
+                "0.5",
+                "--sigma-um",
+                "0",
+            ],
+            "--sigma-um must be positive",
+        ),
+        (
+            vec![
+                "--incident",
+                "0,0,1",
+                "--lambda-um",
+                "0.5",
+                "--texel-um",
+                "0",
+            ],
+            "texel-um must be positive",
+        ),
         (vec!["--incident", "0,0,1"], "exactly one of --lambda-um"),
-        (vec!["--incident", "0,0,1", "--lambda-um", "0.5", "--fresnel", "Unobtainium"], "unknown Fresnel"),
+        (
+            vec![
+                "--incident",
+                "0,0,1",
+                "--lambda-um",
+                "0.5",
+                "--fresnel",
+                "Unobtainium",
+            ],
+            "unknown Fresnel",
+        ),
     ];
     for (extra, want) in cases {
         let mut args = base(f);
@@ -181,7 +299,10 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
 fn wave_material_in_a_scene_reflects_a_constant_sky() {
     let dir = tempfile::tempdir().unwrap();
     let field = dir.path().join("flat.exr");
-    isolux_wave::Heightfield::new(16, 16, 1.0, vec![0.0; 256]).unwrap().write_exr(&field).unwrap();
+    isolux_wave::Heightfield::new(16, 16, 1.0, vec![0.0; 256])
+        .unwrap()
+        .write_exr(&field)
+        .unwrap();
     let scene = r#"
 [camera]
 position = [0.0, 2.0, 0.0]
@@ -213,7 +334,13 @@ bounds = { min = [-5.0, -0.1, -5.0], max = [5.0, 0.1, 5.0] }
     let sp = dir.path().join("s.toml");
     std::fs::write(&sp, scene).unwrap();
     let out = dir.path().join("o.exr");
-    let o = run(&["render", sp.to_str().unwrap(), "-o", out.to_str().unwrap(), "--quiet"]);
+    let o = run(&[
+        "render",
+        sp.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let img = read_exr(&out);
     let n = img.pixels.len() as f64;
