@@ -56,6 +56,11 @@ pub struct RenderArgs {
     /// No progress bar and no closing line.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Render on the GPU (wgpu). Refuses, naming it, any material not yet
+    /// on the GPU (see docs/gpu.md: so far none is); never falls back to
+    /// the CPU silently.
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 /// Runs `isolux render`.
@@ -96,6 +101,23 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if v == 0 {
             bail!("{name} must be at least 1");
         }
+    }
+    if a.gpu {
+        let gpu = isolux_gpu::Gpu::new().context("--gpu")?;
+        // Materials used by objects, in scene order; none is on the GPU yet.
+        if let Some(&m) = scene.object_material.first() {
+            bail!(
+                "--gpu: material \"{}\" (type {}) does not run on the GPU yet (adapter: {}); \
+                 the GPU back end has only its intersection kernel so far (docs/gpu.md): \
+                 render without --gpu",
+                scene.material_names[m],
+                scene.materials[m].type_name(),
+                gpu.adapter
+            );
+        }
+        bail!(
+            "--gpu: the GPU path tracer is not implemented yet (docs/gpu.md): render without --gpu"
+        );
     }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),

@@ -358,3 +358,24 @@ bounds = { min = [-5.0, -0.1, -5.0], max = [5.0, 0.1, 5.0] }
         assert!((v - 0.99).abs() < 0.05, "{mean:?}");
     }
 }
+
+/// `--gpu` never falls back to the CPU: with an adapter it names the first
+/// material not on the GPU, without one it says so; exit 1, no image.
+#[test]
+fn render_gpu_refuses_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/perturbed-sphere.toml"
+    );
+    let o = run(&["render", scene, "--gpu", "-o", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("material \"clay\" (type diffuse) does not run on the GPU yet")
+            || err.contains("no GPU adapter found"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
