@@ -44,13 +44,14 @@
 //! proportional to `w_k^2` (separable: a row, then a column), then
 //! `u = psi kappa` from a Gaussian of mean `-c3' kappa g_k`, where
 //! `c3' = c3(d.z, d.z)` (the specular guess; the pdf uses the same value,
-//! so the estimator stays exact). Its standard deviation per axis is, with
-//! probability 1/2 each, that of the kernel's own lobe `|FT|^2`,
-//! `1 / (2 sqrt(2) pi zeta)` (wide: a texel is small), or that of the
-//! coherence window's, `1 / (2 sqrt(2) pi sigma)` (narrow: where the
-//! coherent sum actually concentrates on smooth surfaces). The other direction is
-//! `u / kappa - d_xy`; outside the unit disk the sample fails. Its
-//! solid-angle pdf is `p_u(u) kappa^2 cos`.
+//! so the estimator stays exact). Its standard deviation per axis is,
+//! with probability 1/4, that of the kernel's own lobe `|FT|^2`,
+//! `1 / (2 sqrt(2) pi zeta)` (wide: a texel is small), or, with
+//! probability 3/4, that of the coherence window's,
+//! `1 / (2 sqrt(2) pi sigma)` (narrow: where the coherent sum concentrates
+//! on smooth surfaces). The other direction is `u / kappa - d_xy`; outside
+//! the unit disk the sample fails. Its solid-angle pdf is
+//! `p_u(u) kappa^2 cos`.
 
 use crate::fastmath::{cis_neg, exp_neg};
 use crate::heightfield::Heightfield;
@@ -117,6 +118,10 @@ impl Default for Settings {
         }
     }
 }
+
+/// Probability of the wide (single-kernel) sampling lobe; the narrow
+/// (coherence-window) lobe takes the rest.
+const WIDE_LOBE: f64 = 0.25;
 
 /// Kernels per chunk (and accumulator lanes) of the spectral loop.
 const COMB_CHUNK: usize = 32;
@@ -449,10 +454,10 @@ impl GaborSurface {
         let c3 = model.c3(given.z, given.z);
         // One uniform picks the lobe and, rescaled, the radius.
         let sig = self.lobe_sigmas(fp);
-        let (s, ur) = if u_lobe[0] < 0.5 {
-            (sig[0], 2.0 * u_lobe[0])
+        let (s, ur) = if u_lobe[0] < WIDE_LOBE {
+            (sig[0], u_lobe[0] / WIDE_LOBE)
         } else {
-            (sig[1], 2.0 * u_lobe[0] - 1.0)
+            (sig[1], (u_lobe[0] - WIDE_LOBE) / (1.0 - WIDE_LOBE))
         };
         let r = (-2.0 * (1.0 - ur).ln()).sqrt() * s;
         let (sn, cs) = (2.0 * PI * u_lobe[1]).sin_cos();
@@ -492,8 +497,8 @@ impl GaborSurface {
         );
         // Mixture weights folded with the Gaussians' normalizations.
         let (na, nb) = (
-            (0.5 / (2.0 * PI * sa * sa)) as f32,
-            (0.5 / (2.0 * PI * sb * sb)) as f32,
+            (WIDE_LOBE / (2.0 * PI * sa * sa)) as f32,
+            ((1.0 - WIDE_LOBE) / (2.0 * PI * sb * sb)) as f32,
         );
         let sx: f64 = win.wx.iter().map(|&w| (w as f64).powi(2)).sum();
         let sy: f64 = win.wy.iter().map(|w| w * w).sum();
