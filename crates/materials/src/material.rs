@@ -101,12 +101,6 @@ impl Material {
         }
     }
 
-    /// Whether the BxDF depends on the shading point (call
-    /// [`Material::at_point`] before shading).
-    pub fn is_spatially_varying(&self) -> bool {
-        matches!(self, Material::Wave(_))
-    }
-
     /// The material placed at world point `p`: spatially varying models
     /// (`wave`) query their own neighbourhood, with the pixel footprint
     /// `footprint` (scene units, camera rays only) and a random number

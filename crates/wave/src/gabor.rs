@@ -347,10 +347,8 @@ impl GaborSurface {
         let win = self.window(fp, set);
         let l = self.texel_um;
         let ex = if comb.n == 1 {
-            win.wx
-                .iter()
-                .enumerate()
-                .map(|(k, _)| {
+            (0..win.wx.len())
+                .map(|k| {
                     let x = (win.i0 + k as i64) as f64 * l + 0.5 * l - fp.center_um[0];
                     let (s, c) = (2.0 * PI * comb.k0 * x * psi[0]).sin_cos();
                     (c as f32, -s as f32)

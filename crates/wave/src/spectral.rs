@@ -60,8 +60,14 @@ pub fn srgb_of_wavelength(lambda_nm: f64) -> [f64; 3] {
     [0, 1, 2].map(|r| m[r][0] * x[0] + m[r][1] * x[1] + m[r][2] * x[2])
 }
 
-/// `integral srgb(lambda) dlambda` over the band, per channel (nm units).
+/// `integral srgb(lambda) dlambda` over the band, per channel (nm units),
+/// computed once (every hero comb of every shading point needs it).
 fn band_integral() -> [f64; 3] {
+    static BAND: std::sync::OnceLock<[f64; 3]> = std::sync::OnceLock::new();
+    *BAND.get_or_init(integrate_band)
+}
+
+fn integrate_band() -> [f64; 3] {
     let n = 4000;
     let d = 400.0 / n as f64;
     let mut s = [0.0; 3];
