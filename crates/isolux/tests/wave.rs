@@ -24,6 +24,27 @@ fn flat_field(dir: &Path) -> std::path::PathBuf {
     p
 }
 
+/// `isolux wave brdf` on the 64 x 64 flat raw field of 0.5 um texels,
+/// sigma 4 um, with `extra` flags.
+fn brdf_of_flat(field: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "wave",
+        "brdf",
+        "--heightfield",
+        field.to_str().unwrap(),
+        "--raw-size",
+        "64x64",
+        "--texel-um",
+        "0.5",
+        "--sigma-um",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
 #[test]
 fn heightfield_gen_writes_an_exr_with_its_texel_size() {
     let dir = tempfile::tempdir().unwrap();
@@ -74,30 +95,22 @@ fn wave_brdf_of_a_flat_mirror_is_one_peak_holding_the_fresnel_energy() {
     let field = flat_field(dir.path());
     let out = dir.path().join("b.exr");
     // Incident from +x at about 23.6 degrees: the mirror peak sits at wo.x = -0.4.
-    let o = run(&[
-        "wave",
-        "brdf",
-        "--heightfield",
-        field.to_str().unwrap(),
-        "--raw-size",
-        "64x64",
-        "--texel-um",
-        "0.5",
-        "--center-um",
-        "3,4",
-        "--sigma-um",
-        "4",
-        "--incident",
-        "0.4,0,0.9165",
-        "--lambda-um",
-        "0.5",
-        "--res",
-        "200",
-        "--fresnel",
-        "Au",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = brdf_of_flat(
+        &field,
+        &out,
+        &[
+            "--center-um",
+            "3,4",
+            "--incident",
+            "0.4,0,0.9165",
+            "--lambda-um",
+            "0.5",
+            "--res",
+            "200",
+            "--fresnel",
+            "Au",
+        ],
+    );
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let img = read_exr(&out);
@@ -142,28 +155,20 @@ fn wave_brdf_spectral_flat_mirror_is_white() {
     let dir = tempfile::tempdir().unwrap();
     let field = flat_field(dir.path());
     let out = dir.path().join("s.exr");
-    let o = run(&[
-        "wave",
-        "brdf",
-        "--heightfield",
-        field.to_str().unwrap(),
-        "--raw-size",
-        "64x64",
-        "--texel-um",
-        "0.5",
-        "--center-um",
-        "0,0",
-        "--sigma-um",
-        "4",
-        "--incident",
-        "0,0,1",
-        "--spectral",
-        "8",
-        "--res",
-        "160",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = brdf_of_flat(
+        &field,
+        &out,
+        &[
+            "--center-um",
+            "0,0",
+            "--incident",
+            "0,0,1",
+            "--spectral",
+            "8",
+            "--res",
+            "160",
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let img = read_exr(&out);
     let mut a = [0.0f64; 3];
