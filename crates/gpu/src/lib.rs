@@ -6,16 +6,26 @@
 //! size assertions checked against naga's layout of the shader source, and
 //! the WGSL constants are generated from Rust ([`prelude`]).
 //!
-//! This first slice runs the exact first-hit intersection of
-//! perturbation-function objects (SPEC §1) in f32 with a per-segment
-//! reparameterization (`shaders/intersect.wgsl`): [`Gpu::intersect`]. A
-//! conformance suite compares it with the CPU's `Object::intersect`.
-//! Everything else of the GPU renderer is still to come (see
-//! `docs/gpu.md`).
+//! Kernels (`src/shaders/`, one file per concern, concatenated after the
+//! generated [`prelude`]):
+//! - `geometry.wgsl`: the exact first hit of perturbation-function objects
+//!   (SPEC §1) in f32 with a per-segment reparameterization;
+//! - `materials.wgsl`: the material library's `f`, `pdf` and `sample`
+//!   (the models [`layout::GpuMaterial::new`] accepts);
+//! - `intersect.wgsl`, `material_eval.wgsl`: conformance entry points
+//!   ([`Gpu::intersect`], [`Gpu::eval_materials`]) compared with the CPU
+//!   in `tests/`;
+//! - `render.wgsl`: the path tracer ([`Gpu::render`], [`GpuFrame`]).
+//!
+//! What is not on the GPU yet is listed in `docs/gpu.md`.
 
 pub mod layout;
+mod render;
 
-use layout::{GpuHit, GpuRay, GpuScene};
+pub use render::{unsupported_material, GpuFrame};
+
+use layout::{GpuAnswer, GpuHit, GpuMaterial, GpuQuery, GpuRay, GpuScene};
+use std::sync::OnceLock;
 use wgpu::util::DeviceExt;
 
 /// Threads per workgroup of the compute kernels.
@@ -31,21 +41,60 @@ pub const NO_ROOT: f32 = 3.0e38;
 pub const MIN_WIDTH: f32 = 1.0 / 4096.0;
 /// Cap on subdivision steps per segment.
 pub const MAX_SUBDIVISIONS: i32 = 4096;
+/// Rays leaving a surface start `SPAWN_OFFSET (1 + |p|_inf)` off it along
+/// the normal (the CPU's f64 path uses 1e-7; f32 hit points are good to
+/// about 1e-6 relative, so the margin is wider).
+pub const SPAWN_OFFSET: f32 = 1e-4;
+/// Environment kinds (`Params.counts.w`).
+pub const ENV_CONSTANT: u32 = 0;
+/// An equirectangular map, light-sampled.
+pub const ENV_MAP: u32 = 1;
 
-/// WGSL constants generated from the Rust values above.
+/// WGSL constants generated from the Rust values above and the tags of
+/// [`layout`].
 pub fn prelude() -> String {
-    format!(
+    use isolux_materials::BxdfFlags as F;
+    let mut s = format!(
         "const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
          const MISS: f32 = {MISS:?};\n\
          const NO_ROOT: f32 = {NO_ROOT:e};\n\
          const MIN_WIDTH: f32 = {MIN_WIDTH:e};\n\
-         const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n"
-    )
+         const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
+         const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
+         const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
+         const ENV_MAP: u32 = {ENV_MAP}u;\n"
+    );
+    for (name, v) in layout::tag::ALL.iter().chain(&layout::fresnel_kind::ALL) {
+        s += &format!("const {name}: u32 = {v}u;\n");
+    }
+    for (name, f) in [
+        ("FLAG_REFLECTION", F::REFLECTION),
+        ("FLAG_TRANSMISSION", F::TRANSMISSION),
+        ("FLAG_DIFFUSE", F::DIFFUSE),
+        ("FLAG_GLOSSY", F::GLOSSY),
+        ("FLAG_SPECULAR", F::SPECULAR),
+    ] {
+        s += &format!("const {name}: u32 = {}u;\n", f.0);
+    }
+    s
 }
 
-/// The intersection shader with its prelude.
+/// The intersection kernel with its prelude.
 pub fn intersect_source() -> String {
-    prelude() + include_str!("shaders/intersect.wgsl")
+    prelude() + include_str!("shaders/geometry.wgsl") + include_str!("shaders/intersect.wgsl")
+}
+
+/// The material conformance kernel with its prelude.
+pub fn material_eval_source() -> String {
+    prelude() + include_str!("shaders/materials.wgsl") + include_str!("shaders/material_eval.wgsl")
+}
+
+/// The path tracer with its prelude.
+pub fn render_source() -> String {
+    prelude()
+        + include_str!("shaders/geometry.wgsl")
+        + include_str!("shaders/materials.wgsl")
+        + include_str!("shaders/render.wgsl")
 }
 
 /// Errors of the GPU back end.
@@ -60,13 +109,26 @@ pub enum GpuError {
     /// Reading results back failed.
     #[error("GPU readback failed: {0}")]
     Readback(String),
+    /// The scene uses a material that has no GPU implementation yet.
+    #[error("material \"{name}\" (type {type_name}) does not run on the GPU yet (docs/gpu.md lists the models that do)")]
+    Unsupported {
+        /// The material's name in the scene.
+        name: String,
+        /// Its `type`.
+        type_name: String,
+    },
+    /// Invalid camera or film.
+    #[error("{0}")]
+    Setup(String),
 }
 
 /// An open device with the compiled kernels.
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    intersect: wgpu::ComputePipeline,
+    intersect: OnceLock<wgpu::ComputePipeline>,
+    material_eval: OnceLock<wgpu::ComputePipeline>,
+    render: OnceLock<wgpu::ComputePipeline>,
     /// Adapter name and back end, for reports.
     pub adapter: String,
 }
@@ -89,110 +151,110 @@ impl Gpu {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("isolux"),
             required_features: wgpu::Features::empty(),
-            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+            // The path tracer binds seven storage buffers: ask for what
+            // the adapter offers rather than the downlevel minimum (4).
+            required_limits: adapter.limits(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("intersect.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(intersect_source().into()),
-        });
-        let intersect = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("intersect"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
         Ok(Self {
             device,
             queue,
-            intersect,
+            intersect: OnceLock::new(),
+            material_eval: OnceLock::new(),
+            render: OnceLock::new(),
             adapter: format!("{} ({:?})", info.name, info.backend),
         })
     }
 
-    /// First hits of `rays` against the objects of `scene` (nearest over
-    /// all objects): `[t, n]`, `t < 0` for a miss.
-    pub fn intersect(&self, scene: &GpuScene, rays: &[GpuRay]) -> Result<Vec<GpuHit>, GpuError> {
-        if rays.is_empty() {
-            return Ok(Vec::new());
-        }
-        let d = &self.device;
-        let storage = |label: &str, bytes: &[u8]| {
-            // Storage buffers may not be empty, nor smaller than one
-            // element of their array: pad with zeros.
-            let zero = [0u8; 256];
-            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    fn pipeline<'a>(
+        &self,
+        cell: &'a OnceLock<wgpu::ComputePipeline>,
+        label: &str,
+        source: impl FnOnce() -> String,
+    ) -> &'a wgpu::ComputePipeline {
+        cell.get_or_init(|| {
+            let module = self
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(label),
+                    source: wgpu::ShaderSource::Wgsl(source().into()),
+                });
+            self.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(label),
+                    layout: None,
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+        })
+    }
+
+    /// A storage buffer holding `bytes` (padded: storage buffers may not
+    /// be empty).
+    fn storage(&self, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        let zero = [0u8; 256];
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: if bytes.is_empty() { &zero } else { bytes },
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE | extra,
             })
-        };
-        let objects = storage("objects", bytemuck::cast_slice(&scene.objects));
-        let perts = storage("perturbations", bytemuck::cast_slice(&scene.perturbations));
-        let ray_buf = storage("rays", bytemuck::cast_slice(rays));
-        let size = (rays.len() * std::mem::size_of::<GpuHit>()) as u64;
-        let out = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
+    }
+
+    /// Runs `pipeline` over `groups` workgroups with `buffers` bound in
+    /// order, then copies `out` back.
+    fn run_and_read<T: bytemuck::Pod>(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+        groups: (u32, u32),
+        out: &wgpu::Buffer,
+    ) -> Result<Vec<T>, GpuError> {
+        let d = &self.device;
+        let layout = pipeline.get_bind_group_layout(0);
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &layout,
+            entries: &entries,
         });
+        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
+        self.queue.submit(Some(enc.finish()));
+        self.read_back(out)
+    }
+
+    /// Copies a storage buffer back to the host (waits for the queue).
+    fn read_back<T: bytemuck::Pod>(&self, out: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
+        let d = &self.device;
+        let size = out.size();
         let staging = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits readback"),
+            label: Some("readback"),
             size,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let counts = [rays.len() as u32, scene.objects.len() as u32, 0, 0];
-        let uniform = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("counts"),
-            contents: bytemuck::cast_slice(&counts),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let layout = self.intersect.get_bind_group_layout(0);
-        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("intersect"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: objects.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: perts.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: ray_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: out.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: uniform.as_entire_binding(),
-                },
-            ],
-        });
-        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("intersect"),
-        });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("intersect"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.intersect);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups((rays.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1);
-        }
-        enc.copy_buffer_to_buffer(&out, 0, &staging, 0, size);
+        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        enc.copy_buffer_to_buffer(out, 0, &staging, 0, size);
         self.queue.submit(Some(enc.finish()));
         let slice = staging.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -204,9 +266,87 @@ impl Gpu {
         rx.recv()
             .map_err(|e| GpuError::Readback(e.to_string()))?
             .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let hits = bytemuck::cast_slice::<u8, GpuHit>(&slice.get_mapped_range()).to_vec();
+        let v = bytemuck::cast_slice::<u8, T>(&slice.get_mapped_range()).to_vec();
         staging.unmap();
-        Ok(hits)
+        Ok(v)
+    }
+
+    /// Waits until the queue is idle.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::Wait)
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(e.to_string()))
+    }
+
+    /// Every material's `f`, `pdf` and `sample` for `queries` (local
+    /// frame), on the GPU: the material conformance kernel.
+    pub fn eval_materials(
+        &self,
+        materials: &[GpuMaterial],
+        queries: &[GpuQuery],
+    ) -> Result<Vec<GpuAnswer>, GpuError> {
+        if queries.is_empty() {
+            return Ok(Vec::new());
+        }
+        let pipeline = self.pipeline(&self.material_eval, "material_eval", material_eval_source);
+        let none = wgpu::BufferUsages::empty();
+        let mats = self.storage("materials", bytemuck::cast_slice(materials), none);
+        let qs = self.storage("queries", bytemuck::cast_slice(queries), none);
+        let out = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("answers"),
+            size: (queries.len() * std::mem::size_of::<GpuAnswer>()) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let counts = [queries.len() as u32, 0, 0, 0];
+        let uniform = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("counts"),
+                contents: bytemuck::cast_slice(&counts),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let groups = (queries.len() as u32).div_ceil(WORKGROUP_SIZE);
+        self.run_and_read(pipeline, &[&mats, &qs, &out, &uniform], (groups, 1), &out)
+    }
+
+    /// First hits of `rays` against the objects of `scene` (nearest over
+    /// all objects): `[t, n]`, `t < 0` for a miss.
+    pub fn intersect(&self, scene: &GpuScene, rays: &[GpuRay]) -> Result<Vec<GpuHit>, GpuError> {
+        if rays.is_empty() {
+            return Ok(Vec::new());
+        }
+        let pipeline = self.pipeline(&self.intersect, "intersect", intersect_source);
+        let none = wgpu::BufferUsages::empty();
+        let objects = self.storage("objects", bytemuck::cast_slice(&scene.objects), none);
+        let perts = self.storage(
+            "perturbations",
+            bytemuck::cast_slice(&scene.perturbations),
+            none,
+        );
+        let ray_buf = self.storage("rays", bytemuck::cast_slice(rays), none);
+        let out = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hits"),
+            size: (rays.len() * std::mem::size_of::<GpuHit>()) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let counts = [rays.len() as u32, scene.objects.len() as u32, 0, 0];
+        let uniform = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("counts"),
+                contents: bytemuck::cast_slice(&counts),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let groups = (rays.len() as u32).div_ceil(WORKGROUP_SIZE);
+        self.run_and_read(
+            pipeline,
+            &[&objects, &perts, &ray_buf, &out, &uniform],
+            (groups, 1),
+            &out,
+        )
     }
 }
 
@@ -214,14 +354,19 @@ impl Gpu {
 mod tests {
     #[test]
     fn shaders_validate_with_naga() {
-        let src = super::intersect_source();
-        let module = naga::front::wgsl::parse_str(&src)
+        for src in [
+            super::intersect_source(),
+            super::material_eval_source(),
+            super::render_source(),
+        ] {
+            let module = naga::front::wgsl::parse_str(&src)
+                .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::empty(),
+            )
+            .validate(&module)
             .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
+        }
     }
 }

@@ -20,6 +20,8 @@ pub enum Suite {
     Factor,
     /// Wave optics: time per BRDF query, one and eight wavelengths.
     Wave,
+    /// GPU path tracer against the CPU, ms per frame (default: the gallery).
+    Gpu,
 }
 
 /// Run benchmarks.
@@ -37,6 +39,17 @@ pub struct BenchArgs {
     /// Repetitions; the fastest is reported.
     #[arg(long, default_value_t = 3)]
     pub repeat: u32,
+    /// Scenes for `gpu` (default: examples/scenes/gallery.toml).
+    pub scenes: Vec<std::path::PathBuf>,
+    /// Frame width for `gpu`.
+    #[arg(long, default_value_t = 1920)]
+    pub width: u32,
+    /// Frame height for `gpu`.
+    #[arg(long, default_value_t = 1080)]
+    pub height: u32,
+    /// `gpu`: do not time the CPU path (slow on few cores).
+    #[arg(long)]
+    pub skip_cpu: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, rows in parallel.
@@ -67,6 +80,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         Suite::Sss => sss(a.size.min(256))?,
         Suite::Factor => factor(a.repeat)?,
         Suite::Wave => wave(a.repeat)?,
+        Suite::Gpu => gpu(&a)?,
         Suite::Geometry => {
             let threads = rayon::current_num_threads();
             println!(
@@ -323,6 +337,91 @@ fn wave(repeat: u32) -> Result<()> {
                 base = us;
             }
             println!("| {name} | {h} | {us:.1} | {:.2}x |", us / base);
+        }
+    }
+    Ok(())
+}
+
+/// `bench gpu`: per scene, ms per frame at `width x height` of the GPU
+/// path tracer (16 spp, the scene's depth) and of direct light only
+/// (4 spp, depth 1: the closest the GPU has to the seed's real-time mode
+/// so far), and the same work on the CPU path with all cores. Materials
+/// not on the GPU yet are replaced by a grey diffuse, on both sides, and
+/// named in the output.
+fn gpu(a: &BenchArgs) -> Result<()> {
+    use isolux_materials::{Diffuse, Material};
+    use isolux_render::{render, RenderOptions};
+    let gpu = isolux_gpu::Gpu::new()?;
+    let scenes = if a.scenes.is_empty() {
+        vec![std::path::PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/scenes/gallery.toml"
+        ))]
+    } else {
+        a.scenes.clone()
+    };
+    let threads = rayon::current_num_threads();
+    println!(
+        "adapter: {}; CPU: {threads} threads; {}x{}; best of {}",
+        gpu.adapter, a.width, a.height, a.repeat
+    );
+    println!("| scene | mode | spp | GPU (ms/frame) | CPU (ms/frame) | CPU / GPU |");
+    println!("|---|---|---:|---:|---:|---:|");
+    for path in &scenes {
+        let mut scene = isolux_scene::load(path)?;
+        let mut replaced = Vec::new();
+        for (i, m) in scene.materials.iter_mut().enumerate() {
+            if isolux_gpu::layout::GpuMaterial::new(m).is_none() {
+                replaced.push(scene.material_names[i].clone());
+                *m = Material::Diffuse(Diffuse {
+                    reflectance: isolux_core::Rgb::splat(0.5),
+                });
+            }
+        }
+        scene.film.width = a.width;
+        scene.film.height = a.height;
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        let depth = scene.integrator.max_depth;
+        for (mode, spp, max_depth) in [("path traced", 16, depth), ("direct only", 4, 1)] {
+            scene.film.spp = spp;
+            scene.integrator.max_depth = max_depth;
+            let mut frame = gpu.prepare(&scene)?;
+            // Warm-up: compiles the kernel, touches the buffers.
+            frame.run(&gpu, spp);
+            gpu.wait()?;
+            let mut g = f64::INFINITY;
+            for _ in 0..a.repeat.max(1) {
+                frame.reset(&gpu);
+                gpu.wait()?;
+                let t = Instant::now();
+                frame.run(&gpu, spp);
+                gpu.wait()?;
+                g = g.min(t.elapsed().as_secs_f64());
+            }
+            let (img, _) = frame.image(&gpu)?;
+            if img.rgb.iter().flatten().any(|c| !c.is_finite()) {
+                bail!("{name}: the GPU image has non-finite pixels");
+            }
+            let (c, ratio) = if a.skip_cpu {
+                ("-".to_string(), "-".to_string())
+            } else {
+                let (t, _) = best_of(a.repeat, || {
+                    render(&scene, &RenderOptions::default(), &|_, _| {})
+                        .map(|r| r.1.samples as usize)
+                        .unwrap_or(0)
+                });
+                (format!("{:.1}", t * 1e3), format!("{:.1}", t / g))
+            };
+            println!(
+                "| {name} | {mode} | {spp} | {:.2} | {c} | {ratio} |",
+                g * 1e3
+            );
+        }
+        if !replaced.is_empty() {
+            println!(
+                "({name}: not on the GPU yet, replaced by diffuse on both sides: {})",
+                replaced.join(", ")
+            );
         }
     }
     Ok(())

@@ -56,9 +56,10 @@ pub struct RenderArgs {
     /// No progress bar and no closing line.
     #[arg(short, long)]
     pub quiet: bool,
-    /// Render on the GPU (wgpu). Refuses, naming it, any material not yet
-    /// on the GPU (see docs/gpu.md: so far none is); never falls back to
-    /// the CPU silently.
+    /// Render on the GPU (wgpu compute shaders). Refuses, naming it, a
+    /// material not on the GPU yet (docs/gpu.md lists the models that
+    /// are); never falls back to the CPU. `--threads` and `--aov` do not
+    /// apply.
     #[arg(long)]
     pub gpu: bool,
 }
@@ -102,22 +103,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bail!("{name} must be at least 1");
         }
     }
-    if a.gpu {
-        let gpu = isolux_gpu::Gpu::new().context("--gpu")?;
-        // Materials used by objects, in scene order; none is on the GPU yet.
-        if let Some(&m) = scene.object_material.first() {
-            bail!(
-                "--gpu: material \"{}\" (type {}) does not run on the GPU yet (adapter: {}); \
-                 the GPU back end has only its intersection kernel so far (docs/gpu.md): \
-                 render without --gpu",
-                scene.material_names[m],
-                scene.materials[m].type_name(),
-                gpu.adapter
-            );
-        }
-        bail!(
-            "--gpu: the GPU path tracer is not implemented yet (docs/gpu.md): render without --gpu"
-        );
+    if a.gpu && a.aov {
+        bail!("--aov is not available with --gpu yet (docs/gpu.md): render without --gpu");
     }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),
@@ -147,14 +134,30 @@ pub fn run(a: RenderArgs) -> Result<()> {
         .expect("valid template")
         .progress_chars("=> "),
     );
-    let start = Instant::now();
-    let options = RenderOptions { aov: a.aov };
-    let (image, stats) = pool.install(|| {
-        render(&scene, &options, &|done, total| {
-            bar.set_length(total as u64);
-            bar.set_position(done as u64);
-        })
-    })?;
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let mut device = format!("{threads} threads");
+    let start;
+    let (image, stats) = if a.gpu {
+        let gpu = isolux_gpu::Gpu::new().context("--gpu")?;
+        device = gpu.adapter.clone();
+        // Refuse before any work, naming the material.
+        if let Some((name, type_name)) = isolux_gpu::unsupported_material(&scene) {
+            bail!(
+                "--gpu: material \"{name}\" (type {type_name}) does not run on the GPU yet \
+                 (adapter: {}; docs/gpu.md lists the models that do): render without --gpu",
+                gpu.adapter
+            );
+        }
+        start = Instant::now();
+        gpu.render(&scene, &progress).context("--gpu")?
+    } else {
+        start = Instant::now();
+        let options = RenderOptions { aov: a.aov };
+        pool.install(|| render(&scene, &options, &progress))?
+    };
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
     let tonemap = match a.tonemap {
@@ -170,13 +173,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     if !a.quiet {
         eprintln!(
-            "isolux: rendered {}x{} at {} spp in {:.2} s ({:.2} M samples/s, {} threads) -> {}",
+            "isolux: rendered {}x{} at {} spp in {:.2} s ({:.2} M samples/s, {}) -> {}",
             image.width,
             image.height,
             scene.film.spp,
             secs,
             stats.samples as f64 / secs / 1e6,
-            threads,
+            device,
             a.output.display()
         );
     }

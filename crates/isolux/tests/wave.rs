@@ -365,20 +365,21 @@ bounds = { min = [-5.0, -0.1, -5.0], max = [5.0, 0.1, 5.0] }
 }
 
 /// `--gpu` never falls back to the CPU: with an adapter it names the first
-/// material not on the GPU, without one it says so; exit 1, no image.
+/// material not on the GPU (wave optics is not), without one it says so;
+/// exit 1, no image.
 #[test]
 fn render_gpu_refuses_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
     let scene = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/scenes/perturbed-sphere.toml"
+        "/../../examples/scenes/wave-brushed.toml"
     );
     let o = run(&["render", scene, "--gpu", "-o", out.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("material \"clay\" (type diffuse) does not run on the GPU yet")
+        err.contains("material \"brushed\" (type wave) does not run on the GPU yet")
             || err.contains("no GPU adapter found"),
         "{err}"
     );

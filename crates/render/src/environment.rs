@@ -84,6 +84,11 @@ impl EnvMap {
     pub fn size(&self) -> (usize, usize) {
         (self.width, self.height)
     }
+
+    /// The texels (scaled), row-major, row 0 at the top.
+    pub fn texels(&self) -> &[Rgb] {
+        &self.texels
+    }
 }
 
 /// `(u, v)` of a unit direction.

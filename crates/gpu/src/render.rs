@@ -1,0 +1,358 @@
+//! The GPU path tracer's host side: uploads a [`Scene`] once
+//! ([`Gpu::prepare`]), runs passes of samples into an accumulation buffer
+//! ([`GpuFrame::run`], progressive), and reads the image back
+//! ([`GpuFrame::image`]). [`Gpu::render`] does all three for a whole film.
+
+use crate::layout::{GpuLight, GpuMaterial, GpuParams, GpuScene};
+use crate::{Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
+use isolux_core::{Image, Rgb, PI};
+use isolux_render::{Environment, RenderStats, Scene};
+use wgpu::util::DeviceExt;
+
+/// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
+const TILE: u32 = 8;
+
+/// The first material used by an object of `scene` that has no GPU
+/// implementation: `(name, type)`.
+pub fn unsupported_material(scene: &Scene) -> Option<(String, String)> {
+    scene.object_material.iter().find_map(|&m| {
+        GpuMaterial::new(&scene.materials[m]).is_none().then(|| {
+            (
+                scene.material_names.get(m).cloned().unwrap_or_default(),
+                scene.materials[m].type_name().to_string(),
+            )
+        })
+    })
+}
+
+/// A scene on the device with its accumulation buffer.
+pub struct GpuFrame {
+    bind: wgpu::BindGroup,
+    accum: wgpu::Buffer,
+    params_buf: wgpu::Buffer,
+    params: GpuParams,
+    /// Samples per pixel accumulated so far.
+    pub samples: u32,
+}
+
+/// Texels with their density in `(u, v)` (`w`), and the CDFs: the marginal
+/// over rows (`h + 1` values), then each row's conditional (`w + 1`),
+/// from the weights `luminance sin(theta)` of the CPU's sampler.
+fn env_tables(width: usize, height: usize, texels: &[Rgb]) -> (Vec<[f32; 4]>, Vec<f32>) {
+    let mut w = vec![0.0f64; width * height];
+    for y in 0..height {
+        let sin_t = (PI * (y as f64 + 0.5) / height as f64).sin();
+        for x in 0..width {
+            w[y * width + x] = texels[y * width + x].luminance().max(0.0) * sin_t;
+        }
+    }
+    let total: f64 = w.iter().sum();
+    let avg = total / (width * height) as f64;
+    let tex = texels
+        .iter()
+        .zip(&w)
+        .map(|(t, &wi)| {
+            let pdf = if avg > 0.0 { wi / avg } else { 0.0 };
+            [t.r as f32, t.g as f32, t.b as f32, pdf as f32]
+        })
+        .collect();
+    let mut cdf = Vec::with_capacity(height + 1 + height * (width + 1));
+    let rows: Vec<f64> = (0..height)
+        .map(|y| w[y * width..(y + 1) * width].iter().sum())
+        .collect();
+    let mut acc = 0.0;
+    cdf.push(0.0);
+    for (y, r) in rows.iter().enumerate() {
+        acc += r;
+        cdf.push(if total > 0.0 {
+            (acc / total) as f32
+        } else {
+            (y + 1) as f32 / height as f32
+        });
+    }
+    *cdf.last_mut().unwrap() = 1.0;
+    for (y, &r) in rows.iter().enumerate() {
+        let mut acc = 0.0;
+        cdf.push(0.0);
+        for x in 0..width {
+            acc += w[y * width + x];
+            cdf.push(if r > 0.0 {
+                (acc / r) as f32
+            } else {
+                (x + 1) as f32 / width as f32
+            });
+        }
+        *cdf.last_mut().unwrap() = 1.0;
+    }
+    (tex, cdf)
+}
+
+impl Gpu {
+    /// Uploads `scene` for rendering at its film size. Fails, naming it,
+    /// on a material not on the GPU, and on an invalid camera.
+    pub fn prepare(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
+        if let Some((name, type_name)) = unsupported_material(scene) {
+            return Err(GpuError::Unsupported { name, type_name });
+        }
+        let film = scene.film;
+        if film.width == 0 || film.height == 0 || film.spp == 0 {
+            return Err(GpuError::Setup(
+                "film width, height and spp must be at least 1".into(),
+            ));
+        }
+        // The camera rig, as `Camera::rig` builds it (validated there).
+        scene
+            .camera
+            .rig(film.width, film.height)
+            .map_err(GpuError::Setup)?;
+        let cam = &scene.camera;
+        let forward = (cam.look_at - cam.position).normalize();
+        let right = forward.cross(cam.up).normalize();
+        let up = right.cross(forward);
+        let tan = (cam.fov_y.to_radians() * 0.5).tan();
+        let aspect = film.width as f64 / film.height as f64;
+        let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+
+        let materials: Vec<GpuMaterial> = scene
+            .materials
+            .iter()
+            .map(|m| GpuMaterial::new(m).unwrap_or_default())
+            .collect();
+        let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
+        let lights: Vec<GpuLight> = scene
+            .lights
+            .iter()
+            .map(|l| GpuLight {
+                position: v4(l.position),
+                intensity: [
+                    l.intensity.r as f32,
+                    l.intensity.g as f32,
+                    l.intensity.b as f32,
+                    0.0,
+                ],
+            })
+            .collect();
+        let (env_kind, env_rgb, env_size, texels, cdf) = match &scene.environment {
+            Environment::Constant(c) => (
+                ENV_CONSTANT,
+                [c.r as f32, c.g as f32, c.b as f32, 0.0],
+                [0, 0, 0, 0],
+                Vec::new(),
+                Vec::new(),
+            ),
+            Environment::Map(m) => {
+                let (w, h) = m.size();
+                let (t, c) = env_tables(w, h, m.texels());
+                (ENV_MAP, [0.0; 4], [w as u32, h as u32, 0, 0], t, c)
+            }
+        };
+        let grid_m = (film.spp as f64).sqrt().ceil() as u32;
+        let grid_n = film.spp.div_ceil(grid_m);
+        let seed = isolux_core::rng::mix64(scene.integrator.seed ^ 0x1502_7a1e);
+        let params = GpuParams {
+            origin: v4(cam.position),
+            forward: v4(forward),
+            right: v4(right * tan * aspect),
+            up: v4(up * tan),
+            film: [film.width, film.height, grid_m, grid_n],
+            pass_info: [0, 0, seed as u32, (seed >> 32) as u32],
+            counts: [
+                geo.objects.len() as u32,
+                lights.len() as u32,
+                scene.integrator.max_depth,
+                env_kind,
+            ],
+            env: env_rgb,
+            env_size,
+        };
+
+        let none = wgpu::BufferUsages::empty();
+        let objects = self.storage("objects", bytemuck::cast_slice(&geo.objects), none);
+        let perts = self.storage(
+            "perturbations",
+            bytemuck::cast_slice(&geo.perturbations),
+            none,
+        );
+        let mats = self.storage("materials", bytemuck::cast_slice(&materials), none);
+        let lights = self.storage("lights", bytemuck::cast_slice(&lights), none);
+        let texels = self.storage("env texels", bytemuck::cast_slice(&texels), none);
+        let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf), none);
+        let npix = film.width as u64 * film.height as u64;
+        let accum = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("accumulation"),
+            size: npix * 16,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let params_buf = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let pipeline = self.pipeline(&self.render, "render", crate::render_source);
+        let layout = pipeline.get_bind_group_layout(0);
+        let buffers = [
+            &objects,
+            &perts,
+            &mats,
+            &lights,
+            &texels,
+            &cdf,
+            &accum,
+            &params_buf,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("render"),
+            layout: &layout,
+            entries: &entries,
+        });
+        Ok(GpuFrame {
+            bind,
+            accum,
+            params_buf,
+            params,
+            samples: 0,
+        })
+    }
+
+    /// Renders `scene` on the GPU: the film's samples in passes (at most
+    /// 16), `progress(done, total)` after each. The image is the mean of
+    /// the samples; dropped (non-finite) samples count as black, as on
+    /// the CPU, and in [`RenderStats::rejected_samples`].
+    pub fn render(
+        &self,
+        scene: &Scene,
+        progress: &dyn Fn(usize, usize),
+    ) -> Result<(Image, RenderStats), GpuError> {
+        let mut frame = self.prepare(scene)?;
+        let spp = scene.film.spp;
+        let per_pass = spp.div_ceil(16);
+        let passes = spp.div_ceil(per_pass) as usize;
+        for k in 0..passes {
+            let count = per_pass.min(spp - frame.samples);
+            frame.run(self, count);
+            self.wait()?;
+            progress(k + 1, passes);
+        }
+        frame.image(self)
+    }
+}
+
+impl GpuFrame {
+    /// Queues a pass adding `count` samples to every pixel (returns at
+    /// once; [`Gpu::wait`] or [`GpuFrame::image`] waits).
+    pub fn run(&mut self, gpu: &Gpu, count: u32) {
+        if count == 0 {
+            return;
+        }
+        self.params.pass_info[0] = self.samples;
+        self.params.pass_info[1] = count;
+        gpu.queue
+            .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&self.params));
+        let pipeline = gpu.pipeline(&gpu.render, "render", crate::render_source);
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("render pass"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("render"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.dispatch_workgroups(
+                self.params.film[0].div_ceil(TILE),
+                self.params.film[1].div_ceil(TILE),
+                1,
+            );
+        }
+        gpu.queue.submit(Some(enc.finish()));
+        self.samples += count;
+    }
+
+    /// Clears the accumulation (progressive rendering restarts).
+    pub fn reset(&mut self, gpu: &Gpu) {
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        enc.clear_buffer(&self.accum, 0, None);
+        gpu.queue.submit(Some(enc.finish()));
+        self.samples = 0;
+    }
+
+    /// The mean of the samples so far (waits for queued passes).
+    pub fn image(&self, gpu: &Gpu) -> Result<(Image, RenderStats), GpuError> {
+        let acc: Vec<[f32; 4]> = gpu.read_back(&self.accum)?;
+        let inv = 1.0 / self.samples.max(1) as f32;
+        let mut rejected = 0u64;
+        let rgb = acc
+            .iter()
+            .map(|a| {
+                rejected += a[3] as u64;
+                // A sum of finite samples can still overflow f32: clamp.
+                [a[0], a[1], a[2]].map(|c| (c * inv).min(f32::MAX))
+            })
+            .collect();
+        let (width, height) = (self.params.film[0], self.params.film[1]);
+        Ok((
+            Image {
+                width,
+                height,
+                rgb,
+                aov: None,
+            },
+            RenderStats {
+                samples: width as u64 * height as u64 * self.samples as u64,
+                rejected_samples: rejected,
+            },
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn env_tables_are_normalized_cdfs_and_densities() {
+        let (w, h) = (7, 5);
+        let texels: Vec<Rgb> = (0..w * h)
+            .map(|i| Rgb::splat(((i * 37) % 11) as f64))
+            .collect();
+        let (tex, cdf) = env_tables(w, h, &texels);
+        // The density integrates to 1 over the unit square.
+        let s: f64 = tex.iter().map(|t| t[3] as f64).sum::<f64>() / (w * h) as f64;
+        assert!((s - 1.0).abs() < 1e-5, "{s}");
+        // Each CDF starts at 0, ends at 1 and never decreases.
+        let check = |c: &[f32]| {
+            assert_eq!(c[0], 0.0);
+            assert_eq!(*c.last().unwrap(), 1.0);
+            assert!(c.windows(2).all(|p| p[0] <= p[1]));
+        };
+        check(&cdf[..h + 1]);
+        for y in 0..h {
+            let row = &cdf[h + 1 + y * (w + 1)..h + 1 + (y + 1) * (w + 1)];
+            check(row);
+            // The probability of texel (x, y) is its density / (w h).
+            for x in 0..w {
+                let p = (cdf[y + 1] - cdf[y]) as f64 * (row[x + 1] - row[x]) as f64;
+                let want = tex[y * w + x][3] as f64 / (w * h) as f64;
+                assert!((p - want).abs() < 1e-6, "{x} {y} {p} {want}");
+            }
+        }
+    }
+}

@@ -1,0 +1,280 @@
+// Exact first hit of functionally defined objects (SPEC §1) on the GPU:
+// F' = F + sum f_i Q_i^3 [Q_i >= 0], mirroring crates/geometry/src/object.rs.
+//
+// Along a ray every Q_i is a quadratic in t; its roots split the ray into
+// segments on which the set of active perturbations is fixed, so F' is one
+// polynomial of degree <= 6. Each segment [a, b] is reparameterized to
+// s in [0, 1] (t = a + (b - a) s), which keeps the f32 coefficients well
+// conditioned, and its first root is isolated by Bernstein subdivision:
+// the control points bound the polynomial on a sub-interval, an interval
+// whose control points share one sign holds no root, the others are halved
+// (left first) down to 2^-12 of the segment, then refined by regula falsi.
+// Never marching. The prelude (constants) is generated from Rust.
+//
+// This file holds the structs and functions only; each kernel declares the
+// `objects` and `perturbations` storage buffers with its own bindings.
+
+struct Quadric { c: array<vec4<f32>, 3> }
+struct Perturbation { q: Quadric, factor: vec4<f32> }
+struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>, range: vec4<u32> }
+struct Ray { o: vec4<f32>, d: vec4<f32> }
+
+// Coefficients [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44].
+fn q_m(q: Quadric, p: vec3<f32>) -> vec3<f32> {
+    let a = q.c[0];
+    let b = q.c[1];
+    return vec3<f32>(
+        a.x * p.x + a.w * p.y + b.x * p.z,
+        a.w * p.x + a.y * p.y + b.y * p.z,
+        b.x * p.x + b.y * p.y + a.z * p.z,
+    );
+}
+
+fn q_b(q: Quadric) -> vec3<f32> {
+    return vec3<f32>(q.c[1].z, q.c[1].w, q.c[2].x);
+}
+
+fn q_eval(q: Quadric, p: vec3<f32>) -> f32 {
+    return dot(p, q_m(q, p)) + 2.0 * dot(q_b(q), p) + q.c[2].y;
+}
+
+fn q_grad(q: Quadric, p: vec3<f32>) -> vec3<f32> {
+    return 2.0 * (q_m(q, p) + q_b(q));
+}
+
+// (A, B, C) with Q(o + t d) = A t^2 + B t + C.
+fn q_along(q: Quadric, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    let md = q_m(q, d);
+    let b = q_b(q);
+    return vec3<f32>(dot(d, md), 2.0 * (dot(o, md) + dot(b, d)), q_eval(q, o));
+}
+
+// Real roots of A t^2 + B t + C, ascending; NO_ROOT where absent.
+fn roots(c: vec3<f32>) -> vec2<f32> {
+    let a = c.x;
+    let b = c.y;
+    let k = c.z;
+    if (abs(a) < 1e-30) {
+        if (abs(b) < 1e-30) {
+            return vec2<f32>(NO_ROOT, NO_ROOT);
+        }
+        let r = -k / b;
+        return vec2<f32>(r, NO_ROOT);
+    }
+    let disc = b * b - 4.0 * a * k;
+    if (disc < 0.0) {
+        return vec2<f32>(NO_ROOT, NO_ROOT);
+    }
+    let s = sqrt(disc);
+    let qq = -0.5 * (b + select(-s, s, b >= 0.0));
+    var r0 = qq / a;
+    var r1 = select(r0, k / qq, abs(qq) > 1e-30);
+    if (r0 > r1) {
+        let t = r0;
+        r0 = r1;
+        r1 = t;
+    }
+    return vec2<f32>(r0, r1);
+}
+
+// Coefficients in s of the quadratic (A, B, C) on t = a + l s.
+fn shift2(c: vec3<f32>, a: f32, l: f32) -> vec3<f32> {
+    return vec3<f32>(c.z + a * (c.y + a * c.x), (2.0 * c.x * a + c.y) * l, c.x * l * l);
+}
+
+fn poly_eval(p: array<f32, 7>, s: f32) -> f32 {
+    var q = p;
+    var v = q[6];
+    for (var k = 5; k >= 0; k--) {
+        v = v * s + q[k];
+    }
+    return v;
+}
+
+// Bernstein control points of p on [u, v] (s = u + (v - u) x, x in [0, 1]).
+fn bernstein(p: array<f32, 7>, u: f32, v: f32) -> array<f32, 7> {
+    // Taylor shift to u (synthetic division), then scale by (v - u)^k.
+    var g = p;
+    for (var i = 0; i < 6; i++) {
+        for (var k = 5; k >= i; k--) {
+            g[k] = g[k] + u * g[k + 1];
+        }
+    }
+    let h = v - u;
+    var hk = 1.0;
+    for (var k = 0; k < 7; k++) {
+        g[k] = g[k] * hk;
+        hk = hk * h;
+    }
+    // b_k = sum_{j <= k} C(k, j) / C(6, j) g_j.
+    var binom6 = array<f32, 7>(1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0);
+    var b: array<f32, 7>;
+    for (var k = 0; k < 7; k++) {
+        var s = 0.0;
+        var ckj = 1.0; // C(k, j)
+        for (var j = 0; j <= k; j++) {
+            s = s + ckj / binom6[j] * g[j];
+            ckj = ckj * f32(k - j) / f32(j + 1);
+        }
+        b[k] = s;
+    }
+    return b;
+}
+
+// First sign change of p on [0, 1], or -1.
+fn first_root(p: array<f32, 7>) -> f32 {
+    var stack: array<vec2<f32>, 48>;
+    var top = 1;
+    stack[0] = vec2<f32>(0.0, 1.0);
+    var guard = 0;
+    loop {
+        if (top == 0 || guard > MAX_SUBDIVISIONS) {
+            break;
+        }
+        guard++;
+        top--;
+        let iv = stack[top];
+        var b = bernstein(p, iv.x, iv.y);
+        var lo = b[0];
+        var hi = b[0];
+        for (var k = 1; k < 7; k++) {
+            lo = min(lo, b[k]);
+            hi = max(hi, b[k]);
+        }
+        if (lo > 0.0 || hi < 0.0) {
+            continue;
+        }
+        if (iv.y - iv.x < MIN_WIDTH) {
+            let fa = poly_eval(p, iv.x);
+            let fb = poly_eval(p, iv.y);
+            if (fa == 0.0) {
+                return iv.x;
+            }
+            if (fa * fb <= 0.0) {
+                // Regula falsi on the tiny interval.
+                var x0 = iv.x;
+                var x1 = iv.y;
+                var f0 = fa;
+                var f1 = fb;
+                for (var it = 0; it < 16; it++) {
+                    if (f1 == f0) {
+                        break;
+                    }
+                    let xm = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
+                    let fm = poly_eval(p, xm);
+                    if (fm == 0.0) {
+                        return xm;
+                    }
+                    if (f0 * fm < 0.0) {
+                        x1 = xm;
+                        f1 = fm;
+                    } else {
+                        x0 = xm;
+                        f0 = fm;
+                    }
+                }
+                return 0.5 * (x0 + x1);
+            }
+            continue; // touches zero without crossing
+        }
+        if (top + 2 > 48) {
+            continue;
+        }
+        let mid = 0.5 * (iv.x + iv.y);
+        stack[top] = vec2<f32>(mid, iv.y);
+        stack[top + 1] = vec2<f32>(iv.x, mid);
+        top += 2;
+    }
+    return -1.0;
+}
+
+// Slab test: (t_near, t_far), empty when t_near > t_far.
+fn clip_box(o: vec3<f32>, d: vec3<f32>, bmin: vec3<f32>, bmax: vec3<f32>, t0: f32, t1: f32) -> vec2<f32> {
+    let inv = 1.0 / d;
+    let ta = (bmin - o) * inv;
+    let tb = (bmax - o) * inv;
+    let tn = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z));
+    let tf = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
+    return vec2<f32>(max(tn, t0), min(tf, t1));
+}
+
+// First hit of object `oi` on [t0, t1]: (t, outward normal), t < 0 if none.
+fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32> {
+    let obj = objects[oi];
+    let span = clip_box(o, d, obj.bmin.xyz, obj.bmax.xyz, t0, t1);
+    if (!(span.x <= span.y)) {
+        return vec4<f32>(MISS, 0.0, 0.0, 0.0);
+    }
+    let first = obj.range.x;
+    let count = obj.range.y;
+    let base = q_along(obj.base, o, d);
+    var a = span.x;
+    var guard = 0u;
+    loop {
+        if (a >= span.y || guard > 2u * count + 2u) {
+            break;
+        }
+        guard++;
+        // Next breakpoint: the nearest root of an active Q_i beyond a.
+        var b = span.y;
+        let eps = 1e-6 * max(1.0, abs(a));
+        for (var i = 0u; i < count; i++) {
+            let r = roots(q_along(perturbations[first + i].q, o, d));
+            if (r.x > a + eps && r.x < b) {
+                b = r.x;
+            }
+            if (r.y > a + eps && r.y < b) {
+                b = r.y;
+            }
+        }
+        let l = b - a;
+        let mid = a + 0.5 * l;
+        let c = shift2(base, a, l);
+        var p = array<f32, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
+        for (var i = 0u; i < count; i++) {
+            let pert = perturbations[first + i];
+            let qa = q_along(pert.q, o, d);
+            if (qa.z + mid * (qa.y + mid * qa.x) <= 0.0) {
+                continue;
+            }
+            let q = shift2(qa, a, l);
+            let f = pert.factor.x;
+            // q^2 (degree 4), then q^3 (degree 6).
+            let s0 = q.x * q.x;
+            let s1 = 2.0 * q.x * q.y;
+            let s2 = q.y * q.y + 2.0 * q.x * q.z;
+            let s3 = 2.0 * q.y * q.z;
+            let s4 = q.z * q.z;
+            p[0] += f * (s0 * q.x);
+            p[1] += f * (s1 * q.x + s0 * q.y);
+            p[2] += f * (s2 * q.x + s1 * q.y + s0 * q.z);
+            p[3] += f * (s3 * q.x + s2 * q.y + s1 * q.z);
+            p[4] += f * (s4 * q.x + s3 * q.y + s2 * q.z);
+            p[5] += f * (s4 * q.y + s3 * q.z);
+            p[6] += f * (s4 * q.z);
+        }
+        let s = first_root(p);
+        if (s >= 0.0) {
+            let t = a + s * l;
+            let x = o + t * d;
+            var g = q_grad(obj.base, x);
+            for (var i = 0u; i < count; i++) {
+                let pert = perturbations[first + i];
+                let qv = q_eval(pert.q, x);
+                if (qv > 0.0) {
+                    g += 3.0 * pert.factor.x * qv * qv * q_grad(pert.q, x);
+                }
+            }
+            var n = -d;
+            if (dot(g, g) > 0.0) {
+                n = -normalize(g);
+            } else {
+                n = -normalize(d);
+            }
+            return vec4<f32>(t, n);
+        }
+        a = b;
+    }
+    return vec4<f32>(MISS, 0.0, 0.0, 0.0);
+}
+

@@ -1,0 +1,686 @@
+// The material library on the GPU, mirroring crates/materials/src: every
+// model's `f`, `pdf` and `sample` in its local shading frame (normal +z),
+// with the same formulas and the same mapping of random numbers to
+// directions as the CPU, in f32. The tags (MAT_*, FRESNEL_*, FLAG_*) come
+// from the generated prelude; `layout.rs` fills `Material` (`GpuMaterial`).
+//
+// Parameters per tag (see `GpuMaterial::new` for the authority):
+//   DIFFUSE      a.rgb reflectance
+//   PHONG        a.rgb reflectance, b.rgb specular, c.x exponent, c.y p(lobe)
+//   BLINN_PHONG  the same
+//   GGX          a.xy alpha, Fresnel (tag.y) from b and c, d.xyz tangent
+//   BECKMANN     the same (visible-normal sampling by Newton, as on the CPU)
+//   CONDUCTOR    Fresnel from b and c
+//   DIELECTRIC   a.x ior
+//   PLASTIC      a.rgb reflectance, b.x ior, b.y coat alpha, b.z F_dr(int);
+//                tag.w 1 for a rough coat
+
+struct Material { tag: vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32> }
+
+struct BsdfSample { wi: vec3<f32>, f: vec3<f32>, pdf: f32, flags: u32, eta: f32, ok: bool }
+
+const PI: f32 = 3.14159265358979;
+const INV_PI: f32 = 0.318309886183791;
+const SQRT_PI_INV: f32 = 0.564189583547756;
+
+fn no_sample() -> BsdfSample {
+    return BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, 0u, 1.0, false);
+}
+
+fn luminance(c: vec3<f32>) -> f32 {
+    return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
+}
+
+// Orthonormal frame around n (Duff et al. 2017), as isolux_core::Frame.
+struct Frame { s: vec3<f32>, t: vec3<f32>, n: vec3<f32> }
+
+fn frame_from_normal(n: vec3<f32>) -> Frame {
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let t = vec3<f32>(b, sign + n.y * n.y * a, -n.y);
+    return Frame(s, t, n);
+}
+
+fn frame_from_normal_tangent(n: vec3<f32>, tangent: vec3<f32>) -> Frame {
+    let s = tangent - dot(tangent, n) * n;
+    let len = length(s);
+    if (!(len > 1e-6)) {
+        return frame_from_normal(n);
+    }
+    let sn = s / len;
+    return Frame(sn, cross(n, sn), n);
+}
+
+fn to_local(f: Frame, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(v, f.s), dot(v, f.t), dot(v, f.n));
+}
+
+fn to_world(f: Frame, v: vec3<f32>) -> vec3<f32> {
+    return f.s * v.x + f.t * v.y + f.n * v.z;
+}
+
+// Shirley-Chiu concentric disk, then Malley's method.
+fn concentric_disk(u: vec2<f32>) -> vec2<f32> {
+    let o = 2.0 * u - vec2<f32>(1.0);
+    if (o.x == 0.0 && o.y == 0.0) {
+        return vec2<f32>(0.0);
+    }
+    var r: f32;
+    var theta: f32;
+    if (abs(o.x) > abs(o.y)) {
+        r = o.x;
+        theta = PI / 4.0 * (o.y / o.x);
+    } else {
+        r = o.y;
+        theta = PI / 2.0 - PI / 4.0 * (o.x / o.y);
+    }
+    return r * vec2<f32>(cos(theta), sin(theta));
+}
+
+fn cosine_hemisphere(u: vec2<f32>) -> vec3<f32> {
+    let d = concentric_disk(u);
+    return vec3<f32>(d, sqrt(max(1.0 - dot(d, d), 0.0)));
+}
+
+fn cosine_pdf(cos_theta: f32) -> f32 {
+    return max(cos_theta, 0.0) * INV_PI;
+}
+
+// A unit vector at angle acos(cos_a) from axis, azimuth phi.
+fn around(axis: vec3<f32>, cos_a: f32, phi: f32) -> vec3<f32> {
+    let f = frame_from_normal(axis);
+    let sin_a = sqrt(max(1.0 - cos_a * cos_a, 0.0));
+    return to_world(f, vec3<f32>(sin_a * cos(phi), sin_a * sin(phi), cos_a));
+}
+
+fn reflect_about(w: vec3<f32>, m: vec3<f32>) -> vec3<f32> {
+    return 2.0 * dot(w, m) * m - w;
+}
+
+fn mirror_z(w: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(-w.x, -w.y, w.z);
+}
+
+// normalize(v), or zero when v is (nearly) zero.
+fn try_normalize(v: vec3<f32>) -> vec3<f32> {
+    let l2 = dot(v, v);
+    if (!(l2 > 1e-30)) {
+        return vec3<f32>(0.0);
+    }
+    return v * inverseSqrt(l2);
+}
+
+// ---- Fresnel ------------------------------------------------------------
+
+fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
+    var c = clamp(cos_in, -1.0, 1.0);
+    var eta = eta_in;
+    if (c < 0.0) {
+        eta = 1.0 / eta;
+        c = -c;
+    }
+    let sin2_i = 1.0 - c * c;
+    let sin2_t = sin2_i / (eta * eta);
+    if (sin2_t >= 1.0) {
+        return 1.0;
+    }
+    let cos_t = sqrt(max(1.0 - sin2_t, 0.0));
+    let r_par = (eta * c - cos_t) / (eta * c + cos_t);
+    let r_perp = (c - eta * cos_t) / (c + eta * cos_t);
+    return 0.5 * (r_par * r_par + r_perp * r_perp);
+}
+
+fn fresnel_conductor1(cos_i: f32, eta: f32, k: f32) -> f32 {
+    let c = clamp(cos_i, 0.0, 1.0);
+    let c2 = c * c;
+    let s2 = 1.0 - c2;
+    let t0 = eta * eta - k * k - s2;
+    let a2b2 = sqrt(t0 * t0 + 4.0 * eta * eta * k * k);
+    let a = sqrt(max(0.5 * (a2b2 + t0), 0.0));
+    let t1 = a2b2 + c2;
+    let t2 = 2.0 * c * a;
+    let rs = (t1 - t2) / (t1 + t2);
+    let t3 = c2 * a2b2 + s2 * s2;
+    let t4 = t2 * s2;
+    let rp = rs * (t3 - t4) / (t3 + t4);
+    let f = 0.5 * (rp + rs);
+    if (!(abs(f) <= 1e30)) {
+        return 1.0;
+    }
+    return clamp(f, 0.0, 1.0);
+}
+
+// Fresnel of kind `kind` with parameters b (eta / f0 / ior in b.x) and c (k).
+fn fresnel_eval(kind: u32, b: vec4<f32>, c: vec4<f32>, cos_i: f32) -> vec3<f32> {
+    switch kind {
+        case FRESNEL_DIELECTRIC: {
+            return vec3<f32>(fresnel_dielectric(cos_i, b.x));
+        }
+        case FRESNEL_CONDUCTOR: {
+            let x = abs(cos_i);
+            return vec3<f32>(
+                fresnel_conductor1(x, b.x, c.x),
+                fresnel_conductor1(x, b.y, c.y),
+                fresnel_conductor1(x, b.z, c.z),
+            );
+        }
+        case FRESNEL_SCHLICK: {
+            let m = pow(1.0 - min(abs(cos_i), 1.0), 5.0);
+            return b.rgb + (vec3<f32>(1.0) - b.rgb) * m;
+        }
+        default: {
+            return vec3<f32>(1.0);
+        }
+    }
+}
+
+// ---- Microfacet distributions (GGX, Beckmann) ----------------------------
+
+fn mf_d(beckmann: bool, ax: f32, ay: f32, m: vec3<f32>) -> f32 {
+    if (m.z <= 0.0) {
+        return 0.0;
+    }
+    let cos2 = m.z * m.z;
+    let e = (m.x * m.x / (ax * ax) + m.y * m.y / (ay * ay)) / cos2;
+    let cos4 = cos2 * cos2;
+    if (beckmann) {
+        return exp(-e) / (PI * ax * ay * cos4);
+    }
+    return 1.0 / (PI * ax * ay * cos4 * (1.0 + e) * (1.0 + e));
+}
+
+// erfc for x >= 0 (Numerical Recipes' erfcc, relative error < 1.2e-7).
+fn erfc_pos(x: f32) -> f32 {
+    let t = 1.0 / (1.0 + 0.5 * x);
+    let y = t * exp(-x * x - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418
+        + t * (-0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587
+        + t * (-0.82215223 + t * 0.17087277)))))))));
+    return y;
+}
+
+fn erfc_(x: f32) -> f32 {
+    if (x >= 0.0) {
+        return erfc_pos(x);
+    }
+    return 2.0 - erfc_pos(-x);
+}
+
+fn erf_(x: f32) -> f32 {
+    return 1.0 - erfc_(x);
+}
+
+fn mf_lambda(beckmann: bool, ax: f32, ay: f32, w: vec3<f32>) -> f32 {
+    if (w.z == 0.0) {
+        return 3.0e38;
+    }
+    let at2 = (ax * ax * w.x * w.x + ay * ay * w.y * w.y) / (w.z * w.z);
+    if (beckmann) {
+        if (at2 == 0.0) {
+            return 0.0;
+        }
+        let c = inverseSqrt(at2);
+        return 0.5 * (-erfc_pos(c) + exp(-c * c) * SQRT_PI_INV / c);
+    }
+    return 0.5 * (sqrt(1.0 + at2) - 1.0);
+}
+
+fn mf_g1(beckmann: bool, ax: f32, ay: f32, w: vec3<f32>) -> f32 {
+    return 1.0 / (1.0 + mf_lambda(beckmann, ax, ay, w));
+}
+
+fn mf_g(beckmann: bool, ax: f32, ay: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    return 1.0 / (1.0 + mf_lambda(beckmann, ax, ay, wo) + mf_lambda(beckmann, ax, ay, wi));
+}
+
+fn mf_d_visible(beckmann: bool, ax: f32, ay: f32, w: vec3<f32>, m: vec3<f32>) -> f32 {
+    if (w.z <= 0.0) {
+        return 0.0;
+    }
+    return mf_g1(beckmann, ax, ay, w) / w.z * mf_d(beckmann, ax, ay, m) * max(dot(w, m), 0.0);
+}
+
+fn sample_ggx_visible(ax: f32, ay: f32, w: vec3<f32>, u: vec2<f32>) -> vec3<f32> {
+    let vh = normalize(vec3<f32>(ax * w.x, ay * w.y, w.z));
+    let len2 = vh.x * vh.x + vh.y * vh.y;
+    var t1 = vec3<f32>(1.0, 0.0, 0.0);
+    if (len2 > 0.0) {
+        t1 = vec3<f32>(-vh.y, vh.x, 0.0) * inverseSqrt(len2);
+    }
+    let t2 = cross(vh, t1);
+    let r = sqrt(u.x);
+    let phi = 2.0 * PI * u.y;
+    let p1 = r * cos(phi);
+    var p2 = r * sin(phi);
+    let s = 0.5 * (1.0 + vh.z);
+    p2 = (1.0 - s) * sqrt(max(1.0 - p1 * p1, 0.0)) + s * p2;
+    let nh = p1 * t1 + p2 * t2 + sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0)) * vh;
+    return normalize(vec3<f32>(ax * nh.x, ay * nh.y, max(nh.z, 1e-6)));
+}
+
+// Inverse error function (Giles 2010) with two Newton steps.
+fn erfinv_(x: f32) -> f32 {
+    let xc = clamp(x, -0.9999999, 0.9999999);
+    var w = -log((1.0 - xc) * (1.0 + xc));
+    var p: f32;
+    if (w < 5.0) {
+        w = w - 2.5;
+        p = 2.81022636e-08;
+        p = 3.43273939e-07 + p * w;
+        p = -3.5233877e-06 + p * w;
+        p = -4.39150654e-06 + p * w;
+        p = 0.00021858087 + p * w;
+        p = -0.00125372503 + p * w;
+        p = -0.00417768164 + p * w;
+        p = 0.246640727 + p * w;
+        p = 1.50140941 + p * w;
+    } else {
+        w = sqrt(w) - 3.0;
+        p = -0.000200214257;
+        p = 0.000100950558 + p * w;
+        p = 0.00134934322 + p * w;
+        p = -0.00367342844 + p * w;
+        p = 0.00573950773 + p * w;
+        p = -0.0076224613 + p * w;
+        p = 0.00943887047 + p * w;
+        p = 1.00167406 + p * w;
+        p = 2.83297682 + p * w;
+    }
+    return p * xc;
+}
+
+// Visible slopes of the unit Beckmann distribution seen from elevation
+// theta (crates/materials/src/microfacet.rs, beckmann_visible_slopes).
+fn beckmann_visible_slopes(theta: f32, u: vec2<f32>) -> vec2<f32> {
+    let u1 = clamp(u.x, 1e-6, 1.0 - 1e-6);
+    let u2 = clamp(u.y, 1e-6, 1.0 - 1e-6);
+    if (theta < 1e-3) {
+        let r = sqrt(-log(1.0 - u1));
+        let a = 2.0 * PI * u2;
+        return vec2<f32>(r * cos(a), r * sin(a));
+    }
+    let tan_t = tan(theta);
+    let cot_t = 1.0 / tan_t;
+    let norm = 1.0 / (1.0 + erf_(cot_t) + SQRT_PI_INV * tan_t * exp(-cot_t * cot_t));
+    let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
+    let c = erf_(cot_t);
+    let b0 = c - (1.0 + c) * pow(1.0 - u1, fit);
+    var lo = -8.0;
+    var hi = cot_t;
+    var x = clamp(erfinv_(b0), lo, hi);
+    for (var it = 0; it < 24; it++) {
+        let value = norm * (erfc_(-x) + SQRT_PI_INV * tan_t * exp(-x * x)) - u1;
+        if (abs(value) < 1e-7) {
+            break;
+        }
+        if (value > 0.0) {
+            hi = x;
+        } else {
+            lo = x;
+        }
+        let deriv = norm * 2.0 * SQRT_PI_INV * exp(-x * x) * (1.0 - x * tan_t);
+        let next = x - value / deriv;
+        if (deriv > 0.0 && next > lo && next < hi) {
+            x = next;
+        } else {
+            x = 0.5 * (lo + hi);
+        }
+        if (hi - lo < 1e-6 * (1.0 + abs(x))) {
+            break;
+        }
+    }
+    return vec2<f32>(x, erfinv_(2.0 * u2 - 1.0));
+}
+
+fn sample_beckmann_visible(ax: f32, ay: f32, w: vec3<f32>, u: vec2<f32>) -> vec3<f32> {
+    let ws = normalize(vec3<f32>(ax * w.x, ay * w.y, w.z));
+    let theta = acos(clamp(ws.z, -1.0, 1.0));
+    let phi = atan2(ws.y, ws.x);
+    let sl = beckmann_visible_slopes(theta, u);
+    let sp = sin(phi);
+    let cp = cos(phi);
+    let rx = cp * sl.x - sp * sl.y;
+    let ry = sp * sl.x + cp * sl.y;
+    return normalize(vec3<f32>(-rx * ax, -ry * ay, 1.0));
+}
+
+// Microfacet reflection f = D G F / (4 cos_o cos_i) (Walter et al. 2007).
+fn mfr_f(beckmann: bool, ax: f32, ay: f32, fk: u32, fb: vec4<f32>, fc: vec4<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let m = try_normalize(wo + wi);
+    if (m.z == 0.0 && m.x == 0.0 && m.y == 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let d = mf_d(beckmann, ax, ay, m);
+    let g = mf_g(beckmann, ax, ay, wo, wi);
+    return fresnel_eval(fk, fb, fc, dot(wo, m)) * (d * g / (4.0 * wo.z * wi.z));
+}
+
+fn mfr_pdf(beckmann: bool, ax: f32, ay: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return 0.0;
+    }
+    let m = try_normalize(wo + wi);
+    if (m.z == 0.0 && m.x == 0.0 && m.y == 0.0) {
+        return 0.0;
+    }
+    return mf_d_visible(beckmann, ax, ay, wo, m) / (4.0 * abs(dot(wo, m)));
+}
+
+// The visible-normal sample's direction (zero vector when none).
+fn mfr_sample_dir(beckmann: bool, ax: f32, ay: f32, wo: vec3<f32>, u: vec2<f32>) -> vec3<f32> {
+    if (wo.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    var m: vec3<f32>;
+    if (beckmann) {
+        m = sample_beckmann_visible(ax, ay, wo, u);
+    } else {
+        m = sample_ggx_visible(ax, ay, wo, u);
+    }
+    let wi = reflect_about(wo, m);
+    if (wi.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    return wi;
+}
+
+// ---- Diffuse + lobe (Phong, Blinn-Phong) --------------------------------
+
+fn phong_lobe_eval(n: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return 0.0;
+    }
+    let c = dot(mirror_z(wo), wi);
+    if (c <= 0.0) {
+        return 0.0;
+    }
+    return (n + 2.0) / (2.0 * PI) * pow(c, n);
+}
+
+fn phong_lobe_pdf(n: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    let c = dot(mirror_z(wo), wi);
+    if (c <= 0.0) {
+        return 0.0;
+    }
+    return (n + 1.0) / (2.0 * PI) * pow(c, n);
+}
+
+fn blinn_d(n: f32, h: vec3<f32>) -> f32 {
+    if (h.z <= 0.0) {
+        return 0.0;
+    }
+    return (n + 1.0) / (2.0 * PI) * pow(h.z, n);
+}
+
+fn blinn_lobe_eval(n: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return 0.0;
+    }
+    let h = try_normalize(wo + wi);
+    if (dot(h, h) == 0.0) {
+        return 0.0;
+    }
+    return blinn_d(n, h) / (4.0 * dot(wo, h) * max(wo.z, wi.z));
+}
+
+fn blinn_lobe_pdf(n: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    let h = try_normalize(wo + wi);
+    if (dot(h, h) == 0.0) {
+        return 0.0;
+    }
+    let c = dot(wo, h);
+    if (c <= 0.0) {
+        return 0.0;
+    }
+    return blinn_d(n, h) / (4.0 * c);
+}
+
+fn lobe_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (m.tag.x == MAT_PHONG) {
+        return phong_lobe_eval(m.c.x, wo, wi);
+    }
+    return blinn_lobe_eval(m.c.x, wo, wi);
+}
+
+fn lobe_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (m.tag.x == MAT_PHONG) {
+        return phong_lobe_pdf(m.c.x, wo, wi);
+    }
+    return blinn_lobe_pdf(m.c.x, wo, wi);
+}
+
+// The lobe's direction for u (zero vector when none).
+fn lobe_sample(m: Material, wo: vec3<f32>, u: vec2<f32>) -> vec3<f32> {
+    let n = m.c.x;
+    if (m.tag.x == MAT_PHONG) {
+        let cos_a = pow(u.x, 1.0 / (n + 1.0));
+        return around(mirror_z(wo), cos_a, 2.0 * PI * u.y);
+    }
+    let cos_h = pow(u.x, 1.0 / (n + 1.0));
+    let h = around(vec3<f32>(0.0, 0.0, 1.0), cos_h, 2.0 * PI * u.y);
+    if (dot(wo, h) <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    return reflect_about(wo, h);
+}
+
+// ---- Plastic --------------------------------------------------------------
+
+fn plastic_diffuse(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    let ior = m.b.x;
+    let e = (1.0 - fresnel_dielectric(wo.z, ior)) * (1.0 - fresnel_dielectric(wi.z, ior));
+    let k = e * INV_PI / (ior * ior);
+    let r = m.a.rgb;
+    return r * k / (vec3<f32>(1.0) - r * m.b.z);
+}
+
+fn plastic_p_coat(m: Material, wo: vec3<f32>) -> f32 {
+    return clamp(fresnel_dielectric(wo.z, m.b.x), 0.02, 0.98);
+}
+
+// ---- The dispatch ---------------------------------------------------------
+
+fn is_beckmann(m: Material) -> bool {
+    return m.tag.x == MAT_BECKMANN;
+}
+
+fn material_flags(m: Material) -> u32 {
+    switch m.tag.x {
+        case MAT_DIFFUSE: {
+            return FLAG_REFLECTION | FLAG_DIFFUSE;
+        }
+        case MAT_PHONG, MAT_BLINN_PHONG: {
+            return FLAG_REFLECTION | FLAG_DIFFUSE | FLAG_GLOSSY;
+        }
+        case MAT_GGX, MAT_BECKMANN: {
+            return FLAG_REFLECTION | FLAG_GLOSSY;
+        }
+        case MAT_CONDUCTOR: {
+            return FLAG_REFLECTION | FLAG_SPECULAR;
+        }
+        case MAT_DIELECTRIC: {
+            return FLAG_REFLECTION | FLAG_TRANSMISSION | FLAG_SPECULAR;
+        }
+        case MAT_PLASTIC: {
+            return FLAG_REFLECTION | FLAG_DIFFUSE | select(FLAG_SPECULAR, FLAG_GLOSSY, m.tag.w == 1u);
+        }
+        default: {
+            return 0u;
+        }
+    }
+}
+
+// f(wo, wi) without the cosine, local frame.
+fn material_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    switch m.tag.x {
+        case MAT_DIFFUSE: {
+            if (wo.z > 0.0 && wi.z > 0.0) {
+                return m.a.rgb * INV_PI;
+            }
+            return vec3<f32>(0.0);
+        }
+        case MAT_PHONG, MAT_BLINN_PHONG: {
+            if (wo.z <= 0.0 || wi.z <= 0.0) {
+                return vec3<f32>(0.0);
+            }
+            return m.a.rgb * INV_PI + m.b.rgb * lobe_eval(m, wo, wi);
+        }
+        case MAT_GGX, MAT_BECKMANN: {
+            return mfr_f(is_beckmann(m), m.a.x, m.a.y, m.tag.y, m.b, m.c, wo, wi);
+        }
+        case MAT_PLASTIC: {
+            if (wo.z <= 0.0 || wi.z <= 0.0) {
+                return vec3<f32>(0.0);
+            }
+            var f = plastic_diffuse(m, wo, wi);
+            if (m.tag.w == 1u) {
+                f += mfr_f(false, m.b.y, m.b.y, FRESNEL_DIELECTRIC, m.b, m.c, wo, wi);
+            }
+            return f;
+        }
+        default: {
+            return vec3<f32>(0.0);
+        }
+    }
+}
+
+fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    switch m.tag.x {
+        case MAT_DIFFUSE: {
+            if (wo.z > 0.0 && wi.z > 0.0) {
+                return cosine_pdf(wi.z);
+            }
+            return 0.0;
+        }
+        case MAT_PHONG, MAT_BLINN_PHONG: {
+            if (wo.z <= 0.0 || wi.z <= 0.0) {
+                return 0.0;
+            }
+            let ps = m.c.y;
+            return ps * lobe_pdf(m, wo, wi) + (1.0 - ps) * cosine_pdf(wi.z);
+        }
+        case MAT_GGX, MAT_BECKMANN: {
+            return mfr_pdf(is_beckmann(m), m.a.x, m.a.y, wo, wi);
+        }
+        case MAT_PLASTIC: {
+            if (wo.z <= 0.0 || wi.z <= 0.0) {
+                return 0.0;
+            }
+            let pc = plastic_p_coat(m, wo);
+            var p = (1.0 - pc) * cosine_pdf(wi.z);
+            if (m.tag.w == 1u) {
+                p += pc * mfr_pdf(false, m.b.y, m.b.y, wo, wi);
+            }
+            return p;
+        }
+        default: {
+            return 0.0;
+        }
+    }
+}
+
+// A reflected direction scored by the whole model (BsdfSample::reflected).
+fn reflected(m: Material, wo: vec3<f32>, wi: vec3<f32>, flags: u32) -> BsdfSample {
+    if (wi.z <= 0.0) {
+        return no_sample();
+    }
+    return BsdfSample(wi, material_f(m, wo, wi), material_pdf(m, wo, wi), FLAG_REFLECTION | flags, 1.0, true);
+}
+
+// Refraction through the +z interface of relative index eta (inside over
+// outside): (direction, eta' = n_t / n_i), eta' = 0 under total internal
+// reflection.
+fn refract_z(wo: vec3<f32>, eta: f32) -> vec4<f32> {
+    var cos_i = wo.z;
+    var etap = eta;
+    var n = vec3<f32>(0.0, 0.0, 1.0);
+    if (wo.z < 0.0) {
+        cos_i = -wo.z;
+        etap = 1.0 / eta;
+        n = -n;
+    }
+    let sin2_t = max(1.0 - cos_i * cos_i, 0.0) / (etap * etap);
+    if (sin2_t >= 1.0) {
+        return vec4<f32>(0.0);
+    }
+    let cos_t = sqrt(1.0 - sin2_t);
+    return vec4<f32>(-wo / etap + (cos_i / etap - cos_t) * n, etap);
+}
+
+fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+    switch m.tag.x {
+        case MAT_DIFFUSE: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            let wi = cosine_hemisphere(u);
+            if (wi.z <= 0.0) {
+                return no_sample();
+            }
+            return BsdfSample(wi, m.a.rgb * INV_PI, cosine_pdf(wi.z), FLAG_REFLECTION | FLAG_DIFFUSE, 1.0, true);
+        }
+        case MAT_PHONG, MAT_BLINN_PHONG: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            let glossy = uc < m.c.y;
+            var wi: vec3<f32>;
+            if (glossy) {
+                wi = lobe_sample(m, wo, u);
+            } else {
+                wi = cosine_hemisphere(u);
+            }
+            return reflected(m, wo, wi, select(FLAG_DIFFUSE, FLAG_GLOSSY, glossy));
+        }
+        case MAT_GGX, MAT_BECKMANN: {
+            let wi = mfr_sample_dir(is_beckmann(m), m.a.x, m.a.y, wo, u);
+            return reflected(m, wo, wi, FLAG_GLOSSY);
+        }
+        case MAT_CONDUCTOR: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            let wi = mirror_z(wo);
+            return BsdfSample(wi, fresnel_eval(m.tag.y, m.b, m.c, wo.z) / wi.z, 1.0, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+        }
+        case MAT_DIELECTRIC: {
+            if (wo.z == 0.0) {
+                return no_sample();
+            }
+            let f = fresnel_dielectric(wo.z, m.a.x);
+            if (uc < f) {
+                let wi = mirror_z(wo);
+                return BsdfSample(wi, vec3<f32>(f / abs(wi.z)), f, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+            }
+            let r = refract_z(wo, m.a.x);
+            if (r.w == 0.0) {
+                return no_sample();
+            }
+            let t = 1.0 - f;
+            return BsdfSample(r.xyz, vec3<f32>(t / (r.w * r.w) / abs(r.z)), t, FLAG_TRANSMISSION | FLAG_SPECULAR, r.w, true);
+        }
+        case MAT_PLASTIC: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            let pc = plastic_p_coat(m, wo);
+            if (uc < pc) {
+                if (m.tag.w == 1u) {
+                    let wi = mfr_sample_dir(false, m.b.y, m.b.y, wo, u);
+                    return reflected(m, wo, wi, FLAG_GLOSSY);
+                }
+                let wi = mirror_z(wo);
+                let f = fresnel_dielectric(wo.z, m.b.x);
+                return BsdfSample(wi, vec3<f32>(f / wi.z), pc, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+            }
+            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+        }
+        default: {
+            return no_sample();
+        }
+    }
+}
