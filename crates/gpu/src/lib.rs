@@ -22,7 +22,7 @@
 pub mod layout;
 mod render;
 
-pub use render::{unsupported_material, GpuFrame};
+pub use render::{replace_unsupported, unsupported_material, GpuFrame};
 
 use layout::{GpuAnswer, GpuHit, GpuMaterial, GpuQuery, GpuRay, GpuScene};
 use std::sync::OnceLock;
@@ -195,13 +195,58 @@ impl Gpu {
 
     /// A storage buffer holding `bytes` (padded: storage buffers may not
     /// be empty).
-    fn storage(&self, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
         let zero = [0u8; 256];
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: if bytes.is_empty() { &zero } else { bytes },
-                usage: wgpu::BufferUsages::STORAGE | extra,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    }
+
+    /// A bind group of `pipeline`'s group 0 with `buffers` at bindings 0,
+    /// 1, 2, ... in order.
+    fn bind_group(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+    ) -> wgpu::BindGroup {
+        let layout = pipeline.get_bind_group_layout(0);
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &layout,
+            entries: &entries,
+        })
+    }
+
+    /// A zeroed storage buffer of `size` bytes that can be read back.
+    fn output(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A uniform buffer holding `value` (writable later).
+    fn uniform<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::bytes_of(value),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             })
     }
 
@@ -215,20 +260,7 @@ impl Gpu {
         out: &wgpu::Buffer,
     ) -> Result<Vec<T>, GpuError> {
         let d = &self.device;
-        let layout = pipeline.get_bind_group_layout(0);
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
-            layout: &layout,
-            entries: &entries,
-        });
+        let bind = self.bind_group(pipeline, buffers);
         let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -290,23 +322,14 @@ impl Gpu {
             return Ok(Vec::new());
         }
         let pipeline = self.pipeline(&self.material_eval, "material_eval", material_eval_source);
-        let none = wgpu::BufferUsages::empty();
-        let mats = self.storage("materials", bytemuck::cast_slice(materials), none);
-        let qs = self.storage("queries", bytemuck::cast_slice(queries), none);
-        let out = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("answers"),
-            size: (queries.len() * std::mem::size_of::<GpuAnswer>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let mats = self.storage("materials", bytemuck::cast_slice(materials));
+        let qs = self.storage("queries", bytemuck::cast_slice(queries));
+        let out = self.output(
+            "answers",
+            (queries.len() * std::mem::size_of::<GpuAnswer>()) as u64,
+        );
         let counts = [queries.len() as u32, 0, 0, 0];
-        let uniform = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("counts"),
-                contents: bytemuck::cast_slice(&counts),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = self.uniform("counts", &counts);
         let groups = (queries.len() as u32).div_ceil(WORKGROUP_SIZE);
         self.run_and_read(pipeline, &[&mats, &qs, &out, &uniform], (groups, 1), &out)
     }
@@ -318,28 +341,12 @@ impl Gpu {
             return Ok(Vec::new());
         }
         let pipeline = self.pipeline(&self.intersect, "intersect", intersect_source);
-        let none = wgpu::BufferUsages::empty();
-        let objects = self.storage("objects", bytemuck::cast_slice(&scene.objects), none);
-        let perts = self.storage(
-            "perturbations",
-            bytemuck::cast_slice(&scene.perturbations),
-            none,
-        );
-        let ray_buf = self.storage("rays", bytemuck::cast_slice(rays), none);
-        let out = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits"),
-            size: (rays.len() * std::mem::size_of::<GpuHit>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let objects = self.storage("objects", bytemuck::cast_slice(&scene.objects));
+        let perts = self.storage("perturbations", bytemuck::cast_slice(&scene.perturbations));
+        let ray_buf = self.storage("rays", bytemuck::cast_slice(rays));
+        let out = self.output("hits", (rays.len() * std::mem::size_of::<GpuHit>()) as u64);
         let counts = [rays.len() as u32, scene.objects.len() as u32, 0, 0];
-        let uniform = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("counts"),
-                contents: bytemuck::cast_slice(&counts),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = self.uniform("counts", &counts);
         let groups = (rays.len() as u32).div_ceil(WORKGROUP_SIZE);
         self.run_and_read(
             pipeline,

@@ -7,7 +7,6 @@ use crate::layout::{GpuLight, GpuMaterial, GpuParams, GpuScene};
 use crate::{Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
 use isolux_core::{Image, Rgb, PI};
 use isolux_render::{Environment, RenderStats, Scene};
-use wgpu::util::DeviceExt;
 
 /// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
 const TILE: u32 = 8;
@@ -23,6 +22,22 @@ pub fn unsupported_material(scene: &Scene) -> Option<(String, String)> {
             )
         })
     })
+}
+
+/// Replaces every material of `scene` that is not on the GPU by a grey
+/// (0.5) diffuse, for comparisons and benchmarks that must run anyway;
+/// returns the replaced materials' names.
+pub fn replace_unsupported(scene: &mut Scene) -> Vec<String> {
+    let mut replaced = Vec::new();
+    for (i, m) in scene.materials.iter_mut().enumerate() {
+        if GpuMaterial::new(m).is_none() {
+            replaced.push(scene.material_names.get(i).cloned().unwrap_or_default());
+            *m = isolux_materials::Material::Diffuse(isolux_materials::Diffuse {
+                reflectance: Rgb::splat(0.5),
+            });
+        }
+    }
+    replaced
 }
 
 /// A scene on the device with its accumulation buffer.
@@ -100,17 +115,11 @@ impl Gpu {
                 "film width, height and spp must be at least 1".into(),
             ));
         }
-        // The camera rig, as `Camera::rig` builds it (validated there).
-        scene
+        let [origin, forward, right, up] = scene
             .camera
             .rig(film.width, film.height)
-            .map_err(GpuError::Setup)?;
-        let cam = &scene.camera;
-        let forward = (cam.look_at - cam.position).normalize();
-        let right = forward.cross(cam.up).normalize();
-        let up = right.cross(forward);
-        let tan = (cam.fov_y.to_radians() * 0.5).tan();
-        let aspect = film.width as f64 / film.height as f64;
+            .map_err(GpuError::Setup)?
+            .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
 
         let materials: Vec<GpuMaterial> = scene
@@ -150,10 +159,10 @@ impl Gpu {
         let grid_n = film.spp.div_ceil(grid_m);
         let seed = isolux_core::rng::mix64(scene.integrator.seed ^ 0x1502_7a1e);
         let params = GpuParams {
-            origin: v4(cam.position),
+            origin: v4(origin),
             forward: v4(forward),
-            right: v4(right * tan * aspect),
-            up: v4(up * tan),
+            right: v4(right),
+            up: v4(up),
             film: [film.width, film.height, grid_m, grid_n],
             pass_info: [0, 0, seed as u32, (seed >> 32) as u32],
             counts: [
@@ -166,58 +175,29 @@ impl Gpu {
             env_size,
         };
 
-        let none = wgpu::BufferUsages::empty();
-        let objects = self.storage("objects", bytemuck::cast_slice(&geo.objects), none);
-        let perts = self.storage(
-            "perturbations",
-            bytemuck::cast_slice(&geo.perturbations),
-            none,
-        );
-        let mats = self.storage("materials", bytemuck::cast_slice(&materials), none);
-        let lights = self.storage("lights", bytemuck::cast_slice(&lights), none);
-        let texels = self.storage("env texels", bytemuck::cast_slice(&texels), none);
-        let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf), none);
+        let objects = self.storage("objects", bytemuck::cast_slice(&geo.objects));
+        let perts = self.storage("perturbations", bytemuck::cast_slice(&geo.perturbations));
+        let mats = self.storage("materials", bytemuck::cast_slice(&materials));
+        let lights = self.storage("lights", bytemuck::cast_slice(&lights));
+        let texels = self.storage("env texels", bytemuck::cast_slice(&texels));
+        let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf));
         let npix = film.width as u64 * film.height as u64;
-        let accum = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accumulation"),
-            size: npix * 16,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let params_buf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            });
+        let accum = self.output("accumulation", npix * 16);
+        let params_buf = self.uniform("params", &params);
         let pipeline = self.pipeline(&self.render, "render", crate::render_source);
-        let layout = pipeline.get_bind_group_layout(0);
-        let buffers = [
-            &objects,
-            &perts,
-            &mats,
-            &lights,
-            &texels,
-            &cdf,
-            &accum,
-            &params_buf,
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("render"),
-            layout: &layout,
-            entries: &entries,
-        });
+        let bind = self.bind_group(
+            pipeline,
+            &[
+                &objects,
+                &perts,
+                &mats,
+                &lights,
+                &texels,
+                &cdf,
+                &accum,
+                &params_buf,
+            ],
+        );
         Ok(GpuFrame {
             bind,
             accum,

@@ -14,25 +14,12 @@
 //! (`CI` set), where `.ci/run` installs lavapipe and a missing adapter is a
 //! failure.
 
+mod common;
+
 use glam::{DMat3, DVec3};
 use isolux_core::{Pcg32, Ray};
 use isolux_geometry::{Object, Perturbation, Quadric};
 use isolux_gpu::layout::{GpuRay, GpuScene};
-use isolux_gpu::{Gpu, GpuError};
-
-fn open() -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(g) => {
-            eprintln!("adapter: {}", g.adapter);
-            Some(g)
-        }
-        Err(GpuError::NoAdapter) if std::env::var_os("CI").is_none() => {
-            eprintln!("no GPU adapter: GPU conformance skipped (CI installs lavapipe)");
-            None
-        }
-        Err(e) => panic!("{e}"),
-    }
-}
 
 fn random_object(rng: &mut Pcg32) -> Object {
     let u = |rng: &mut Pcg32, a: f64, b: f64| a + (b - a) * rng.next_f64();
@@ -60,7 +47,9 @@ fn random_object(rng: &mut Pcg32) -> Object {
 
 #[test]
 fn intersection_matches_the_cpu() {
-    let Some(gpu) = open() else { return };
+    let Some(gpu) = common::open("GPU conformance") else {
+        return;
+    };
     let mut rng = Pcg32::new(42, 7);
     let (mut total, mut agree, mut both, mut t_ok, mut n_ok) = (0, 0, 0, 0, 0);
     for _ in 0..24 {

@@ -19,22 +19,13 @@
 //!
 //! Skipped without an adapter, except under CI (as the other GPU tests).
 
+mod common;
+
 use isolux_core::{Image, Rgb};
-use isolux_gpu::{Gpu, GpuError};
-use isolux_materials::{Diffuse, Material};
+use isolux_gpu::Gpu;
+use isolux_materials::Material;
 use isolux_render::{render, RenderOptions, Scene};
 use std::path::Path;
-
-fn open() -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(g) => Some(g),
-        Err(GpuError::NoAdapter) if std::env::var_os("CI").is_none() => {
-            eprintln!("no GPU adapter: GPU image tests skipped (CI installs lavapipe)");
-            None
-        }
-        Err(e) => panic!("{e}"),
-    }
-}
 
 fn example(name: &str) -> Scene {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -87,7 +78,9 @@ fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image)> {
 
 #[test]
 fn white_furnaces_render_one_within_the_known_defect() {
-    let Some(gpu) = open() else { return };
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
     for (what, img) in furnace_images(&gpu) {
         let (_, good, mean, max) = furnace_stats(&img, what);
         assert!((mean - 1.0).abs() < 0.01, "{what}: mean {mean}");
@@ -99,7 +92,9 @@ fn white_furnaces_render_one_within_the_known_defect() {
 #[test]
 #[ignore = "known defect: a few long paths end early (docs/gpu.md)"]
 fn white_furnaces_render_one_everywhere() {
-    let Some(gpu) = open() else { return };
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
     for (what, img) in furnace_images(&gpu) {
         let (worst, ..) = furnace_stats(&img, what);
         assert!(worst < 2e-3, "{what}: {worst}");
@@ -131,17 +126,11 @@ fn mean_abs_diff(a: &[f64], b: &[f64]) -> f64 {
 
 #[test]
 fn gallery_matches_the_cpu_within_noise() {
-    let Some(gpu) = open() else { return };
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
     let mut scene = example("gallery.toml");
-    let mut replaced = Vec::new();
-    for (i, m) in scene.materials.iter_mut().enumerate() {
-        if isolux_gpu::layout::GpuMaterial::new(m).is_none() {
-            replaced.push(scene.material_names[i].clone());
-            *m = Material::Diffuse(Diffuse {
-                reflectance: Rgb::splat(0.5),
-            });
-        }
-    }
+    let replaced = isolux_gpu::replace_unsupported(&mut scene);
     eprintln!("replaced by diffuse (not on the GPU yet): {replaced:?}");
     scene.film.width = 160;
     scene.film.height = 96;

@@ -16,28 +16,15 @@
 //! (`CI` set), where `.ci/run` installs lavapipe and a missing adapter is a
 //! failure.
 
+mod common;
+
 use glam::DVec3;
 use isolux_core::{sampling, Pcg32, Rgb};
 use isolux_gpu::layout::{GpuMaterial, GpuQuery};
-use isolux_gpu::{Gpu, GpuError};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, Dielectric, Diffuse, Fresnel, Ggx, Material, Phong,
     Plastic,
 };
-
-fn open() -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(g) => {
-            eprintln!("adapter: {}", g.adapter);
-            Some(g)
-        }
-        Err(GpuError::NoAdapter) if std::env::var_os("CI").is_none() => {
-            eprintln!("no GPU adapter: GPU material conformance skipped (CI installs lavapipe)");
-            None
-        }
-        Err(e) => panic!("{e}"),
-    }
-}
 
 fn library() -> Vec<(&'static str, Material)> {
     let gold = Fresnel::Conductor {
@@ -118,7 +105,9 @@ fn close_rgb(gpu: [f32; 4], cpu: Rgb, rel: f64) -> bool {
 
 #[test]
 fn every_gpu_material_matches_the_cpu() {
-    let Some(gpu) = open() else { return };
+    let Some(gpu) = common::open("GPU material conformance") else {
+        return;
+    };
     let lib = library();
     let gmats: Vec<GpuMaterial> = lib
         .iter()

@@ -349,7 +349,6 @@ fn wave(repeat: u32) -> Result<()> {
 /// not on the GPU yet are replaced by a grey diffuse, on both sides, and
 /// named in the output.
 fn gpu(a: &BenchArgs) -> Result<()> {
-    use isolux_materials::{Diffuse, Material};
     use isolux_render::{render, RenderOptions};
     let gpu = isolux_gpu::Gpu::new()?;
     let scenes = if a.scenes.is_empty() {
@@ -369,15 +368,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
     println!("|---|---|---:|---:|---:|---:|");
     for path in &scenes {
         let mut scene = isolux_scene::load(path)?;
-        let mut replaced = Vec::new();
-        for (i, m) in scene.materials.iter_mut().enumerate() {
-            if isolux_gpu::layout::GpuMaterial::new(m).is_none() {
-                replaced.push(scene.material_names[i].clone());
-                *m = Material::Diffuse(Diffuse {
-                    reflectance: isolux_core::Rgb::splat(0.5),
-                });
-            }
-        }
+        let replaced = isolux_gpu::replace_unsupported(&mut scene);
         scene.film.width = a.width;
         scene.film.height = a.height;
         let name = path.file_name().unwrap_or_default().to_string_lossy();

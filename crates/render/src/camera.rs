@@ -68,6 +68,16 @@ impl Camera {
 }
 
 impl CameraRig {
+    /// `[origin, forward, right, up]`: the ray through film position
+    /// `(sx, sy)` in `[-1, 1]^2` (`x` right, `y` up) has the direction
+    /// `forward + sx right + sy up` (`right` and `up` carry the field of
+    /// view and the aspect ratio). For back ends that rebuild [`ray`].
+    ///
+    /// [`ray`]: CameraRig::ray
+    pub fn basis(&self) -> [DVec3; 4] {
+        [self.origin, self.forward, self.right, self.up]
+    }
+
     /// The unit ray through film position `(x, y)` in pixels (continuous).
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let sx = 2.0 * x / self.width - 1.0;
