@@ -92,6 +92,12 @@ impl Distribution1D {
         }
     }
 
+    /// The normalized CDF: `len() + 1` values from 0 to 1 (the GPU
+    /// mirrors [`Distribution1D::sample`] from it).
+    pub fn cdf(&self) -> &[f64] {
+        &self.cdf
+    }
+
     /// Density at `x` in `[0, 1)`.
     pub fn pdf(&self, x: f64) -> f64 {
         let n = self.func.len();

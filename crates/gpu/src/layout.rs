@@ -117,7 +117,7 @@ impl GpuScene {
 }
 
 /// Material tags (`Material.tag.x` in WGSL; constants `MAT_*` of the
-/// generated prelude). The models on the GPU; see [`GpuMaterial::new`].
+/// generated prelude). The models on the GPU; see [`GpuMaterials::new`].
 pub mod tag {
     /// Lambertian.
     pub const DIFFUSE: u32 = 0;
@@ -135,8 +135,18 @@ pub mod tag {
     pub const DIELECTRIC: u32 = 6;
     /// Dielectric-coated diffuse.
     pub const PLASTIC: u32 = 7;
+    /// Bounded Ward over a Lambertian base.
+    pub const WARD: u32 = 8;
+    /// Cook-Torrance over a Fresnel-weighted Lambertian base.
+    pub const COOK_TORRANCE: u32 = 9;
+    /// The seed's Gaussian highlight over a Lambertian base.
+    pub const GAUSSIAN: u32 = 10;
+    /// Heidrich-Seidel fibres, isotropic Phong lobe, Lambertian base.
+    pub const HEIDRICH_SEIDEL: u32 = 11;
+    /// A weighted mixture of other GPU materials (flattened).
+    pub const MIX: u32 = 12;
     /// Every tag with its WGSL name, for the prelude.
-    pub const ALL: [(&str, u32); 8] = [
+    pub const ALL: [(&str, u32); 13] = [
         ("MAT_DIFFUSE", DIFFUSE),
         ("MAT_PHONG", PHONG),
         ("MAT_BLINN_PHONG", BLINN_PHONG),
@@ -145,6 +155,32 @@ pub mod tag {
         ("MAT_CONDUCTOR", CONDUCTOR),
         ("MAT_DIELECTRIC", DIELECTRIC),
         ("MAT_PLASTIC", PLASTIC),
+        ("MAT_WARD", WARD),
+        ("MAT_COOK_TORRANCE", COOK_TORRANCE),
+        ("MAT_GAUSSIAN", GAUSSIAN),
+        ("MAT_HEIDRICH_SEIDEL", HEIDRICH_SEIDEL),
+        ("MAT_MIX", MIX),
+    ];
+}
+
+/// Microfacet distributions of `cook_torrance` and `gaussian`
+/// (`Material.tag.w & 3`; prelude constants `DIST_*`); bit 2 of `tag.w`
+/// selects Smith masking over the V-groove term.
+pub mod distribution {
+    /// GGX.
+    pub const GGX: u32 = 0;
+    /// Beckmann.
+    pub const BECKMANN: u32 = 1;
+    /// The seed's Gaussian, tabulated (table in the material data).
+    pub const GAUSSIAN: u32 = 2;
+    /// The Smith masking bit.
+    pub const SMITH: u32 = 4;
+    /// Every constant with its WGSL name.
+    pub const ALL: [(&str, u32); 4] = [
+        ("DIST_GGX", GGX),
+        ("DIST_BECKMANN", BECKMANN),
+        ("DIST_GAUSSIAN", GAUSSIAN),
+        ("DIST_SMITH", SMITH),
     ];
 }
 
@@ -168,9 +204,14 @@ pub mod fresnel_kind {
     ];
 }
 
-/// A material of the GPU library. WGSL: `struct Material { tag: vec4<u32>,
-/// a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32> }`; the meaning
-/// of `a`..`d` per tag is in [`GpuMaterial::new`] and `materials.wgsl`.
+/// The most components a `mix` may have on the GPU, after nested mixes
+/// are flattened (the weights fill two `vec4`s).
+pub const MAX_MIX_COMPONENTS: usize = 8;
+
+/// A material of the GPU library. WGSL: `struct Material { tag:
+/// vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e:
+/// vec4<f32>, idx: vec4<u32> }`; the meaning of the blocks per tag is in
+/// [`GpuMaterials::new`] and `materials.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -182,8 +223,12 @@ pub struct GpuMaterial {
     pub b: [f32; 4],
     /// Third parameter block.
     pub c: [f32; 4],
-    /// Tangent hint (`xyz`).
+    /// Tangent hint (`xyz`), or parameters for models without a tangent.
     pub d: [f32; 4],
+    /// Fifth parameter block.
+    pub e: [f32; 4],
+    /// `[material data offset, first mix component, mix components, 0]`.
+    pub idx: [u32; 4],
 }
 
 fn rgb4(c: Rgb, w: f64) -> [f32; 4] {
@@ -222,20 +267,118 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
     }
 }
 
-impl GpuMaterial {
-    /// The GPU mirror of `m`, or `None` for a model not on the GPU yet
-    /// (`gaussian`, `cook_torrance`, `ward`, `heidrich_seidel`, `mix`,
-    /// `factored`, `merl`, `subsurface`, `subsurface_brdf`, `wave`).
+/// Whether `m` has a GPU implementation (a `mix` when all its components
+/// have, at most [`MAX_MIX_COMPONENTS`] once flattened).
+pub fn supported(m: &Material) -> bool {
+    match m {
+        Material::Mix(_) => flatten_mix(m, 1.0, 1.0)
+            .is_some_and(|c| c.len() <= MAX_MIX_COMPONENTS && c.iter().all(|(m, ..)| supported(m))),
+        _ => GpuMaterials::default().leaf(m).is_some(),
+    }
+}
+
+/// The leaves of a (nested) mix with their weight in `f` and their
+/// selection probability: `f = sum w_i f_i`, component `i` sampled with
+/// probability `p_i`, exactly as the CPU's nested choice.
+fn flatten_mix(m: &Material, w: f64, p: f64) -> Option<Vec<(Material, f64, f64)>> {
+    let Material::Mix(mix) = m else {
+        return Some(vec![(m.clone(), w, p)]);
+    };
+    let total: f64 = mix.components.iter().map(|c| c.1).sum();
+    if !(total > 0.0) {
+        return None;
+    }
+    let mut out = Vec::new();
+    for (c, cw) in &mix.components {
+        out.extend(flatten_mix(c, w * cw, p * cw / total)?);
+    }
+    Some(out)
+}
+
+/// The materials of a scene on the GPU: one [`GpuMaterial`] per scene
+/// material at the same index, then the components of mixtures, and the
+/// material data (sampling tables) they point into.
+#[derive(Clone, Debug, Default)]
+pub struct GpuMaterials {
+    /// Materials; the first ones mirror the scene's, index for index.
+    pub materials: Vec<GpuMaterial>,
+    /// Tables (`f32`), addressed by `GpuMaterial::idx[0]`.
+    pub data: Vec<f32>,
+}
+
+impl GpuMaterials {
+    /// The GPU mirror of `materials`, or the index of the first one not on
+    /// the GPU (`factored`, `merl`, `subsurface`, `subsurface_brdf`,
+    /// `wave`, or a mix of them).
     ///
-    /// | tag | a | b | c | d |
-    /// |---|---|---|---|---|
-    /// | diffuse | reflectance | | | |
-    /// | phong, blinn_phong | reflectance | specular | exponent, p(lobe) | |
-    /// | ggx, beckmann | alpha_x, alpha_y | Fresnel | Fresnel | tangent |
-    /// | conductor | | Fresnel | Fresnel | |
-    /// | dielectric | ior | | | |
-    /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | |
-    pub fn new(m: &Material) -> Option<Self> {
+    /// | tag | a | b | c | d | e |
+    /// |---|---|---|---|---|---|
+    /// | diffuse | reflectance | | | | |
+    /// | phong, blinn_phong | reflectance | specular | exponent, p(lobe) | | |
+    /// | ward | reflectance | specular | alpha_x, p(lobe), alpha_y | tangent | |
+    /// | ggx, beckmann | alpha_x, alpha_y | Fresnel | Fresnel | tangent | |
+    /// | cook_torrance | reflectance, p(specular) | Fresnel | Fresnel | alpha_x, alpha_y, m, norm | |
+    /// | gaussian | reflectance, p(specular) | specular | | alpha, alpha, m, norm | |
+    /// | heidrich_seidel | reflectance, exponent | specular, norm | isotropic | tangent | p(diffuse), p(fibre), p(isotropic), sigma |
+    /// | conductor | | Fresnel | Fresnel | | |
+    /// | dielectric | ior | | | | |
+    /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | | |
+    /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7 | |
+    ///
+    /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
+    /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
+    /// 1), pdf per bin (n)]` at `idx[0]` of `data`. A mix's components are
+    /// `idx[2]` materials from `idx[1]`.
+    pub fn new(materials: &[Material]) -> Result<Self, usize> {
+        let mut out = GpuMaterials {
+            materials: vec![GpuMaterial::default(); materials.len()],
+            data: Vec::new(),
+        };
+        for (i, m) in materials.iter().enumerate() {
+            if !supported(m) {
+                return Err(i);
+            }
+            out.materials[i] = match m {
+                Material::Mix(_) => out.mix(m).ok_or(i)?,
+                _ => out.leaf(m).ok_or(i)?,
+            };
+        }
+        Ok(out)
+    }
+
+    fn mix(&mut self, m: &Material) -> Option<GpuMaterial> {
+        let parts = flatten_mix(m, 1.0, 1.0)?;
+        let mut g = GpuMaterial::default();
+        g.tag[0] = tag::MIX;
+        let mut w = [0.0f32; 8];
+        let mut p = [0.0f32; 8];
+        let first = self.materials.len();
+        for (k, (c, cw, cp)) in parts.iter().enumerate() {
+            w[k] = *cw as f32;
+            p[k] = *cp as f32;
+            let leaf = self.leaf(c)?;
+            self.materials.push(leaf);
+        }
+        g.a.copy_from_slice(&w[..4]);
+        g.b.copy_from_slice(&w[4..]);
+        g.c.copy_from_slice(&p[..4]);
+        g.d.copy_from_slice(&p[4..]);
+        g.idx = [0, first as u32, parts.len() as u32, 0];
+        Some(g)
+    }
+
+    /// Appends a sampling table; returns its offset.
+    fn table(&mut self, t: &isolux_core::Distribution1D) -> u32 {
+        let at = self.data.len() as u32;
+        let n = t.len();
+        self.data.push(n as f32);
+        self.data.extend(t.cdf().iter().map(|&c| c as f32));
+        self.data.extend((0..n).map(|i| t.pdf_bin(i) as f32));
+        at
+    }
+
+    fn leaf(&mut self, m: &Material) -> Option<GpuMaterial> {
+        use isolux_materials::cook_torrance::{Masking, NormalDistribution};
         let mut g = GpuMaterial::default();
         let tangent = |g: &mut GpuMaterial, t: Option<glam::DVec3>| {
             if let Some(t) = t {
@@ -262,6 +405,15 @@ impl GpuMaterial {
                 let pl = p_lobe(p.0.reflectance, p.0.specular);
                 g.c = [p.0.lobe.exponent as f32, pl as f32, 0.0, 0.0];
             }
+            Material::Ward(w) => {
+                g.tag[0] = tag::WARD;
+                let i = &w.inner;
+                g.a = rgb4(i.reflectance, 0.0);
+                g.b = rgb4(i.specular, 0.0);
+                let pl = p_lobe(i.reflectance, i.specular);
+                g.c = [i.lobe.alpha_x as f32, pl as f32, i.lobe.alpha_y as f32, 0.0];
+                tangent(&mut g, w.tangent);
+            }
             Material::Ggx(x) => {
                 g.tag[0] = tag::GGX;
                 let d = &x.lobe.distribution;
@@ -275,6 +427,52 @@ impl GpuMaterial {
                 g.a = [d.alpha_x as f32, d.alpha_y as f32, 0.0, 0.0];
                 put_fresnel(&mut g, &x.lobe.fresnel);
                 tangent(&mut g, x.tangent);
+            }
+            Material::CookTorrance(_) | Material::Gaussian(_) => {
+                let (ct, specular) = match m {
+                    Material::CookTorrance(ct) => (ct, None),
+                    Material::Gaussian(ga) => (&ga.inner, Some(ga.specular)),
+                    _ => unreachable!(),
+                };
+                put_fresnel(&mut g, &ct.fresnel);
+                g.a = rgb4(ct.reflectance, ct.p_specular());
+                let mut flag = match (&ct.distribution, ct.masking) {
+                    (_, Masking::Smith) => distribution::SMITH,
+                    _ => 0,
+                };
+                match &ct.distribution {
+                    NormalDistribution::Analytic(d) => {
+                        flag |= match d.kind {
+                            isolux_materials::microfacet::Kind::Ggx => distribution::GGX,
+                            isolux_materials::microfacet::Kind::Beckmann => distribution::BECKMANN,
+                        };
+                        g.d = [d.alpha_x as f32, d.alpha_y as f32, 0.0, 0.0];
+                    }
+                    NormalDistribution::Gaussian(gd) => {
+                        // Smith is defined for Beckmann and GGX only: the
+                        // CPU falls back to the V-groove term.
+                        flag = distribution::GAUSSIAN;
+                        g.d = [1.0, 1.0, gd.m as f32, gd.normalization() as f32];
+                        g.idx[0] = self.table(gd.table());
+                    }
+                }
+                g.tag[3] = flag;
+                match specular {
+                    None => g.tag[0] = tag::COOK_TORRANCE,
+                    Some(s) => {
+                        g.tag[0] = tag::GAUSSIAN;
+                        g.b = rgb4(s, 0.0);
+                    }
+                }
+            }
+            Material::HeidrichSeidel(h) => {
+                g.tag[0] = tag::HEIDRICH_SEIDEL;
+                g.a = rgb4(h.reflectance, h.exponent);
+                g.b = rgb4(h.specular, h.normalization());
+                g.c = rgb4(h.isotropic, 0.0);
+                let [pd, ps, pi] = h.weights();
+                g.e = [pd as f32, ps as f32, pi as f32, h.sigma() as f32];
+                tangent(&mut g, h.tangent);
             }
             Material::Conductor(c) => {
                 g.tag[0] = tag::CONDUCTOR;
@@ -365,6 +563,47 @@ pub struct GpuAnswer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use isolux_materials::{Diffuse, Mix};
+
+    fn grey(r: f64) -> Material {
+        Material::Diffuse(Diffuse {
+            reflectance: Rgb::splat(r),
+        })
+    }
+
+    fn mix(parts: Vec<(Material, f64)>) -> Material {
+        Material::Mix(Mix { components: parts })
+    }
+
+    #[test]
+    fn nested_mixes_flatten_to_the_cpus_weights_and_choice() {
+        // (a 2, (b 1, c 3) 2): f weights 2, 2 * 1, 2 * 3; selection
+        // probabilities 2/4, 2/4 * 1/4, 2/4 * 3/4.
+        let m = mix(vec![
+            (grey(0.1), 2.0),
+            (mix(vec![(grey(0.2), 1.0), (grey(0.3), 3.0)]), 2.0),
+        ]);
+        let g = GpuMaterials::new(&[grey(0.9), m]).unwrap();
+        assert_eq!(g.materials.len(), 5);
+        let top = g.materials[1];
+        assert_eq!(top.tag[0], tag::MIX);
+        assert_eq!(top.idx[1..3], [2, 3]);
+        assert_eq!(top.a, [2.0, 2.0, 6.0, 0.0]);
+        assert_eq!(top.c, [0.5, 0.125, 0.375, 0.0]);
+        let leaf_r: Vec<f32> = g.materials[2..].iter().map(|m| m.a[0]).collect();
+        assert_eq!(leaf_r, [0.1, 0.2, 0.3]);
+    }
+
+    #[test]
+    fn unsupported_materials_and_oversized_mixes_are_refused() {
+        let nine = mix((0..9).map(|i| (grey(0.1 * i as f64), 1.0)).collect());
+        let eight = mix((0..8).map(|i| (grey(0.1 * i as f64), 1.0)).collect());
+        assert!(supported(&eight));
+        assert!(!supported(&nine));
+        assert_eq!(GpuMaterials::new(&[grey(0.5), nine]).unwrap_err(), 1);
+        let zero = mix(vec![(grey(0.5), 0.0)]);
+        assert!(!supported(&zero));
+    }
 
     #[test]
     fn sizes_match_the_wgsl_declarations() {
@@ -375,7 +614,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuObject>(), 96);
         assert_eq!(std::mem::size_of::<GpuRay>(), 32);
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
-        assert_eq!(std::mem::size_of::<GpuMaterial>(), 80);
+        assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
         assert_eq!(std::mem::size_of::<GpuLight>(), 32);
         assert_eq!(std::mem::size_of::<GpuParams>(), 144);
         assert_eq!(std::mem::size_of::<GpuQuery>(), 64);

@@ -11,7 +11,7 @@
 //! - `geometry.wgsl`: the exact first hit of perturbation-function objects
 //!   (SPEC §1) in f32 with a per-segment reparameterization;
 //! - `materials.wgsl`: the material library's `f`, `pdf` and `sample`
-//!   (the models [`layout::GpuMaterial::new`] accepts);
+//!   (the models [`layout::GpuMaterials::new`] accepts);
 //! - `intersect.wgsl`, `material_eval.wgsl`: conformance entry points
 //!   ([`Gpu::intersect`], [`Gpu::eval_materials`]) compared with the CPU
 //!   in `tests/`;
@@ -24,7 +24,7 @@ mod render;
 
 pub use render::{replace_unsupported, unsupported_material, GpuFrame};
 
-use layout::{GpuAnswer, GpuHit, GpuMaterial, GpuQuery, GpuRay, GpuScene};
+use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuQuery, GpuRay, GpuScene};
 use std::sync::OnceLock;
 use wgpu::util::DeviceExt;
 
@@ -64,7 +64,11 @@ pub fn prelude() -> String {
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n"
     );
-    for (name, v) in layout::tag::ALL.iter().chain(&layout::fresnel_kind::ALL) {
+    for (name, v) in layout::tag::ALL
+        .iter()
+        .chain(&layout::fresnel_kind::ALL)
+        .chain(&layout::distribution::ALL)
+    {
         s += &format!("const {name}: u32 = {v}u;\n");
     }
     for (name, f) in [
@@ -315,14 +319,15 @@ impl Gpu {
     /// frame), on the GPU: the material conformance kernel.
     pub fn eval_materials(
         &self,
-        materials: &[GpuMaterial],
+        materials: &GpuMaterials,
         queries: &[GpuQuery],
     ) -> Result<Vec<GpuAnswer>, GpuError> {
         if queries.is_empty() {
             return Ok(Vec::new());
         }
         let pipeline = self.pipeline(&self.material_eval, "material_eval", material_eval_source);
-        let mats = self.storage("materials", bytemuck::cast_slice(materials));
+        let mats = self.storage("materials", bytemuck::cast_slice(&materials.materials));
+        let data = self.storage("material data", bytemuck::cast_slice(&materials.data));
         let qs = self.storage("queries", bytemuck::cast_slice(queries));
         let out = self.output(
             "answers",
@@ -331,7 +336,12 @@ impl Gpu {
         let counts = [queries.len() as u32, 0, 0, 0];
         let uniform = self.uniform("counts", &counts);
         let groups = (queries.len() as u32).div_ceil(WORKGROUP_SIZE);
-        self.run_and_read(pipeline, &[&mats, &qs, &out, &uniform], (groups, 1), &out)
+        self.run_and_read(
+            pipeline,
+            &[&mats, &qs, &out, &uniform, &data],
+            (groups, 1),
+            &out,
+        )
     }
 
     /// First hits of `rays` against the objects of `scene` (nearest over

@@ -3,7 +3,7 @@
 //! ([`GpuFrame::run`], progressive), and reads the image back
 //! ([`GpuFrame::image`]). [`Gpu::render`] does all three for a whole film.
 
-use crate::layout::{GpuLight, GpuMaterial, GpuParams, GpuScene};
+use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
 use crate::{Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
 use isolux_core::{Image, Rgb, PI};
 use isolux_render::{Environment, RenderStats, Scene};
@@ -15,7 +15,7 @@ const TILE: u32 = 8;
 /// implementation: `(name, type)`.
 pub fn unsupported_material(scene: &Scene) -> Option<(String, String)> {
     scene.object_material.iter().find_map(|&m| {
-        GpuMaterial::new(&scene.materials[m]).is_none().then(|| {
+        (!layout::supported(&scene.materials[m])).then(|| {
             (
                 scene.material_names.get(m).cloned().unwrap_or_default(),
                 scene.materials[m].type_name().to_string(),
@@ -30,7 +30,7 @@ pub fn unsupported_material(scene: &Scene) -> Option<(String, String)> {
 pub fn replace_unsupported(scene: &mut Scene) -> Vec<String> {
     let mut replaced = Vec::new();
     for (i, m) in scene.materials.iter_mut().enumerate() {
-        if GpuMaterial::new(m).is_none() {
+        if !layout::supported(m) {
             replaced.push(scene.material_names.get(i).cloned().unwrap_or_default());
             *m = isolux_materials::Material::Diffuse(isolux_materials::Diffuse {
                 reflectance: Rgb::splat(0.5),
@@ -122,11 +122,20 @@ impl Gpu {
             .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
 
-        let materials: Vec<GpuMaterial> = scene
-            .materials
-            .iter()
-            .map(|m| GpuMaterial::new(m).unwrap_or_default())
+        // Unused materials may be unsupported (checked above for the used
+        // ones): those become a black diffuse no object refers to.
+        let used: Vec<_> = (0..scene.materials.len())
+            .map(|i| {
+                if layout::supported(&scene.materials[i]) {
+                    scene.materials[i].clone()
+                } else {
+                    isolux_materials::Material::Diffuse(isolux_materials::Diffuse {
+                        reflectance: Rgb::BLACK,
+                    })
+                }
+            })
             .collect();
+        let materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
         let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
         let lights: Vec<GpuLight> = scene
             .lights
@@ -177,7 +186,8 @@ impl Gpu {
 
         let objects = self.storage("objects", bytemuck::cast_slice(&geo.objects));
         let perts = self.storage("perturbations", bytemuck::cast_slice(&geo.perturbations));
-        let mats = self.storage("materials", bytemuck::cast_slice(&materials));
+        let mats = self.storage("materials", bytemuck::cast_slice(&materials.materials));
+        let data = self.storage("material data", bytemuck::cast_slice(&materials.data));
         let lights = self.storage("lights", bytemuck::cast_slice(&lights));
         let texels = self.storage("env texels", bytemuck::cast_slice(&texels));
         let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf));
@@ -196,6 +206,7 @@ impl Gpu {
                 &cdf,
                 &accum,
                 &params_buf,
+                &data,
             ],
         );
         Ok(GpuFrame {

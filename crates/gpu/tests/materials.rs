@@ -20,10 +20,13 @@ mod common;
 
 use glam::DVec3;
 use isolux_core::{sampling, Pcg32, Rgb};
-use isolux_gpu::layout::{GpuMaterial, GpuQuery};
+use isolux_gpu::layout::{GpuMaterials, GpuQuery};
+use isolux_materials::cook_torrance::{Masking, NormalDistribution};
+use isolux_materials::gaussian::GaussianDistribution;
+use isolux_materials::microfacet::{Kind, Microfacet};
 use isolux_materials::{
-    Beckmann, BlinnPhong, BxdfModel, Conductor, Dielectric, Diffuse, Fresnel, Ggx, Material, Phong,
-    Plastic,
+    Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
+    Gaussian, Ggx, HeidrichSeidel, Material, Mix, Phong, Plastic, Ward,
 };
 
 fn library() -> Vec<(&'static str, Material)> {
@@ -86,6 +89,115 @@ fn library() -> Vec<(&'static str, Material)> {
             "plastic rough 0.2",
             Material::Plastic(Plastic::new(1.5, Rgb::new(0.1, 0.5, 0.7), Some(0.2))),
         ),
+        (
+            "ward 0.2",
+            Material::Ward(Ward::new(
+                0.2,
+                0.2,
+                Rgb::splat(0.4),
+                Rgb::new(0.5, 0.3, 0.1),
+            )),
+        ),
+        (
+            "ward aniso 0.05 x 0.4",
+            Material::Ward(Ward::new(0.05, 0.4, Rgb::WHITE, Rgb::BLACK)),
+        ),
+        (
+            "cook_torrance beckmann v-groove glass",
+            Material::CookTorrance(CookTorrance {
+                distribution: NormalDistribution::Analytic(Microfacet::isotropic(
+                    Kind::Beckmann,
+                    0.3,
+                )),
+                masking: Masking::VGroove,
+                fresnel: Fresnel::Dielectric { ior: 1.5 },
+                reflectance: Rgb::new(0.3, 0.5, 0.2),
+            }),
+        ),
+        (
+            "cook_torrance ggx smith gold",
+            Material::CookTorrance(CookTorrance {
+                distribution: NormalDistribution::Analytic(Microfacet::isotropic(Kind::Ggx, 0.25)),
+                masking: Masking::Smith,
+                fresnel: gold,
+                reflectance: Rgb::splat(0.1),
+            }),
+        ),
+        (
+            "cook_torrance gaussian 0.4",
+            Material::CookTorrance(CookTorrance {
+                distribution: NormalDistribution::Gaussian(GaussianDistribution::new(0.4)),
+                masking: Masking::VGroove,
+                fresnel: schlick,
+                reflectance: Rgb::splat(0.2),
+            }),
+        ),
+        (
+            "gaussian 0.2",
+            Material::Gaussian(Gaussian::new(0.2, Rgb::splat(0.5), Rgb::new(0.3, 0.4, 0.5))),
+        ),
+        (
+            "heidrich_seidel 40",
+            Material::HeidrichSeidel(HeidrichSeidel::new(
+                40.0,
+                Rgb::splat(0.5),
+                Rgb::splat(0.2),
+                Rgb::splat(0.3),
+            )),
+        ),
+        (
+            "heidrich_seidel 5",
+            Material::HeidrichSeidel(HeidrichSeidel::new(5.0, Rgb::WHITE, Rgb::BLACK, Rgb::BLACK)),
+        ),
+        (
+            "mix diffuse + ggx",
+            Material::Mix(Mix {
+                components: vec![
+                    (
+                        Material::Diffuse(Diffuse {
+                            reflectance: Rgb::splat(0.8),
+                        }),
+                        0.6,
+                    ),
+                    (Material::Ggx(Ggx::new(0.08, 0.3, Fresnel::One)), 0.4),
+                ],
+            }),
+        ),
+        (
+            "mix nested, unnormalized",
+            Material::Mix(Mix {
+                components: vec![
+                    (
+                        Material::Mix(Mix {
+                            components: vec![
+                                (
+                                    Material::Phong(Phong::new(
+                                        20.0,
+                                        Rgb::splat(0.3),
+                                        Rgb::splat(0.2),
+                                    )),
+                                    2.0,
+                                ),
+                                (
+                                    Material::Ward(Ward::new(
+                                        0.1,
+                                        0.3,
+                                        Rgb::splat(0.5),
+                                        Rgb::BLACK,
+                                    )),
+                                    1.0,
+                                ),
+                            ],
+                        }),
+                        0.5,
+                    ),
+                    (
+                        Material::Gaussian(Gaussian::new(0.3, Rgb::splat(0.4), Rgb::splat(0.2))),
+                        0.3,
+                    ),
+                ],
+            }),
+        ),
     ]
 }
 
@@ -109,10 +221,8 @@ fn every_gpu_material_matches_the_cpu() {
         return;
     };
     let lib = library();
-    let gmats: Vec<GpuMaterial> = lib
-        .iter()
-        .map(|(name, m)| GpuMaterial::new(m).unwrap_or_else(|| panic!("{name} not on the GPU")))
-        .collect();
+    let mats: Vec<Material> = lib.iter().map(|(_, m)| m.clone()).collect();
+    let gmats = GpuMaterials::new(&mats).unwrap_or_else(|i| panic!("{} not on the GPU", lib[i].0));
     let n = 4000;
     let mut rng = Pcg32::new(2026, 11);
     let mut queries = Vec::new();

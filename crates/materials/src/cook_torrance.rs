@@ -134,7 +134,8 @@ impl CookTorrance {
         }
     }
 
-    fn p_specular(&self) -> f64 {
+    /// The probability of sampling the specular lobe.
+    pub fn p_specular(&self) -> f64 {
         let s = self.fresnel.eval(1.0).luminance().max(0.05);
         let d = self.reflectance.luminance();
         if d <= 0.0 {

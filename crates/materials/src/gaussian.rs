@@ -90,6 +90,16 @@ impl GaussianDistribution {
         }
     }
 
+    /// The normalization `1 / (2 pi int exp(-(t/m)^2) cos t sin t dt)`.
+    pub fn normalization(&self) -> f64 {
+        self.norm
+    }
+
+    /// The sampling table over `theta / (pi / 2)`.
+    pub fn table(&self) -> &Distribution1D {
+        &self.table
+    }
+
     /// `D(h)`.
     pub fn d(&self, h: DVec3) -> f64 {
         if h.z <= 0.0 {

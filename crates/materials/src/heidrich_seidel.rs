@@ -126,7 +126,8 @@ impl HeidrichSeidel {
         self.norm
     }
 
-    fn weights(&self) -> [f64; 3] {
+    /// Selection probabilities of the diffuse, fibre and isotropic lobes.
+    pub fn weights(&self) -> [f64; 3] {
         let w = [
             self.reflectance.luminance(),
             self.specular.luminance(),
@@ -140,7 +141,8 @@ impl HeidrichSeidel {
         }
     }
 
-    fn sigma(&self) -> f64 {
+    /// Width of the fibre sampler's Gaussian in angle.
+    pub fn sigma(&self) -> f64 {
         1.0 / self.exponent.max(1e-3).sqrt()
     }
 

@@ -41,6 +41,7 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 @group(0) @binding(5) var<storage, read> env_cdf: array<f32>;          // marginal, then rows
 @group(0) @binding(6) var<storage, read_write> accum: array<vec4<f32>>;
 @group(0) @binding(7) var<uniform> params: Params;
+@group(0) @binding(8) var<storage, read> material_data: array<f32>;
 
 var<private> rng_state: u32;
 
