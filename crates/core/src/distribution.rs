@@ -128,6 +128,16 @@ impl Distribution2D {
         }
     }
 
+    /// The marginal density over rows (`v`).
+    pub fn marginal(&self) -> &Distribution1D {
+        &self.marginal
+    }
+
+    /// The conditional density over `u` in each row.
+    pub fn conditionals(&self) -> &[Distribution1D] {
+        &self.conditional
+    }
+
     /// Samples `(u, v)` and returns it with its density.
     pub fn sample(&self, u: [f64; 2]) -> ([f64; 2], f64) {
         let (v, pdf_v, iv) = self.marginal.sample(u[1]);

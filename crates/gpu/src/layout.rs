@@ -145,8 +145,10 @@ pub mod tag {
     pub const HEIDRICH_SEIDEL: u32 = 11;
     /// A weighted mixture of other GPU materials (flattened).
     pub const MIX: u32 = 12;
+    /// A factored BRDF `scale p(wo) q(h) p(wi)` from its texel maps.
+    pub const FACTORED: u32 = 13;
     /// Every tag with its WGSL name, for the prelude.
-    pub const ALL: [(&str, u32); 13] = [
+    pub const ALL: [(&str, u32); 14] = [
         ("MAT_DIFFUSE", DIFFUSE),
         ("MAT_PHONG", PHONG),
         ("MAT_BLINN_PHONG", BLINN_PHONG),
@@ -160,6 +162,7 @@ pub mod tag {
         ("MAT_GAUSSIAN", GAUSSIAN),
         ("MAT_HEIDRICH_SEIDEL", HEIDRICH_SEIDEL),
         ("MAT_MIX", MIX),
+        ("MAT_FACTORED", FACTORED),
     ];
 }
 
@@ -308,8 +311,8 @@ pub struct GpuMaterials {
 
 impl GpuMaterials {
     /// The GPU mirror of `materials`, or the index of the first one not on
-    /// the GPU (`factored`, `merl`, `subsurface`, `subsurface_brdf`,
-    /// `wave`, or a mix of them).
+    /// the GPU (`merl`, `subsurface`, `subsurface_brdf`, `wave`, or a mix
+    /// of them).
     ///
     /// | tag | a | b | c | d | e |
     /// |---|---|---|---|---|---|
@@ -324,11 +327,16 @@ impl GpuMaterials {
     /// | dielectric | ior | | | | |
     /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | | |
     /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7 | |
+    /// | factored | scale | | | | |
     ///
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
     /// 1), pdf per bin (n)]` at `idx[0]` of `data`. A mix's components are
-    /// `idx[2]` materials from `idx[1]`.
+    /// `idx[2]` materials from `idx[1]`. A `factored` material's data at
+    /// `idx[0]`: `res`, then `ln p` and `ln q` per texel (3 floats each,
+    /// row-major, stand-ins substituted), then the half-vector density's
+    /// marginal table and its `res` conditional tables (each `[n, cdf,
+    /// pdf]`, `2 res + 2` floats).
     pub fn new(materials: &[Material]) -> Result<Self, usize> {
         let mut out = GpuMaterials {
             materials: vec![GpuMaterial::default(); materials.len()],
@@ -473,6 +481,21 @@ impl GpuMaterials {
                 let [pd, ps, pi] = h.weights();
                 g.e = [pd as f32, ps as f32, pi as f32, h.sigma() as f32];
                 tangent(&mut g, h.tangent);
+            }
+            Material::Factored(f) => {
+                g.tag[0] = tag::FACTORED;
+                g.a = rgb4(f.scale(), 0.0);
+                g.idx[0] = self.data.len() as u32;
+                self.data.push(f.res() as f32);
+                for map in [f.log_p_texels(), f.log_q_texels()] {
+                    self.data
+                        .extend(map.iter().flat_map(|t| t.map(|v| v as f32)));
+                }
+                let h = f.h_distribution();
+                self.table(h.marginal());
+                for c in h.conditionals() {
+                    self.table(c);
+                }
             }
             Material::Conductor(c) => {
                 g.tag[0] = tag::CONDUCTOR;

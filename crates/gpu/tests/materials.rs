@@ -25,9 +25,26 @@ use isolux_materials::cook_torrance::{Masking, NormalDistribution};
 use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::microfacet::{Kind, Microfacet};
 use isolux_materials::{
-    Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Fresnel,
-    Gaussian, Ggx, HeidrichSeidel, Material, Mix, Phong, Plastic, Ward,
+    Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Factored,
+    Fresnel, Gaussian, Ggx, HeidrichSeidel, Material, Mix, Phong, Plastic, Ward,
 };
+
+/// A factored material from synthetic maps: `p` a smooth colour ramp,
+/// `q` a peak at the map's centre (a highlight) over a floor.
+fn factored(res: usize, width: f64) -> Material {
+    let mut p = Vec::new();
+    let mut q = Vec::new();
+    for r in 0..res {
+        for c in 0..res {
+            let x = (c as f64 + 0.5) / res as f64 * 2.0 - 1.0;
+            let y = 1.0 - (r as f64 + 0.5) / res as f64 * 2.0;
+            p.push(Rgb::new(0.6 + 0.3 * x, 0.5 + 0.2 * y, 0.7 - 0.2 * x * y));
+            let peak = (-(x * x + y * y) / (width * width)).exp();
+            q.push(Rgb::new(0.05 + peak, 0.04 + 0.8 * peak, 0.03 + 0.5 * peak));
+        }
+    }
+    Material::Factored(Factored::new(res, &p, &q, Rgb::new(0.9, 1.0, 1.1)).unwrap())
+}
 
 fn library() -> Vec<(&'static str, Material)> {
     let gold = Fresnel::Conductor {
@@ -149,6 +166,8 @@ fn library() -> Vec<(&'static str, Material)> {
             "heidrich_seidel 5",
             Material::HeidrichSeidel(HeidrichSeidel::new(5.0, Rgb::WHITE, Rgb::BLACK, Rgb::BLACK)),
         ),
+        ("factored 16, wide", factored(16, 0.6)),
+        ("factored 32, narrow", factored(32, 0.15)),
         (
             "mix diffuse + ggx",
             Material::Mix(Mix {

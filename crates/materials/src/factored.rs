@@ -140,6 +140,22 @@ impl Factored {
         self.grid.res()
     }
 
+    /// `ln p` per texel, row-major, stand-ins substituted (so a texel
+    /// outside the disk holds its stand-in's value).
+    pub fn log_p_texels(&self) -> &[[f64; 3]] {
+        &self.log_p
+    }
+
+    /// `ln q` per texel, as [`Factored::log_p_texels`].
+    pub fn log_q_texels(&self) -> &[[f64; 3]] {
+        &self.log_q
+    }
+
+    /// The half-vector sampling density over the map's `[0, 1)^2`.
+    pub fn h_distribution(&self) -> &Distribution2D {
+        &self.h_dist
+    }
+
     /// The per-channel scale.
     pub fn scale(&self) -> Rgb {
         self.scale

@@ -529,6 +529,11 @@ fn table_pdf(at: u32, x: f32) -> f32 {
 }
 
 fn table_sample(at: u32, u: f32) -> f32 {
+    return table_sample_bin(at, u).x;
+}
+
+// (x, bin) of table_sample.
+fn table_sample_bin(at: u32, u: f32) -> vec2<f32> {
     let n = u32(material_data[at]);
     // Largest i in [0, n) with cdf[i] <= u (skips zero-width bins).
     var lo = 0u;
@@ -544,7 +549,7 @@ fn table_sample(at: u32, u: f32) -> f32 {
     let c0 = material_data[at + 1u + lo];
     let width = material_data[at + 2u + lo] - c0;
     let du = select(0.5, (u - c0) / width, width > 0.0);
-    return min((f32(lo) + clamp(du, 0.0, 1.0)) / f32(n), 0.99999994);
+    return vec2<f32>(min((f32(lo) + clamp(du, 0.0, 1.0)) / f32(n), 0.99999994), f32(lo));
 }
 
 fn ct_kind(m: Material) -> u32 {
@@ -720,6 +725,110 @@ fn hs_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return m.e.x * cosine_pdf(wi.z) + m.e.y * hs_fibre_pdf(m, wo, wi) + m.e.z * phong_lobe_pdf(m.a.w, wo, wi);
 }
 
+
+// ---- Factored BRDFs: scale p(wo) q(h) p(wi) from parabolic maps ------------
+
+fn parabolic(v: vec3<f32>) -> vec2<f32> {
+    return v.xy / (1.0 + max(v.z, 0.0));
+}
+
+fn from_parabolic(p: vec2<f32>) -> vec3<f32> {
+    let r2 = dot(p, p);
+    return vec3<f32>(2.0 * p.x, 2.0 * p.y, 1.0 - r2) / (1.0 + r2);
+}
+
+fn parabolic_jacobian(p: vec2<f32>) -> f32 {
+    let r2 = 1.0 + dot(p, p);
+    return 4.0 / (r2 * r2);
+}
+
+// Bilinear lookup of a log map (map 0: p, 1: q) at direction v
+// (ParabolicGrid::taps; texels outside the disk already hold their
+// stand-in's value).
+fn factored_log(at: u32, map: u32, v: vec3<f32>) -> vec3<f32> {
+    let res = u32(material_data[at]);
+    let base = at + 1u + map * res * res * 3u;
+    let p = parabolic(v);
+    let h = f32(res) * 0.5;
+    let mx = f32(res - 1u);
+    let fc = clamp((p.x + 1.0) * h - 0.5, 0.0, mx);
+    let fr = clamp((1.0 - p.y) * h - 0.5, 0.0, mx);
+    let c0 = min(u32(floor(fc)), res - 2u);
+    let r0 = min(u32(floor(fr)), res - 2u);
+    let tx = fc - f32(c0);
+    let ty = fr - f32(r0);
+    let i = r0 * res + c0;
+    var s = vec3<f32>(0.0);
+    let idx = array<u32, 4>(i, i + 1u, i + res, i + res + 1u);
+    let w = array<f32, 4>((1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty);
+    for (var k = 0u; k < 4u; k++) {
+        let t = base + idx[k] * 3u;
+        s += w[k] * vec3<f32>(material_data[t], material_data[t + 1u], material_data[t + 2u]);
+    }
+    return s;
+}
+
+// Offset of the half-vector density's marginal table.
+fn factored_h_table(at: u32) -> u32 {
+    let res = u32(material_data[at]);
+    return at + 1u + 6u * res * res;
+}
+
+fn factored_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let at = m.idx.x;
+    let h = normalize(wo + wi);
+    let a = factored_log(at, 0u, wo);
+    let b = factored_log(at, 1u, h);
+    let c = factored_log(at, 0u, wi);
+    // (a + c) + b: exactly reciprocal, as on the CPU.
+    return m.a.rgb * exp((a + c) + b);
+}
+
+fn factored_pdf_h(m: Material, h: vec3<f32>) -> f32 {
+    if (h.z <= 0.0) {
+        return 0.0;
+    }
+    let at = m.idx.x;
+    let res = u32(material_data[at]);
+    let p = parabolic(h);
+    let uv = clamp(vec2<f32>((p.x + 1.0) * 0.5, (1.0 - p.y) * 0.5), vec2<f32>(0.0), vec2<f32>(0.99999994));
+    let marginal = factored_h_table(at);
+    let stride = 2u * res + 2u;
+    let iv = min(u32(uv.y * f32(res)), res - 1u);
+    let row = marginal + stride * (1u + iv);
+    return table_pdf(marginal, uv.y) * table_pdf(row, uv.x) / 4.0 / parabolic_jacobian(p);
+}
+
+fn factored_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return 0.0;
+    }
+    let h = normalize(wo + wi);
+    return 0.5 * cosine_pdf(wi.z) + 0.5 * factored_pdf_h(m, h) / (4.0 * abs(dot(wo, h)));
+}
+
+// The half-vector strategy's direction, or zero when none.
+fn factored_sample_h(m: Material, wo: vec3<f32>, u: vec2<f32>) -> vec3<f32> {
+    let at = m.idx.x;
+    let res = u32(material_data[at]);
+    let marginal = factored_h_table(at);
+    let v = table_sample_bin(marginal, u.y);
+    let row = marginal + (2u * res + 2u) * (1u + u32(v.y));
+    let x = table_sample(row, u.x);
+    let p = vec2<f32>(x * 2.0 - 1.0, 1.0 - v.x * 2.0);
+    if (dot(p, p) > 1.0) {
+        return vec3<f32>(0.0);
+    }
+    let h = from_parabolic(p);
+    if (dot(wo, h) <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    return reflect_about(wo, h);
+}
+
 // ---- Plastic --------------------------------------------------------------
 
 fn plastic_diffuse(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
@@ -748,7 +857,7 @@ fn base_flags(m: Material) -> u32 {
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD, MAT_COOK_TORRANCE, MAT_GAUSSIAN, MAT_HEIDRICH_SEIDEL: {
             return FLAG_REFLECTION | FLAG_DIFFUSE | FLAG_GLOSSY;
         }
-        case MAT_GGX, MAT_BECKMANN: {
+        case MAT_GGX, MAT_BECKMANN, MAT_FACTORED: {
             return FLAG_REFLECTION | FLAG_GLOSSY;
         }
         case MAT_CONDUCTOR: {
@@ -786,6 +895,9 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
         }
         case MAT_HEIDRICH_SEIDEL: {
             return hs_f(m, wo, wi);
+        }
+        case MAT_FACTORED: {
+            return factored_f(m, wo, wi);
         }
         case MAT_GGX, MAT_BECKMANN: {
             return mfr_f(is_beckmann(m), m.a.x, m.a.y, m.tag.y, m.b, m.c, wo, wi);
@@ -826,6 +938,9 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
         }
         case MAT_HEIDRICH_SEIDEL: {
             return hs_pdf(m, wo, wi);
+        }
+        case MAT_FACTORED: {
+            return factored_pdf(m, wo, wi);
         }
         case MAT_GGX, MAT_BECKMANN: {
             return mfr_pdf(is_beckmann(m), m.a.x, m.a.y, wo, wi);
@@ -899,6 +1014,15 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
                 return reflected(m, wo, reflect_about(wo, h), FLAG_GLOSSY);
             }
             return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+        }
+        case MAT_FACTORED: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            if (uc < 0.5) {
+                return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
+            }
+            return reflected(m, wo, factored_sample_h(m, wo, u), FLAG_GLOSSY);
         }
         case MAT_HEIDRICH_SEIDEL: {
             if (wo.z <= 0.0) {
