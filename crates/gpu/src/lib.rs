@@ -62,7 +62,9 @@ pub fn prelude() -> String {
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
-         const ENV_MAP: u32 = {ENV_MAP}u;\n"
+         const ENV_MAP: u32 = {ENV_MAP}u;\n\
+         const LOD_BIAS: f32 = {:?};\n",
+        isolux_render::realtime::LOD_BIAS as f32
     );
     for (name, v) in layout::tag::ALL
         .iter()
@@ -99,6 +101,7 @@ pub fn render_source() -> String {
         + include_str!("shaders/geometry.wgsl")
         + include_str!("shaders/materials.wgsl")
         + include_str!("shaders/render.wgsl")
+        + include_str!("shaders/realtime.wgsl")
 }
 
 /// Errors of the GPU back end.
@@ -133,6 +136,9 @@ pub struct Gpu {
     intersect: OnceLock<wgpu::ComputePipeline>,
     material_eval: OnceLock<wgpu::ComputePipeline>,
     render: OnceLock<wgpu::ComputePipeline>,
+    realtime: OnceLock<wgpu::ComputePipeline>,
+    render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
+    render_module: OnceLock<wgpu::ShaderModule>,
     /// Adapter name and back end, for reports.
     pub adapter: String,
 }
@@ -168,6 +174,9 @@ impl Gpu {
             intersect: OnceLock::new(),
             material_eval: OnceLock::new(),
             render: OnceLock::new(),
+            realtime: OnceLock::new(),
+            render_layout: OnceLock::new(),
+            render_module: OnceLock::new(),
             adapter: format!("{} ({:?})", info.name, info.backend),
         })
     }
@@ -199,6 +208,103 @@ impl Gpu {
 
     /// A storage buffer holding `bytes` (padded: storage buffers may not
     /// be empty).
+    /// The bind group layout shared by `render.wgsl`'s entry points (the
+    /// path tracer and the real-time mode): explicit, so that both bind
+    /// the same buffers whichever of them each entry point reads.
+    fn render_layout(&self) -> &(wgpu::BindGroupLayout, wgpu::PipelineLayout) {
+        self.render_layout.get_or_init(|| {
+            use wgpu::BufferBindingType as B;
+            // objects, perturbations, materials, lights, env texels,
+            // env cdf, accum (rw), params (uniform), material data,
+            // env levels.
+            let kinds = [
+                B::Storage { read_only: true },
+                B::Storage { read_only: true },
+                B::Storage { read_only: true },
+                B::Storage { read_only: true },
+                B::Storage { read_only: true },
+                B::Storage { read_only: true },
+                B::Storage { read_only: false },
+                B::Uniform,
+                B::Storage { read_only: true },
+                B::Storage { read_only: true },
+            ];
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
+                .iter()
+                .enumerate()
+                .map(|(i, &ty)| wgpu::BindGroupLayoutEntry {
+                    binding: i as u32,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                })
+                .collect();
+            let bgl = self
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("render bindings"),
+                    entries: &entries,
+                });
+            let pl = self
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("render"),
+                    bind_group_layouts: &[&bgl],
+                    push_constant_ranges: &[],
+                });
+            (bgl, pl)
+        })
+    }
+
+    /// The path tracer (`realtime` false, entry `main`) or the real-time
+    /// mode (entry `realtime`) of `render.wgsl`.
+    fn render_pipeline(&self, realtime: bool) -> &wgpu::ComputePipeline {
+        let cell = if realtime {
+            &self.realtime
+        } else {
+            &self.render
+        };
+        cell.get_or_init(|| {
+            let module = self.render_module.get_or_init(|| {
+                self.device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some("render"),
+                        source: wgpu::ShaderSource::Wgsl(render_source().into()),
+                    })
+            });
+            let entry = if realtime { "realtime" } else { "main" };
+            self.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(&self.render_layout().1),
+                    module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+        })
+    }
+
+    fn render_bind_group(&self, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("render"),
+            layout: &self.render_layout().0,
+            entries: &entries,
+        })
+    }
+
     fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
         let zero = [0u8; 256];
         self.device
@@ -297,8 +403,7 @@ impl Gpu {
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        d.poll(wgpu::PollType::Wait)
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        self.wait()?;
         rx.recv()
             .map_err(|e| GpuError::Readback(e.to_string()))?
             .map_err(|e| GpuError::Readback(e.to_string()))?;
@@ -309,10 +414,18 @@ impl Gpu {
 
     /// Waits until the queue is idle.
     pub fn wait(&self) -> Result<(), GpuError> {
-        self.device
-            .poll(wgpu::PollType::Wait)
-            .map(|_| ())
-            .map_err(|e| GpuError::Readback(e.to_string()))
+        // wgpu gives up a wait after 60 s (`CLEANUP_WAIT_MS`), but the
+        // work goes on: a long pass on a CPU driver (lavapipe on a busy
+        // machine) is not an error, so wait again, up to half an hour.
+        for _ in 0..30 {
+            match self.device.poll(wgpu::PollType::Wait) {
+                Ok(_) => return Ok(()),
+                Err(wgpu::PollError::Timeout) => continue,
+            }
+        }
+        Err(GpuError::Readback(
+            "the GPU work did not finish within 30 minutes".into(),
+        ))
     }
 
     /// Every material's `f`, `pdf` and `sample` for `queries` (local

@@ -42,6 +42,9 @@ pub fn replace_unsupported(scene: &mut Scene) -> Vec<String> {
 
 /// A scene on the device with its accumulation buffer.
 pub struct GpuFrame {
+    /// The real-time mode (each [`GpuFrame::run`] renders a whole frame)
+    /// rather than the progressive path tracer.
+    realtime: bool,
     bind: wgpu::BindGroup,
     accum: wgpu::Buffer,
     params_buf: wgpu::Buffer,
@@ -102,10 +105,65 @@ fn env_tables(width: usize, height: usize, texels: &[Rgb]) -> (Vec<[f32; 4]>, Ve
     (tex, cdf)
 }
 
+/// Level headers in the pyramid buffer (`realtime.wgsl`): maps up to
+/// 2^15 texels wide.
+const ENV_LEVEL_HEADERS: usize = 16;
+
+/// The prefiltered environment pyramid of the real-time mode, built by the
+/// CPU's [`isolux_render::realtime::PrefilteredEnv`]: headers `(offset,
+/// width, height, 0)`, then the levels' texels as f32 bits.
+/// Returns the buffer and the number of levels.
+fn env_levels(env: &Environment) -> Result<(Vec<[u32; 4]>, u32), GpuError> {
+    let Environment::Map(m) = env else {
+        return Ok((Vec::new(), 0));
+    };
+    let p = isolux_render::realtime::PrefilteredEnv::new(m);
+    if p.levels().len() > ENV_LEVEL_HEADERS {
+        return Err(GpuError::Setup(format!(
+            "environment map of {} x {} texels is too large for the real-time mode's \
+             pyramid (at most 32768 texels across)",
+            m.size().0,
+            m.size().1
+        )));
+    }
+    let mut out = vec![[0u32; 4]; ENV_LEVEL_HEADERS];
+    let mut offset = 0u32;
+    for (k, l) in p.levels().iter().enumerate() {
+        out[k] = [offset, l.width as u32, l.height as u32, 0];
+        offset += (l.width * l.height) as u32;
+    }
+    for l in p.levels() {
+        out.extend(
+            l.texels
+                .iter()
+                .map(|t| [t.r as f32, t.g as f32, t.b as f32, 0.0].map(f32::to_bits)),
+        );
+    }
+    Ok((out, p.levels().len() as u32))
+}
+
 impl Gpu {
-    /// Uploads `scene` for rendering at its film size. Fails, naming it,
-    /// on a material not on the GPU, and on an invalid camera.
+    /// Uploads `scene` for path tracing at its film size. Fails, naming
+    /// it, on a material not on the GPU, and on an invalid camera.
     pub fn prepare(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
+        self.prepare_mode(scene, false)
+    }
+
+    /// Uploads `scene` for the real-time mode (`isolux_render::realtime`):
+    /// each [`GpuFrame::run`] renders a whole frame of `count` samples per
+    /// pixel, replacing the last.
+    pub fn prepare_realtime(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
+        self.prepare_mode(scene, true)
+    }
+
+    /// Renders `scene` in the real-time mode at its film's `spp`.
+    pub fn render_realtime(&self, scene: &Scene) -> Result<(Image, RenderStats), GpuError> {
+        let mut frame = self.prepare_realtime(scene)?;
+        frame.run(self, scene.film.spp);
+        frame.image(self)
+    }
+
+    fn prepare_mode(&self, scene: &Scene, realtime: bool) -> Result<GpuFrame, GpuError> {
         if let Some((name, type_name)) = unsupported_material(scene) {
             return Err(GpuError::Unsupported { name, type_name });
         }
@@ -164,6 +222,12 @@ impl Gpu {
                 (ENV_MAP, [0.0; 4], [w as u32, h as u32, 0, 0], t, c)
             }
         };
+        let (levels, level_count) = if realtime {
+            env_levels(&scene.environment)?
+        } else {
+            (Vec::new(), 0)
+        };
+        let env_size = [env_size[0], env_size[1], level_count, 0];
         let grid_m = (film.spp as f64).sqrt().ceil() as u32;
         let grid_n = film.spp.div_ceil(grid_m);
         let seed = isolux_core::rng::mix64(scene.integrator.seed ^ 0x1502_7a1e);
@@ -194,22 +258,21 @@ impl Gpu {
         let npix = film.width as u64 * film.height as u64;
         let accum = self.output("accumulation", npix * 16);
         let params_buf = self.uniform("params", &params);
-        let pipeline = self.pipeline(&self.render, "render", crate::render_source);
-        let bind = self.bind_group(
-            pipeline,
-            &[
-                &objects,
-                &perts,
-                &mats,
-                &lights,
-                &texels,
-                &cdf,
-                &accum,
-                &params_buf,
-                &data,
-            ],
-        );
+        let levels = self.storage("env levels", bytemuck::cast_slice(&levels));
+        let bind = self.render_bind_group(&[
+            &objects,
+            &perts,
+            &mats,
+            &lights,
+            &texels,
+            &cdf,
+            &accum,
+            &params_buf,
+            &data,
+            &levels,
+        ]);
         Ok(GpuFrame {
+            realtime,
             bind,
             accum,
             params_buf,
@@ -243,16 +306,33 @@ impl Gpu {
 
 impl GpuFrame {
     /// Queues a pass adding `count` samples to every pixel (returns at
-    /// once; [`Gpu::wait`] or [`GpuFrame::image`] waits).
+    /// once; [`Gpu::wait`] or [`GpuFrame::image`] waits). In the real-time
+    /// mode the pass is a whole new frame of `count` samples per pixel.
     pub fn run(&mut self, gpu: &Gpu, count: u32) {
         if count == 0 {
             return;
         }
+        if self.realtime {
+            // One dispatch (and submission, for its parameters) per
+            // sample: see `realtime.wgsl`.
+            for s in 0..count {
+                self.params.pass_info[0] = s;
+                self.params.pass_info[1] = count;
+                self.dispatch(gpu);
+            }
+            self.samples = count;
+            return;
+        }
         self.params.pass_info[0] = self.samples;
         self.params.pass_info[1] = count;
+        self.dispatch(gpu);
+        self.samples += count;
+    }
+
+    fn dispatch(&self, gpu: &Gpu) {
         gpu.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&self.params));
-        let pipeline = gpu.pipeline(&gpu.render, "render", crate::render_source);
+        let pipeline = gpu.render_pipeline(self.realtime);
         let mut enc = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -272,7 +352,6 @@ impl GpuFrame {
             );
         }
         gpu.queue.submit(Some(enc.finish()));
-        self.samples += count;
     }
 
     /// Clears the accumulation (progressive rendering restarts).

@@ -241,7 +241,10 @@ fn sss(size: u32) -> Result<()> {
         ("dipole", SubsurfaceMode::Dipole, 16u32),
         ("random_walk", SubsurfaceMode::RandomWalk, 16u32),
     ] {
-        let opts = RenderOptions { aov: true };
+        let opts = RenderOptions {
+            aov: true,
+            realtime: false,
+        };
         let t = Instant::now();
         let (a, _) = render(&make(mode, spp, 1), &opts, &|_, _| {})?;
         let secs = t.elapsed().as_secs_f64();
@@ -342,12 +345,12 @@ fn wave(repeat: u32) -> Result<()> {
     Ok(())
 }
 
-/// `bench gpu`: per scene, ms per frame at `width x height` of the GPU
-/// path tracer (16 spp, the scene's depth) and of direct light only
-/// (4 spp, depth 1: the closest the GPU has to the seed's real-time mode
-/// so far), and the same work on the CPU path with all cores. Materials
-/// not on the GPU yet are replaced by a grey diffuse, on both sides, and
-/// named in the output.
+/// `bench gpu`: per scene, ms per frame at `width x height` of the GPU's
+/// real-time mode (4 spp, `isolux_render::realtime`), its path tracer (16
+/// spp, the scene's depth) and of direct light only (4 spp, depth 1), and
+/// the same work on the CPU path with all cores. Materials not on the GPU
+/// yet are replaced by a grey diffuse, on both sides, and named in the
+/// output.
 fn gpu(a: &BenchArgs) -> Result<()> {
     use isolux_render::{render, RenderOptions};
     let gpu = isolux_gpu::Gpu::new()?;
@@ -373,10 +376,19 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         scene.film.height = a.height;
         let name = path.file_name().unwrap_or_default().to_string_lossy();
         let depth = scene.integrator.max_depth;
-        for (mode, spp, max_depth) in [("path traced", 16, depth), ("direct only", 4, 1)] {
+        for (mode, spp, max_depth) in [
+            ("real-time", 4, depth),
+            ("path traced", 16, depth),
+            ("direct only", 4, 1),
+        ] {
+            let realtime = mode == "real-time";
             scene.film.spp = spp;
             scene.integrator.max_depth = max_depth;
-            let mut frame = gpu.prepare(&scene)?;
+            let mut frame = if realtime {
+                gpu.prepare_realtime(&scene)?
+            } else {
+                gpu.prepare(&scene)?
+            };
             // Warm-up: compiles the kernel, touches the buffers.
             frame.run(&gpu, spp);
             gpu.wait()?;
@@ -396,8 +408,12 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             let (c, ratio) = if a.skip_cpu {
                 ("-".to_string(), "-".to_string())
             } else {
+                let opts = RenderOptions {
+                    aov: false,
+                    realtime,
+                };
                 let (t, _) = best_of(a.repeat, || {
-                    render(&scene, &RenderOptions::default(), &|_, _| {})
+                    render(&scene, &opts, &|_, _| {})
                         .map(|r| r.1.samples as usize)
                         .unwrap_or(0)
                 });

@@ -62,6 +62,13 @@ pub struct RenderArgs {
     /// apply.
     #[arg(long)]
     pub gpu: bool,
+    /// The seed's real-time mode: point lights (shadowed) plus prefiltered
+    /// environment light, one bounce, no path tracing (docs/realtime.md).
+    /// 4 to 25 samples per pixel: the scene's `spp` is clamped into that
+    /// range, an explicit `--spp` outside it is an error. Runs on the CPU,
+    /// or on the GPU with `--gpu`.
+    #[arg(long)]
+    pub realtime: bool,
 }
 
 /// Runs `isolux render`.
@@ -79,6 +86,23 @@ pub fn run(a: RenderArgs) -> Result<()> {
         bail!("--exposure must be a finite number");
     }
     let mut scene = isolux_scene::load(&a.scene)?;
+    if a.realtime {
+        use isolux_render::realtime::{MAX_SPP, MIN_SPP};
+        match a.spp {
+            Some(v) if !(MIN_SPP..=MAX_SPP).contains(&v) => bail!(
+                "--spp {v}: --realtime takes {MIN_SPP} to {MAX_SPP} samples per pixel \
+                 (the seed's sub-pixel grids, 2 x 2 to 5 x 5)"
+            ),
+            _ => scene.film.spp = scene.film.spp.clamp(MIN_SPP, MAX_SPP),
+        }
+        if let Some((name, type_name)) = isolux_render::realtime::unsupported_realtime(&scene) {
+            bail!(
+                "--realtime: material \"{name}\" (type {type_name}) has no real-time model \
+                 (its light enters elsewhere on the surface): use type subsurface_brdf for \
+                 previews, or render without --realtime"
+            );
+        }
+    }
     if let Some(v) = a.spp {
         scene.film.spp = v;
     }
@@ -152,10 +176,17 @@ pub fn run(a: RenderArgs) -> Result<()> {
             );
         }
         start = Instant::now();
-        gpu.render(&scene, &progress).context("--gpu")?
+        if a.realtime {
+            gpu.render_realtime(&scene).context("--gpu --realtime")?
+        } else {
+            gpu.render(&scene, &progress).context("--gpu")?
+        }
     } else {
         start = Instant::now();
-        let options = RenderOptions { aov: a.aov };
+        let options = RenderOptions {
+            aov: a.aov,
+            realtime: a.realtime,
+        };
         pool.install(|| render(&scene, &options, &progress))?
     };
     bar.finish_and_clear();
@@ -173,10 +204,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     if !a.quiet {
         eprintln!(
-            "isolux: rendered {}x{} at {} spp in {:.2} s ({:.2} M samples/s, {}) -> {}",
+            "isolux: rendered {}x{} at {} spp{} in {:.2} s ({:.2} M samples/s, {}) -> {}",
             image.width,
             image.height,
             scene.film.spp,
+            if a.realtime { " (real-time mode)" } else { "" },
             secs,
             stats.samples as f64 / secs / 1e6,
             device,

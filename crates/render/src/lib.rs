@@ -14,6 +14,7 @@ pub mod camera;
 pub mod environment;
 pub mod integrator;
 pub mod light;
+pub mod realtime;
 pub mod render;
 pub mod scene;
 

@@ -18,6 +18,7 @@
 //! no NaN or Inf reaches the image.
 
 use crate::integrator::radiance;
+use crate::realtime::{realtime_radiance, RealtimeEnv};
 use crate::Scene;
 use isolux_core::{rng::mix64, Aovs, DVec3, Image, Pcg32, Rgb};
 use rayon::prelude::*;
@@ -31,6 +32,8 @@ pub const TILE: u32 = 16;
 pub struct RenderOptions {
     /// Also produce albedo, normal and depth layers.
     pub aov: bool,
+    /// The real-time mode ([`crate::realtime`]) instead of path tracing.
+    pub realtime: bool,
 }
 
 /// Counters from a render.
@@ -84,6 +87,9 @@ pub fn render(
     let spp = film.spp;
     let m = (spp as f64).sqrt().ceil() as u32;
     let n = spp.div_ceil(m);
+    let rt_env = options
+        .realtime
+        .then(|| RealtimeEnv::new(&scene.environment));
 
     let tiles: Vec<TileResult> = (0..total)
         .into_par_iter()
@@ -112,7 +118,11 @@ pub fn render(
                         let [jx, jy] = rng.next_2d();
                         let fx = x as f64 + ((c % m) as f64 + jx) / m as f64;
                         let fy = y as f64 + ((c / m) as f64 + jy) / n as f64;
-                        let (l, first) = radiance(scene, rig.ray(fx, fy), &mut rng);
+                        let ray = rig.ray(fx, fy);
+                        let (l, first) = match &rt_env {
+                            Some(env) => realtime_radiance(scene, env, ray, spp, &mut rng),
+                            None => radiance(scene, ray, &mut rng),
+                        };
                         if l.is_finite() && l.r >= 0.0 && l.g >= 0.0 && l.b >= 0.0 {
                             sum += l;
                         } else {

@@ -28,7 +28,7 @@ struct Params {
     pass_info: vec4<u32>, // first sample, sample count, seed (low, high)
     counts: vec4<u32>,    // objects, lights, max depth, environment kind
     env: vec4<f32>,       // constant radiance (rgb)
-    env_size: vec4<u32>,  // map width, height
+    env_size: vec4<u32>,  // map width, height, pyramid levels (realtime.wgsl)
 }
 
 struct Light { position: vec4<f32>, intensity: vec4<f32> }
@@ -42,6 +42,7 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 @group(0) @binding(6) var<storage, read_write> accum: array<vec4<f32>>;
 @group(0) @binding(7) var<uniform> params: Params;
 @group(0) @binding(8) var<storage, read> material_data: array<f32>;
+@group(0) @binding(9) var<storage, read> env_levels: array<vec4<u32>>; // realtime.wgsl
 
 var<private> rng_state: u32;
 
@@ -200,8 +201,9 @@ fn env_sample(u: vec2<f32>) -> vec4<f32> {
 
 // ---- Integrator -----------------------------------------------------------
 
-// Next-event estimation at p (geometric normal ng) for material m in frame fr.
-fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
+// Point lights with shadow rays at p (geometric normal ng) for material m
+// in frame fr.
+fn point_lights(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
         let light = lights[i];
@@ -222,6 +224,12 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             l += fc * light.intensity.rgb / dist2;
         }
     }
+    return l;
+}
+
+// Next-event estimation at p (geometric normal ng) for material m in frame fr.
+fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
+    var l = point_lights(p, ng, fr, m, wo_l);
     if (params.counts.w == ENV_MAP) {
         let s = env_sample(rand2());
         if (s.w > 0.0) {

@@ -1,0 +1,148 @@
+// The real-time mode on the GPU, mirroring crates/render/src/realtime.rs
+// (appended to render.wgsl: same bindings, random numbers, geometry and
+// environment helpers):
+//   * one thread per pixel, all `pass_info.y` samples (4-25) of the pixel
+//     on the stratified sub-pixel grid, written (not accumulated) to
+//     `accum`: each dispatch is one whole frame;
+//   * at the first hit: point lights with shadow rays (the seed's eq. 2),
+//     plus one BSDF sample reading the prefiltered environment pyramid
+//     (`env_levels`) at the level of detail of the sample's density
+//     (filtered importance sampling); delta lobes read level 0;
+//   * environment light is neither shadowed nor bounced.
+// `env_levels`: 16 headers (level offset, width, height), then the levels'
+// texels (f32 bits: a u32 buffer, since header integers read as f32 would
+// be denormals that a driver may flush to zero); `params.env_size.z` levels.
+
+const ENV_LEVEL_HEADERS: u32 = 16u;
+
+fn level_texel(k: u32, x: u32, y: u32) -> vec3<f32> {
+    let hd = env_levels[k];
+    return bitcast<vec4<f32>>(env_levels[ENV_LEVEL_HEADERS + hd.x + y * hd.y + x]).rgb;
+}
+
+fn level_bilinear(k: u32, uv: vec2<f32>) -> vec3<f32> {
+    let hd = env_levels[k];
+    let w = hd.y;
+    let h = hd.z;
+    let x = uv.x * f32(w) - 0.5;
+    let y = clamp(uv.y * f32(h) - 0.5, 0.0, f32(h - 1u));
+    let x0 = floor(x);
+    let y0 = floor(y);
+    let fx = x - x0;
+    let fy = y - y0;
+    let wi = i32(w);
+    let xa = u32(((i32(x0) % wi) + wi) % wi);
+    let xb = (xa + 1u) % w;
+    let ya = u32(y0);
+    let yb = min(ya + 1u, h - 1u);
+    let top = mix(level_texel(k, xa, ya), level_texel(k, xb, ya), fx);
+    let bottom = mix(level_texel(k, xa, yb), level_texel(k, xb, yb), fx);
+    return mix(top, bottom, fy);
+}
+
+// Level of detail for a sample of density `pdf` (< 0: delta) toward d.
+fn env_lod(d: vec3<f32>, pdf: f32) -> f32 {
+    if (!(pdf > 0.0)) {
+        return 0.0;
+    }
+    let w = f32(params.env_size.x);
+    let h = f32(params.env_size.y);
+    let sin_t = max(sqrt(max(1.0 - d.y * d.y, 0.0)), PI / h);
+    let omega_p = 2.0 * PI * PI * sin_t / (w * h);
+    let omega_s = 1.0 / (f32(params.pass_info.y) * pdf);
+    let lod = 0.5 * log2(omega_s / omega_p) + LOD_BIAS;
+    let top = f32(params.env_size.z - 1u);
+    if (!(lod >= 0.0)) {
+        return 0.0;
+    }
+    return min(lod, top);
+}
+
+fn env_filtered(d: vec3<f32>, pdf: f32) -> vec3<f32> {
+    if (params.counts.w != ENV_MAP) {
+        return params.env.rgb;
+    }
+    let lod = env_lod(d, pdf);
+    let k = u32(floor(lod));
+    let t = lod - f32(k);
+    let uv = env_uv(d);
+    let a = level_bilinear(k, uv);
+    if (t > 0.0 && k + 1u < params.env_size.z) {
+        return mix(a, level_bilinear(k + 1u, uv), t);
+    }
+    return a;
+}
+
+fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    let h = scene_hit(o, d, 3.0e38);
+    if (h.x < 0.0) {
+        return env_eval(d);
+    }
+    let obj = objects[hit_object];
+    let m = materials[obj.range.z];
+    let p = o + h.x * d;
+    let ng = h.yzw;
+    let wo = -d;
+    let flags = material_flags(m);
+    var ns = ng;
+    if (dot(wo, ng) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u) {
+        ns = -ng;
+    }
+    var fr: Frame;
+    if (m.tag.z == 1u) {
+        fr = frame_from_normal_tangent(ns, m.d.xyz);
+    } else {
+        fr = frame_from_normal(ns);
+    }
+    let wo_l = to_local(fr, wo);
+    if (wo_l.z == 0.0) {
+        return vec3<f32>(0.0);
+    }
+    var l = point_lights(p, ng, fr, m, wo_l);
+    let uc = rand();
+    let s = material_sample(m, wo_l, uc, rand2());
+    if (s.ok && s.pdf > 0.0 && finite(s.pdf) && finite3(s.f) && s.wi.z != 0.0) {
+        let wi = to_world(fr, s.wi);
+        let pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
+        l += s.f * (abs(s.wi.z) / s.pdf) * env_filtered(wi, pdf);
+    }
+    return l;
+}
+
+// One sample per dispatch (`pass_info.x`, of `pass_info.y` per pixel),
+// added to the pixel's sum (the first one replaces it): no loop around
+// the shading (see the known defect in docs/gpu.md).
+@compute @workgroup_size(8, 8)
+fn realtime(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = params.film.x;
+    let height = params.film.y;
+    if (gid.x >= width || gid.y >= height) {
+        return;
+    }
+    let pixel = gid.y * width + gid.x;
+    let gm = params.film.z;
+    let gn = params.film.w;
+    let cells = gm * gn;
+    let seed = params.pass_info.z;
+    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
+    let s = params.pass_info.x;
+    var acc = vec4<f32>(0.0);
+    if (s > 0u) {
+        acc = accum[pixel];
+    }
+    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
+    let c = (s + offset) % cells;
+    let j = rand2();
+    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
+    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
+    let sx = 2.0 * fx / f32(width) - 1.0;
+    let sy = 1.0 - 2.0 * fy / f32(height);
+    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
+    let v = realtime_shade(params.origin.xyz, dir);
+    if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
+        acc = vec4<f32>(acc.rgb + v, acc.w);
+    } else {
+        acc.w += 1.0;
+    }
+    accum[pixel] = acc;
+}
