@@ -231,12 +231,14 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
         let mid = a + 0.5 * l;
         let c = shift2(base, a, l);
         var p = array<f32, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
+        var n_active = 0u;
         for (var i = 0u; i < count; i++) {
             let pert = perturbations[first + i];
             let qa = q_along(pert.q, o, d);
             if (qa.z + mid * (qa.y + mid * qa.x) <= 0.0) {
                 continue;
             }
+            n_active++;
             let q = shift2(qa, a, l);
             let f = pert.factor.x;
             // q^2 (degree 4), then q^3 (degree 6).
@@ -253,7 +255,22 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
             p[5] += f * (s4 * q.y + s3 * q.z);
             p[6] += f * (s4 * q.z);
         }
-        let s = first_root(p);
+        // No perturbation active: the base quadric's closed form (as on the
+        // CPU), its first root in [0, 1] where the sign changes.
+        var s = -1.0;
+        if (n_active == 0u) {
+            let r = roots(vec3<f32>(c.z, c.y, c.x));
+            let f0 = c.x;
+            if (f0 == 0.0) {
+                s = 0.0;
+            } else if (r.x >= 0.0 && r.x <= 1.0 && r.x != r.y) {
+                s = r.x;
+            } else if (r.y >= 0.0 && r.y <= 1.0 && r.y < NO_ROOT && r.x != r.y) {
+                s = r.y;
+            }
+        } else {
+            s = first_root(p);
+        }
         if (s >= 0.0) {
             let t = a + s * l;
             let x = o + t * d;
