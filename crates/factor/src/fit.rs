@@ -1,19 +1,22 @@
-//! The homomorphic fit: `ln f = ln p(wo) + ln q(h) + ln p(wi)` by linear
-//! least squares over scattered samples, with a Laplacian smoothness term.
+//! The homomorphic fit: `ln f = ln p(wo) + ln q(h) + ln p(wi) + ln r(theta_h,
+//! theta_d)` by linear least squares over scattered samples, with a
+//! Laplacian smoothness term.
 //!
 //! Unknowns are the logarithms of the *valid* texels of the two maps
 //! (centre inside the unit disk; the others are stand-ins, see
-//! [`isolux_materials::parabolic`]), `2 n_v` in all. Each sample gives one
-//! row with twelve bilinear taps (four per lookup); the objective is
+//! [`isolux_materials::parabolic`]), then of the `n_d x n_d` texels of the
+//! `r` table, `2 n_v + n_d^2` in all. Each sample gives one row with
+//! sixteen bilinear taps (four per lookup); the objective is
 //!
 //! ```text
 //! (1/M) sum_s (row_s . x - ln f_s)^2  +  (lambda/n_v) sum_maps sum_i (L x)_i^2  +  eps |x|^2
 //! ```
 //!
 //! where `(L x)_i = sum_{j ~ i} (x_i - x_j)` over the valid 4-neighbours
-//! (the graph Laplacian of each map), `lambda` is `--smoothness` and the
-//! tiny ridge `eps` (1e-9 of the mean diagonal) fixes the one exact
-//! degeneracy, `p -> c p, q -> q / c^2`. The normal matrix is dense (any
+//! (the graph Laplacian of each map and of the `r` table), `lambda` is
+//! `--smoothness` and the tiny ridge `eps` (1e-9 of the mean diagonal)
+//! fixes the exact degeneracies, `p -> c p, q -> q / c^2` and `q -> c q, r
+//! -> r / c`. The normal matrix is dense (any
 //! `wo` texel meets any `wi` texel), so it is assembled column-parallel
 //! and factored once by a dense Cholesky (faer) for all colour channels
 //! that share the same set of usable samples; the right-hand sides of
@@ -24,6 +27,7 @@ use crate::FactorError;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef, Side};
 use isolux_core::Rgb;
+use isolux_materials::factored::hd_taps;
 use isolux_materials::parabolic::ParabolicGrid;
 use isolux_materials::Factored;
 use rayon::prelude::*;
@@ -40,6 +44,10 @@ pub struct FitOptions {
     pub theta_max_deg: f64,
     /// Gauss-Newton iterations toward the relative error after the log fit.
     pub refine: usize,
+    /// Texels per side of the angle factor `r(theta_h, theta_d)`: `None`
+    /// for the default ([`FitOptions::hd_res`]), `Some(0)` for no such
+    /// factor (the plain `p q p` of the paper).
+    pub hd_res: Option<usize>,
 }
 
 /// The default `--smoothness`.
@@ -52,11 +60,19 @@ impl Default for FitOptions {
             smoothness: DEFAULT_SMOOTHNESS,
             theta_max_deg: 80.0,
             refine: 1,
+            hd_res: None,
         }
     }
 }
 
 impl FitOptions {
+    /// Texels per side of the `r(theta_h, theta_d)` table: as set, or by
+    /// default `res / 4` (at least 2), so that the table adds a sixteenth
+    /// of one map to the storage.
+    pub fn hd_res(&self) -> usize {
+        self.hd_res.unwrap_or((self.res / 4).max(2))
+    }
+
     /// Checks the ranges: `res` in 4..=512, `theta_max` in (0, 90],
     /// `smoothness` finite and non-negative.
     pub fn validate(&self) -> Result<(), FactorError> {
@@ -73,7 +89,14 @@ impl FitOptions {
             .map_err(FactorError::Fit)?
             .valid()
             .len();
-        let (res, n) = (self.res, 2 * nv);
+        let nd = self.hd_res();
+        if nd == 1 || nd > 512 {
+            return bad(
+                "--hd-res",
+                format!("must be 0 (no r factor) or lie in 2..=512, got {nd}"),
+            );
+        }
+        let (res, n) = (self.res, 2 * nv + nd * nd);
         let bytes = (n * n * 8) as f64;
         if bytes > MAX_MATRIX_BYTES {
             return Err(FactorError::Input {
@@ -113,6 +136,11 @@ pub struct Factorization {
     pub p: Vec<Rgb>,
     /// `q` texels, largest value 1 per channel.
     pub q: Vec<Rgb>,
+    /// Texels per side of the `r(theta_h, theta_d)` table (0: none).
+    pub hd_res: usize,
+    /// `r` texels (`hd_res^2`, row `theta_h`, column `theta_d`; empty
+    /// without that factor), largest value 1 per channel.
+    pub r: Vec<Rgb>,
     /// Per-channel scale.
     pub scale: Rgb,
     /// Bookkeeping.
@@ -145,9 +173,15 @@ impl Factorization {
     /// rounding to `f32`).
     pub fn material(&self) -> Result<Factored, FactorError> {
         let r = |v: &[Rgb]| -> Vec<Rgb> { v.iter().map(|c| c.map(|x| x as f32 as f64)).collect() };
-        Factored::new(self.res, &r(&self.p), &r(&self.q), self.scale).map_err(|e| {
+        let bad = |e: String| {
             FactorError::Fit(format!("the fitted factors are not a valid material: {e}"))
-        })
+        };
+        let m = Factored::new(self.res, &r(&self.p), &r(&self.q), self.scale).map_err(bad)?;
+        if self.r.is_empty() {
+            Ok(m)
+        } else {
+            m.with_hd(self.hd_res, &r(&self.r)).map_err(bad)
+        }
     }
 }
 
@@ -178,18 +212,20 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
     let res = opts.res;
     let valid = grid.valid();
     let nv = valid.len();
-    let n = 2 * nv;
     let mut ord = vec![u32::MAX; grid.len()];
     for (k, &i) in valid.iter().enumerate() {
         ord[i as usize] = k as u32;
     }
     let t0 = Instant::now();
-    // Rows: twelve taps per sample, as unknown indices.
-    let rows: Vec<[(u32, f64); 12]> = samples
+    // Rows: twelve taps per sample (four per lookup), plus two for the
+    // theta_d factor when there is one (zero weights otherwise).
+    let nd = opts.hd_res();
+    let n = 2 * nv + nd * nd;
+    let rows: Vec<Row> = samples
         .par_iter()
         .map(|s| {
             let h = (s.wo + s.wi).normalize();
-            let mut row = [(0u32, 0.0); 12];
+            let mut row = [(0u32, 0.0); TAPS];
             for (k, (i, w)) in grid
                 .taps(s.wo)
                 .into_iter()
@@ -200,6 +236,11 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
             }
             for (k, (i, w)) in grid.taps(h).into_iter().enumerate() {
                 row[8 + k] = (ord[i as usize] + nv as u32, w);
+            }
+            if nd > 0 {
+                for (k, (i, w)) in hd_taps(nd, s.wo, s.wi).into_iter().enumerate() {
+                    row[12 + k] = (i + 2 * nv as u32, w);
+                }
             }
             row
         })
@@ -238,7 +279,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
             None => groups.push(vec![c]),
         }
     }
-    let lap = laplacian_rows(&grid, &ord, nv);
+    let lap = laplacian_rows(&grid, &ord, nv, nd);
     // Per channel, the unknowns: `ln p` at the valid texels, then `ln q`.
     let mut x: [Vec<f64>; 3] = Default::default();
     let mut solver = Solver {
@@ -311,11 +352,14 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
     // Normalize each map's largest value to 1, moving the rest to scale.
     let max = |xc: &[f64]| xc.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     let pmax = x.each_ref().map(|xc| max(&xc[..nv]));
-    let qmax = x.each_ref().map(|xc| max(&xc[nv..]));
+    let qmax = x.each_ref().map(|xc| max(&xc[nv..2 * nv]));
+    let smax = x
+        .each_ref()
+        .map(|xc| if nd > 0 { max(&xc[2 * nv..]) } else { 0.0 });
     let scale = Rgb::new(
-        (2.0 * pmax[0] + qmax[0]).exp(),
-        (2.0 * pmax[1] + qmax[1]).exp(),
-        (2.0 * pmax[2] + qmax[2]).exp(),
+        (2.0 * pmax[0] + qmax[0] + smax[0]).exp(),
+        (2.0 * pmax[1] + qmax[1] + smax[1]).exp(),
+        (2.0 * pmax[2] + qmax[2] + smax[2]).exp(),
     );
     if !(scale.r > 0.0 && scale.g > 0.0 && scale.b > 0.0 && scale.is_finite()) {
         return Err(FactorError::Fit(format!(
@@ -338,6 +382,13 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         theta_max_deg: opts.theta_max_deg,
         p: expand(0, pmax),
         q: expand(nv, qmax),
+        hd_res: nd,
+        r: (0..nd * nd)
+            .map(|k| {
+                let v = |c: usize| (x[c][2 * nv + k] - smax[c]).max(MIN_LOG).exp();
+                Rgb::new(v(0), v(1), v(2))
+            })
+            .collect(),
         scale,
         stats,
     })
@@ -345,7 +396,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
 
 /// Assembles and solves the weighted normal equations.
 struct Solver<'a> {
-    rows: &'a [[(u32, f64); 12]],
+    rows: &'a [Row],
     lap: &'a [Vec<(u32, f64)>],
     n: usize,
     lam: f64,
@@ -439,10 +490,30 @@ impl Solver<'_> {
     }
 }
 
-/// Graph-Laplacian rows of both maps, over unknown indices.
-fn laplacian_rows(grid: &ParabolicGrid, ord: &[u32], nv: usize) -> Vec<Vec<(u32, f64)>> {
+/// Taps per sample row: four per map lookup, two for `s(theta_d)`.
+const TAPS: usize = 16;
+type Row = [(u32, f64); TAPS];
+
+/// Graph-Laplacian rows of both maps and of the `theta_d` table, over
+/// unknown indices.
+fn laplacian_rows(grid: &ParabolicGrid, ord: &[u32], nv: usize, nd: usize) -> Vec<Vec<(u32, f64)>> {
     let res = grid.res();
-    let mut out = Vec::with_capacity(2 * nv);
+    let mut out = Vec::with_capacity(2 * nv + nd * nd);
+    let base = 2 * nv as u32;
+    for k in 0..nd as i64 {
+        for l in 0..nd as i64 {
+            let at = |k: i64, l: i64| base + (k * nd as i64 + l) as u32;
+            let mut row = vec![(at(k, l), 0.0)];
+            for (dk, dl) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+                let (kk, ll) = (k + dk, l + dl);
+                if kk >= 0 && ll >= 0 && kk < nd as i64 && ll < nd as i64 {
+                    row.push((at(kk, ll), -1.0));
+                    row[0].1 += 1.0;
+                }
+            }
+            out.push(row);
+        }
+    }
     for offset in [0, nv as u32] {
         for &i in grid.valid() {
             let (c, r) = ((i as usize) % res, (i as usize) / res);

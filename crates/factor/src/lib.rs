@@ -4,13 +4,16 @@
 //! 2001; seed 004): any BRDF, analytic or measured, as
 //!
 //! ```text
-//! f(wo, wi) ~= scale * p(wo) * q(h) * p(wi)        per colour channel
+//! f(wo, wi) ~= scale * p(wo) * q(h) * p(wi) * r(theta_h, theta_d)    per colour channel
 //! ```
 //!
-//! with `p` and `q` positive parabolic-map textures, found by linear least
-//! squares on `ln f` ([`fit`]). Positive by construction (the unknowns are
-//! logarithms), reciprocal by construction (`p` appears at both ends), and
-//! the error it minimizes is relative. [`svd`] is the baseline, Kautz and
+//! with `p` and `q` positive parabolic-map textures and `r` a small
+//! positive table over the half and difference angles (optional: `--hd-res
+//! 0` gives the paper's plain `p q p`), found by linear least squares on
+//! `ln f` ([`fit`]). Positive by construction (the unknowns are
+//! logarithms), reciprocal by construction (`p` appears at both ends, `h`,
+//! `theta_h` and `theta_d` are symmetric), and the error it minimizes is
+//! relative. [`svd`] is the baseline, Kautz and
 //! McCool's separable approximation; [`metrics`] measures both on held-out
 //! samples; [`output`] writes the files the `factored` material reads.
 //!
@@ -29,7 +32,8 @@
 //! let (fact, report) = factorize(&source, &opts).unwrap();
 //! // A constant BRDF is exactly a product of constants.
 //! assert!(report.factored.relative_rms < 1e-6);
-//! assert!((fact.scale.r * fact.p[0].r.powi(2) * fact.q[0].r - 0.5 / std::f64::consts::PI).abs() < 1e-6);
+//! let value = fact.scale.r * fact.p[0].r.powi(2) * fact.q[0].r * fact.r[0].r;
+//! assert!((value - 0.5 / std::f64::consts::PI).abs() < 1e-6);
 //! ```
 #![warn(missing_docs)]
 
@@ -114,13 +118,15 @@ pub struct Report {
     pub source: String,
     /// Texels per side.
     pub res: usize,
+    /// Texels per side of the `r(theta_h, theta_d)` table (0: none).
+    pub hd_res: usize,
     /// The smoothness weight used.
     pub smoothness: f64,
     /// Held-out samples.
     pub held_out: usize,
     /// Errors of the homomorphic factors.
     pub factored: Metrics,
-    /// Texels stored per channel by the factors (`2 res^2`).
+    /// Texels stored per channel by the factors (`2 res^2 + hd_res^2`).
     pub storage_texels: usize,
     /// SVD baselines, by rank.
     pub baselines: Vec<Baseline>,
@@ -142,13 +148,19 @@ impl fmt::Display for Report {
             "| method | texels per channel | relative RMS | cosine-weighted abs RMS (1/sr) |"
         )?;
         writeln!(f, "|---|---:|---:|---:|")?;
+        let method = if self.hd_res > 0 {
+            format!(
+                "homomorphic p(wo) q(h) p(wi) r(theta_h, theta_d), {r} x {r} and {d} x {d}",
+                r = self.res,
+                d = self.hd_res
+            )
+        } else {
+            format!("homomorphic p(wo) q(h) p(wi), {r} x {r}", r = self.res)
+        };
         writeln!(
             f,
-            "| homomorphic p(wo) q(h) p(wi), {r} x {r} | {} | {:.4} | {:.4} |",
-            self.storage_texels,
-            self.factored.relative_rms,
-            self.factored.cosine_abs_rms,
-            r = self.res
+            "| {method} | {} | {:.4} | {:.4} |",
+            self.storage_texels, self.factored.relative_rms, self.factored.cosine_abs_rms,
         )?;
         for b in &self.baselines {
             writeln!(
@@ -157,6 +169,8 @@ impl fmt::Display for Report {
                 b.rank,
                 if b.storage_texels == self.storage_texels {
                     ", equal storage"
+                } else if b.rank == 1 {
+                    ", the closest storage"
                 } else {
                     ""
                 },
@@ -211,7 +225,8 @@ pub fn factorize(
     let material = fact.material()?;
     use isolux_materials::BxdfModel;
     let factored = evaluate(&held, |wo, wi| material.f(wo, wi));
-    let storage = 2 * opts.fit.res * opts.fit.res;
+    let nd = opts.fit.hd_res();
+    let storage = 2 * opts.fit.res * opts.fit.res + nd * nd;
     let (baselines, baseline_note) = if opts.svd_ranks == 0 {
         (Vec::new(), Some("disabled".to_string()))
     } else if !source.is_evaluable() {
@@ -240,6 +255,7 @@ pub fn factorize(
     let report = Report {
         source: source.describe(),
         res: opts.fit.res,
+        hd_res: nd,
         smoothness: opts.fit.smoothness,
         held_out: held.len(),
         factored,

@@ -1,5 +1,7 @@
 //! Writing a factorization: `p.exr`, `q.exr` (linear float RGB,
-//! `res x res`, row 0 at the top) and `factors.toml`. The reader is
+//! `res x res`, row 0 at the top), `r.exr` (`hd_res x hd_res`, row `k` is
+//! `theta_h` texel `k`, column `l` is `theta_d` texel `l`; only when
+//! `hd_res > 0`) and `factors.toml`. The reader is
 //! `isolux_scene::load_factored`.
 
 use crate::fit::Factorization;
@@ -10,6 +12,7 @@ use std::io::Write as _;
 use std::path::Path;
 
 fn image(res: usize, texels: &[Rgb]) -> Image {
+    debug_assert_eq!(texels.len(), res * res);
     Image {
         width: res as u32,
         height: res as u32,
@@ -31,13 +34,18 @@ pub fn factors_toml(f: &Factorization, report: &Report) -> String {
     let _ = writeln!(s, "# Homomorphic factorization written by isolux factor.");
     let _ = writeln!(
         s,
-        "# f(wo, wi) = scale * p(wo) * q(h) * p(wi), per channel; p.exr and q.exr"
+        "# f(wo, wi) = scale * p(wo) * q(h) * p(wi) * r(theta_h, theta_d), per channel;"
     );
     let _ = writeln!(
         s,
-        "# are parabolic maps, looked up bilinearly in the logarithm."
+        "# p.exr and q.exr are parabolic maps, r.exr (hd_res > 0) a table over"
+    );
+    let _ = writeln!(
+        s,
+        "# (theta_h rows, theta_d columns); all looked up bilinearly in the logarithm."
     );
     let _ = writeln!(s, "res = {}", f.res);
+    let _ = writeln!(s, "hd_res = {}", f.hd_res);
     let _ = writeln!(s, "theta_max_deg = {:?}", f.theta_max_deg);
     let _ = writeln!(
         s,
@@ -82,6 +90,16 @@ pub fn write_dir(dir: &Path, f: &Factorization, report: &Report) -> Result<(), F
     })?;
     isolux_io::write_exr(&dir.join("p.exr"), &image(f.res, &f.p))?;
     isolux_io::write_exr(&dir.join("q.exr"), &image(f.res, &f.q))?;
+    let r_path = dir.join("r.exr");
+    if f.hd_res > 0 {
+        isolux_io::write_exr(&r_path, &image(f.hd_res, &f.r))?;
+    } else if r_path.exists() {
+        // A stale table from an earlier run must not outlive hd_res = 0.
+        std::fs::remove_file(&r_path).map_err(|e| FactorError::Input {
+            what: r_path.display().to_string(),
+            message: format!("cannot remove the stale file: {e}"),
+        })?;
+    }
     let text = factors_toml(f, report);
     let path = dir.join("factors.toml");
     isolux_io::atomic_write(&path, |file| {

@@ -336,7 +336,9 @@ impl GpuMaterials {
     /// `idx[0]`: `res`, then `ln p` and `ln q` per texel (3 floats each,
     /// row-major, stand-ins substituted), then the half-vector density's
     /// marginal table and its `res` conditional tables (each `[n, cdf,
-    /// pdf]`, `2 res + 2` floats).
+    /// pdf]`, `2 res + 2` floats); at `idx[1]`: `n`, the side of the `r(theta_h,
+    /// theta_d)` table (0: none), then `ln r` per texel (3 floats each,
+    /// row-major, rows `theta_h`).
     pub fn new(materials: &[Material]) -> Result<Self, usize> {
         let mut out = GpuMaterials {
             materials: vec![GpuMaterial::default(); materials.len()],
@@ -496,6 +498,11 @@ impl GpuMaterials {
                 for c in h.conditionals() {
                     self.table(c);
                 }
+                // The r(theta_h, theta_d) table: n, then ln r per texel.
+                g.idx[1] = self.data.len() as u32;
+                self.data.push(f.r_res() as f32);
+                self.data
+                    .extend(f.log_r_texels().iter().flat_map(|t| t.map(|v| v as f32)));
             }
             Material::Conductor(c) => {
                 g.tag[0] = tag::CONDUCTOR;

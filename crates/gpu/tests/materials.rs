@@ -46,6 +46,25 @@ fn factored(res: usize, width: f64) -> Material {
     Material::Factored(Factored::new(res, &p, &q, Rgb::new(0.9, 1.0, 1.1)).unwrap())
 }
 
+/// [`factored`] with an `n x n` angle table `r(theta_h, theta_d)`.
+fn factored_hd(res: usize, width: f64, n: usize) -> Material {
+    let Material::Factored(f) = factored(res, width) else {
+        unreachable!()
+    };
+    let step = std::f64::consts::FRAC_PI_2 / n as f64;
+    let r: Vec<Rgb> = (0..n * n)
+        .map(|k| {
+            let (th, td) = ((k / n) as f64 * step, (k % n) as f64 * step);
+            Rgb::new(
+                0.3 + (1.0 - td.cos()).powi(2),
+                1.0 - 0.5 * th.sin(),
+                0.5 + 0.2 * (th + td),
+            )
+        })
+        .collect();
+    Material::Factored(f.with_hd(n, &r).unwrap())
+}
+
 fn library() -> Vec<(&'static str, Material)> {
     let gold = Fresnel::Conductor {
         eta: Rgb::new(0.143, 0.374, 1.442),
@@ -168,6 +187,7 @@ fn library() -> Vec<(&'static str, Material)> {
         ),
         ("factored 16, wide", factored(16, 0.6)),
         ("factored 32, narrow", factored(32, 0.15)),
+        ("factored 16, r table", factored_hd(16, 0.3, 7)),
         (
             "mix diffuse + ggx",
             Material::Mix(Mix {

@@ -1,6 +1,7 @@
-//! `isolux factor`: homomorphic factorization of a BRDF into two positive
-//! parabolic-map textures, `f = scale * p(wo) q(h) p(wi)`, with a held-out
-//! error report against the SVD baseline. See `docs/factorization.md`.
+//! `isolux factor`: homomorphic factorization of a BRDF into positive
+//! textures, `f = scale * p(wo) q(h) p(wi) r(theta_h, theta_d)` (two
+//! parabolic maps and a small angle table), with a held-out error report
+//! against the SVD baseline. See `docs/factorization.md`.
 
 use crate::brdf_cmd::{atomic_plot, lit_sphere, local_dir, materials};
 use anyhow::{bail, Context, Result};
@@ -30,6 +31,10 @@ pub struct FactorArgs {
     /// Texels per side of each factor map (4..=512).
     #[arg(long, default_value_t = 32)]
     res: usize,
+    /// Texels per side of the extra factor r(theta_h, theta_d) (0: none, the
+    /// paper's plain p q p; default res / 4, at least 2).
+    #[arg(long = "hd-res")]
+    hd_res: Option<usize>,
     /// Weight of the Laplacian smoothness term.
     #[arg(long, default_value_t = isolux_factor::fit::DEFAULT_SMOOTHNESS)]
     smoothness: f64,
@@ -54,7 +59,7 @@ pub struct FactorArgs {
     /// Skip preview.png.
     #[arg(long)]
     no_preview: bool,
-    /// Output directory (p.exr, q.exr, factors.toml, preview.png).
+    /// Output directory (p.exr, q.exr, r.exr, factors.toml, preview.png).
     #[arg(short, long)]
     output: PathBuf,
 }
@@ -66,6 +71,7 @@ pub fn run(a: FactorArgs) -> Result<()> {
     opts.fit.res = a.res;
     opts.fit.smoothness = a.smoothness;
     opts.fit.refine = a.refine;
+    opts.fit.hd_res = a.hd_res;
     opts.fit.theta_max_deg = a.theta_max;
     opts.samples = a.fit_samples;
     opts.held_out = a.held_out;
@@ -154,8 +160,9 @@ pub fn run(a: FactorArgs) -> Result<()> {
             .context("preview.png")?;
     }
     eprintln!(
-        "isolux: wrote {}/{{p.exr, q.exr, factors.toml{}}}",
+        "isolux: wrote {}/{{p.exr, q.exr, {}factors.toml{}}}",
         a.output.display(),
+        if fact.hd_res > 0 { "r.exr, " } else { "" },
         if a.no_preview { "" } else { ", preview.png" }
     );
     Ok(())

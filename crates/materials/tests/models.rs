@@ -202,6 +202,7 @@ fn models() -> Vec<(&'static str, Material)> {
             Material::Beckmann(Beckmann::new(0.3, 0.08, Fresnel::Dielectric { ior: 1.5 })),
         ),
         ("factored synthetic", synthetic_factored()),
+        ("factored synthetic with r", synthetic_factored_hd()),
         ("merl synthetic", Material::Merl(synthetic_merl().clone())),
     ]
 }
@@ -225,6 +226,25 @@ fn synthetic_factored() -> Material {
         })
         .collect();
     Material::Factored(isolux_materials::Factored::new(res, &p, &q, Rgb::splat(0.25)).unwrap())
+}
+
+/// [`synthetic_factored`] times an angle table `r(theta_h, theta_d)` with
+/// values in (0.3, 1]: a Fresnel-like rise toward grazing `theta_d`, a
+/// fall in `theta_h` (so `r` reshapes the highlight that sampling sees).
+fn synthetic_factored_hd() -> Material {
+    let Material::Factored(f) = synthetic_factored() else {
+        unreachable!()
+    };
+    let n = 8;
+    let step = std::f64::consts::FRAC_PI_2 / n as f64;
+    let r: Vec<Rgb> = (0..n * n)
+        .map(|k| {
+            let (th, td) = ((k / n) as f64 * step, (k % n) as f64 * step);
+            let v = (0.4 + 0.6 * (1.0 - td.cos()).powi(2)) * (1.0 - 0.3 * th.sin());
+            Rgb::new(v, 0.5 * v + 0.4, v)
+        })
+        .collect();
+    Material::Factored(f.with_hd(n, &r).unwrap())
 }
 
 /// A MERL table of a diffuse base plus a soft highlight, built once.

@@ -1,5 +1,5 @@
 //! Reading the directory `isolux factor` writes (`p.exr`, `q.exr`,
-//! `factors.toml`) into a [`Factored`] material. The layout is documented
+//! `r.exr` when `hd_res > 0`, `factors.toml`) into a [`Factored`] material. The layout is documented
 //! in `docs/factorization.md`; the writer lives in `isolux-factor`.
 
 use isolux_core::Rgb;
@@ -38,15 +38,26 @@ pub fn load_factored(dir: &Path) -> Result<Factored, String> {
                 meta_path.display()
             )
         })?;
-    let read = |name: &str| -> Result<Vec<Rgb>, String> {
+    // `hd_res` is absent in directories written before the r factor.
+    let hd_res = match meta.get("hd_res") {
+        None => 0,
+        Some(v) => v.as_integer().filter(|r| *r >= 0).ok_or_else(|| {
+            format!(
+                "{}: `hd_res` must be a non-negative integer",
+                meta_path.display()
+            )
+        })? as usize,
+    };
+    let read = |name: &str, res: usize| -> Result<Vec<Rgb>, String> {
         let path = dir.join(name);
         let img = isolux_io::read_rgb_image(&path).map_err(|e| e.to_string())?;
         if img.width != res || img.height != res {
             return Err(format!(
-                "{}: {} x {} pixels, but factors.toml says res = {res}",
+                "{}: {} x {} pixels, but factors.toml says {} = {res}",
                 path.display(),
                 img.width,
-                img.height
+                img.height,
+                if name == "r.exr" { "hd_res" } else { "res" }
             ));
         }
         Ok(img
@@ -55,7 +66,13 @@ pub fn load_factored(dir: &Path) -> Result<Factored, String> {
             .map(|p| Rgb::new(p[0] as f64, p[1] as f64, p[2] as f64))
             .collect())
     };
-    let (p, q) = (read("p.exr")?, read("q.exr")?);
-    Factored::new(res, &p, &q, Rgb::new(scale[0], scale[1], scale[2]))
-        .map_err(|e| format!("{}: {e}", dir.display()))
+    let (p, q) = (read("p.exr", res)?, read("q.exr", res)?);
+    let m = Factored::new(res, &p, &q, Rgb::new(scale[0], scale[1], scale[2]))
+        .map_err(|e| format!("{}: {e}", dir.display()))?;
+    if hd_res == 0 {
+        return Ok(m);
+    }
+    let r = read("r.exr", hd_res)?;
+    m.with_hd(hd_res, &r)
+        .map_err(|e| format!("{}: {e}", dir.join("r.exr").display()))
 }

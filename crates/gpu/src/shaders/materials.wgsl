@@ -774,6 +774,34 @@ fn factored_h_table(at: u32) -> u32 {
     return at + 1u + 6u * res * res;
 }
 
+// One linear-interpolation axis of an n-texel table over [0, pi/2]
+// (factored::angle_axis): (i0, i1, weight of i1).
+fn factored_angle_axis(n: u32, angle: f32) -> vec3<f32> {
+    let u = clamp(angle / (0.5 * PI) * f32(n) - 0.5, 0.0, f32(n - 1u));
+    let i0 = min(u32(floor(u)), n - 2u);
+    return vec3<f32>(f32(i0), f32(min(i0 + 1u, n - 1u)), u - f32(i0));
+}
+
+// ln r(theta_h, theta_d), bilinear (factored::hd_taps); zero without r.
+fn factored_log_r(at: u32, wo: vec3<f32>, wi: vec3<f32>, h: vec3<f32>) -> vec3<f32> {
+    let n = u32(material_data[at]);
+    if (n == 0u) {
+        return vec3<f32>(0.0);
+    }
+    let ah = factored_angle_axis(n, acos(clamp(h.z, -1.0, 1.0)));
+    let ad = factored_angle_axis(n, acos(min(0.5 * length(wo + wi), 1.0)));
+    let idx = array<u32, 4>(
+        u32(ah.x) * n + u32(ad.x), u32(ah.x) * n + u32(ad.y),
+        u32(ah.y) * n + u32(ad.x), u32(ah.y) * n + u32(ad.y));
+    let w = array<f32, 4>((1.0 - ah.z) * (1.0 - ad.z), (1.0 - ah.z) * ad.z, ah.z * (1.0 - ad.z), ah.z * ad.z);
+    var s = vec3<f32>(0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let t = at + 1u + idx[k] * 3u;
+        s += w[k] * vec3<f32>(material_data[t], material_data[t + 1u], material_data[t + 2u]);
+    }
+    return s;
+}
+
 fn factored_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
         return vec3<f32>(0.0);
@@ -783,8 +811,9 @@ fn factored_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     let a = factored_log(at, 0u, wo);
     let b = factored_log(at, 1u, h);
     let c = factored_log(at, 0u, wi);
-    // (a + c) + b: exactly reciprocal, as on the CPU.
-    return m.a.rgb * exp((a + c) + b);
+    let d = factored_log_r(m.idx.y, wo, wi, h);
+    // ((a + c) + b) + d: exactly reciprocal, as on the CPU.
+    return m.a.rgb * exp(((a + c) + b) + d);
 }
 
 fn factored_pdf_h(m: Material, h: vec3<f32>) -> f32 {
