@@ -17,16 +17,18 @@
 //! `--smoothness` and the tiny ridge `eps` (1e-9 of the mean diagonal)
 //! fixes the exact degeneracies, `p -> c p, q -> q / c^2` and `q -> c q, r
 //! -> r / c`. The normal matrix is dense (any
-//! `wo` texel meets any `wi` texel), so it is assembled column-parallel
-//! and factored once by a dense Cholesky (faer) for all colour channels
-//! that share the same set of usable samples; the right-hand sides of
-//! those channels are solved together.
+//! `wo` texel meets any `wi` texel), so up to [`DENSE_MAX_RES`] it is
+//! assembled column-parallel and factored once by a dense Cholesky (faer)
+//! for all colour channels that share the same set of usable samples; the
+//! right-hand sides of those channels are solved together. Above it,
+//! Jacobi-preconditioned conjugate gradients minimize the same objective
+//! matrix-free, started from the fit at half the resolution.
 
 use crate::source::Sample;
 use crate::FactorError;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef, Side};
-use isolux_core::Rgb;
+use isolux_core::{DVec3, Rgb};
 use isolux_materials::factored::hd_taps;
 use isolux_materials::parabolic::ParabolicGrid;
 use isolux_materials::Factored;
@@ -48,6 +50,9 @@ pub struct FitOptions {
     /// for the default ([`FitOptions::hd_res`]), `Some(0)` for no such
     /// factor (the plain `p q p` of the paper).
     pub hd_res: Option<usize>,
+    /// The largest `res` solved by a dense Cholesky factorization (default
+    /// [`DENSE_MAX_RES`]); above it, conjugate gradients.
+    pub dense_max_res: usize,
 }
 
 /// The default `--smoothness`.
@@ -61,6 +66,7 @@ impl Default for FitOptions {
             theta_max_deg: 80.0,
             refine: 1,
             hd_res: None,
+            dense_max_res: DENSE_MAX_RES,
         }
     }
 }
@@ -85,29 +91,12 @@ impl FitOptions {
         if !isolux_materials::parabolic::RES_RANGE.contains(&self.res) {
             return bad("--res", format!("must lie in 4..=512, got {}", self.res));
         }
-        let nv = ParabolicGrid::new(self.res)
-            .map_err(FactorError::Fit)?
-            .valid()
-            .len();
         let nd = self.hd_res();
         if nd == 1 || nd > 512 {
             return bad(
                 "--hd-res",
                 format!("must be 0 (no r factor) or lie in 2..=512, got {nd}"),
             );
-        }
-        let (res, n) = (self.res, 2 * nv + nd * nd);
-        let bytes = (n * n * 8) as f64;
-        if bytes > MAX_MATRIX_BYTES {
-            return Err(FactorError::Input {
-            what: "--res".into(),
-            message: format!(
-                "{res} needs a dense {n} x {n} normal matrix ({:.1} GiB); the dense Cholesky solver is limited to {:.1} GiB, that is --res {} at most",
-                bytes / GIB,
-                MAX_MATRIX_BYTES / GIB,
-                max_dense_res()
-            ),
-        });
         }
         if !(self.theta_max_deg > 0.0 && self.theta_max_deg <= 90.0) {
             return bad(
@@ -158,14 +147,20 @@ pub struct FitStats {
     /// non-finite value).
     pub excluded: [usize; 3],
     /// Cholesky factorizations computed (1 when all channels share their
-    /// samples).
+    /// samples; 0 above [`DENSE_MAX_RES`], where conjugate gradients solve).
     pub factorizations: usize,
+    /// Conjugate-gradient iterations, all solves and coarser levels
+    /// together (0 at or below [`DENSE_MAX_RES`]).
+    pub cg_iterations: usize,
     /// Unknowns (`2 n_v`).
     pub unknowns: usize,
     /// Seconds assembling the normal equations.
     pub assemble_s: f64,
-    /// Seconds in the Cholesky factorization and solves.
+    /// Seconds in the Cholesky factorization and solves (or the
+    /// conjugate-gradient solves).
     pub solve_s: f64,
+    /// Seconds in the coarser fits that start the conjugate gradients.
+    pub coarse_s: f64,
 }
 
 impl Factorization {
@@ -183,22 +178,6 @@ impl Factorization {
             m.with_hd(self.hd_res, &r(&self.r)).map_err(bad)
         }
     }
-}
-
-const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
-
-/// Largest dense normal matrix the solver builds (1.5 GiB).
-pub const MAX_MATRIX_BYTES: f64 = 1.5 * GIB;
-
-/// The largest resolution whose normal matrix fits [`MAX_MATRIX_BYTES`].
-pub fn max_dense_res() -> usize {
-    (4..=512)
-        .take_while(|&r| {
-            let nv = ParabolicGrid::new(r).map(|g| g.valid().len()).unwrap_or(0);
-            (2 * nv * 2 * nv * 8) as f64 <= MAX_MATRIX_BYTES
-        })
-        .last()
-        .unwrap_or(4)
 }
 
 /// Logarithms below this (relative to a map's largest value) are clamped,
@@ -282,15 +261,32 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
     let lap = laplacian_rows(&grid, &ord, nv, nd);
     // Per channel, the unknowns: `ln p` at the valid texels, then `ln q`.
     let mut x: [Vec<f64>; 3] = Default::default();
+    // Above DENSE_MAX_RES: conjugate gradients, started from the fit at
+    // half the resolution (recursively, down to a dense solve).
+    let warm = if res > opts.dense_max_res {
+        let tc = Instant::now();
+        let (x0, coarse) = coarse_start(samples, opts, &grid, nv, nd)?;
+        stats.coarse_s = tc.elapsed().as_secs_f64();
+        stats.cg_iterations = coarse.cg_iterations;
+        Some(x0)
+    } else {
+        None
+    };
     let mut solver = Solver {
         rows: &rows,
         lap: &lap,
         n,
         lam: opts.smoothness / nv as f64,
-        assemble_s: t0.elapsed().as_secs_f64(),
+        assemble_s: 0.0,
         solve_s: 0.0,
         factorizations: 0,
+        cg_iterations: 0,
+        cg: None,
     };
+    if warm.is_some() {
+        solver.cg = Some(CgColumns::new(&rows, n));
+    }
+    solver.assemble_s = t0.elapsed().as_secs_f64() - stats.coarse_s;
     let ln_f = |s: &Sample, c: usize| s.f.expect("usable").to_array()[c].ln();
     for g in &groups {
         let mask = &masks[g[0]];
@@ -305,7 +301,15 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
                     .collect()
             })
             .collect();
-        for (xc, &c) in solver.solve(&weights, &targets)?.into_iter().zip(g) {
+        let starts: Vec<Vec<f64>> = g
+            .iter()
+            .map(|&c| warm.as_ref().map_or_else(|| vec![0.0; n], |w| w[c].clone()))
+            .collect();
+        for (xc, &c) in solver
+            .solve(&weights, &targets, &starts)?
+            .into_iter()
+            .zip(g)
+        {
             x[c] = xc;
         }
     }
@@ -338,10 +342,12 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
                 weights[k] = (2.0 * d).exp();
                 target[k] = ax - (1.0 - (-d).exp());
             }
-            x[c] = solver.solve(&weights, &[target])?.remove(0);
+            let start = std::mem::take(&mut x[c]);
+            x[c] = solver.solve(&weights, &[target], &[start])?.remove(0);
         }
     }
     stats.factorizations = solver.factorizations;
+    stats.cg_iterations += solver.cg_iterations;
     stats.assemble_s = solver.assemble_s;
     stats.solve_s = solver.solve_s;
     if x.iter().flatten().any(|v| !v.is_finite()) {
@@ -403,6 +409,9 @@ struct Solver<'a> {
     assemble_s: f64,
     solve_s: f64,
     factorizations: usize,
+    cg_iterations: usize,
+    /// Set above [`DENSE_MAX_RES`]: solve by conjugate gradients.
+    cg: Option<CgColumns>,
 }
 
 impl Solver<'_> {
@@ -412,7 +421,15 @@ impl Solver<'_> {
         &mut self,
         weights: &[f64],
         targets: &[Vec<f64>],
+        starts: &[Vec<f64>],
     ) -> Result<Vec<Vec<f64>>, FactorError> {
+        if self.cg.is_some() {
+            return Ok(targets
+                .iter()
+                .zip(starts)
+                .map(|(y, x0)| self.solve_cg(weights, y, x0.clone()))
+                .collect());
+        }
         let t1 = Instant::now();
         let n = self.n;
         let rows = self.rows;
@@ -493,6 +510,219 @@ impl Solver<'_> {
 /// Taps per sample row: four per map lookup, two for `s(theta_d)`.
 const TAPS: usize = 16;
 type Row = [(u32, f64); TAPS];
+
+/// The largest `res` solved by a dense Cholesky factorization; above it
+/// the normal equations are solved matrix-free by preconditioned
+/// conjugate gradients, started from the fit at half the resolution.
+pub const DENSE_MAX_RES: usize = 64;
+
+/// Relative residual at which the conjugate gradients stop.
+const CG_TOLERANCE: f64 = 1e-5;
+/// Iteration cap of one conjugate-gradient solve.
+const CG_MAX_ITERATIONS: usize = 300;
+
+/// The sample rows transposed (for each unknown, the samples that tap it),
+/// so that `A^T z` is a gather, parallel over unknowns and deterministic.
+struct CgColumns {
+    start: Vec<usize>,
+    entries: Vec<(u32, f64)>,
+}
+
+impl CgColumns {
+    fn new(rows: &[Row], n: usize) -> Self {
+        let mut start = vec![0usize; n + 1];
+        for row in rows {
+            for &(i, w) in row {
+                if w != 0.0 {
+                    start[i as usize + 1] += 1;
+                }
+            }
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut entries = vec![(0u32, 0.0); start[n]];
+        for (k, row) in rows.iter().enumerate() {
+            for &(i, w) in row {
+                if w != 0.0 {
+                    entries[fill[i as usize]] = (k as u32, w);
+                    fill[i as usize] += 1;
+                }
+            }
+        }
+        Self { start, entries }
+    }
+}
+
+/// A dot product summed in a fixed order (the same whatever the threads).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.par_chunks(8192)
+        .zip(b.par_chunks(8192))
+        .map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
+        .collect::<Vec<f64>>()
+        .iter()
+        .sum()
+}
+
+impl Solver<'_> {
+    /// `y = (A^T W A / sum w + lam L L + eps I) x`.
+    fn apply(&self, cols: &CgColumns, wdata: &[f64], eps: f64, x: &[f64], y: &mut [f64]) {
+        let z: Vec<f64> = self
+            .rows
+            .par_iter()
+            .zip(wdata)
+            .map(|(row, &ws)| {
+                if ws == 0.0 {
+                    0.0
+                } else {
+                    ws * row.iter().map(|(i, w)| w * x[*i as usize]).sum::<f64>()
+                }
+            })
+            .collect();
+        let mut lx = vec![0.0; self.n];
+        for r in self.lap {
+            lx[r[0].0 as usize] = r.iter().map(|(i, w)| w * x[*i as usize]).sum();
+        }
+        let mut llx = vec![0.0; self.n];
+        for r in self.lap {
+            llx[r[0].0 as usize] = r.iter().map(|(i, w)| w * lx[*i as usize]).sum();
+        }
+        y.par_iter_mut().enumerate().for_each(|(i, yi)| {
+            let data: f64 = cols.entries[cols.start[i]..cols.start[i + 1]]
+                .iter()
+                .map(|(k, w)| w * z[*k as usize])
+                .sum();
+            *yi = data + self.lam * llx[i] + eps * x[i];
+        });
+    }
+
+    /// One right-hand side by Jacobi-preconditioned conjugate gradients
+    /// from `x`; the same objective as the dense solve.
+    fn solve_cg(&mut self, weights: &[f64], target: &[f64], mut x: Vec<f64>) -> Vec<f64> {
+        let t = Instant::now();
+        let cols = self.cg.take().expect("conjugate gradients set up");
+        let n = self.n;
+        let wsum: f64 = weights.iter().sum();
+        let wdata: Vec<f64> = weights.iter().map(|w| w / wsum).collect();
+        // The diagonal of the normal matrix, for the ridge and the
+        // preconditioner.
+        let mut diag: Vec<f64> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                cols.entries[cols.start[i]..cols.start[i + 1]]
+                    .iter()
+                    .map(|(k, w)| w * w * wdata[*k as usize])
+                    .sum()
+            })
+            .collect();
+        for r in self.lap {
+            for &(i, w) in r {
+                diag[i as usize] += self.lam * w * w;
+            }
+        }
+        let eps = 1e-9 * (diag.iter().sum::<f64>() / n as f64).max(f64::MIN_POSITIVE);
+        for d in &mut diag {
+            *d += eps;
+        }
+        // b = A^T W y / sum w.
+        let b: Vec<f64> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                cols.entries[cols.start[i]..cols.start[i + 1]]
+                    .iter()
+                    .map(|(k, w)| w * wdata[*k as usize] * target[*k as usize])
+                    .sum()
+            })
+            .collect();
+        let mut ax = vec![0.0; n];
+        self.apply(&cols, &wdata, eps, &x, &mut ax);
+        let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+        let mut z: Vec<f64> = r.iter().zip(&diag).map(|(r, d)| r / d).collect();
+        let mut p = z.clone();
+        let mut rz = dot(&r, &z);
+        let b_norm = dot(&b, &b).sqrt().max(f64::MIN_POSITIVE);
+        let mut ap = vec![0.0; n];
+        for _ in 0..CG_MAX_ITERATIONS {
+            if dot(&r, &r).sqrt() <= CG_TOLERANCE * b_norm {
+                break;
+            }
+            self.apply(&cols, &wdata, eps, &p, &mut ap);
+            let alpha = rz / dot(&p, &ap);
+            if !alpha.is_finite() {
+                break;
+            }
+            x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
+            r.par_iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
+            z.par_iter_mut()
+                .zip(&r)
+                .zip(&diag)
+                .for_each(|((z, r), d)| *z = r / d);
+            let rz_new = dot(&r, &z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            p.par_iter_mut()
+                .zip(&z)
+                .for_each(|(p, z)| *p = z + beta * *p);
+            self.cg_iterations += 1;
+        }
+        self.cg = Some(cols);
+        self.solve_s += t.elapsed().as_secs_f64();
+        x
+    }
+}
+
+/// The starting point of the conjugate gradients at `opts.res`: the fit at
+/// half the resolution (same samples; an `r` table no finer than that
+/// resolution's default, so that the dense solve at the bottom stays
+/// small), read at the fine texels' directions (`ln p`, `ln q + ln
+/// scale`, `ln r`), per channel.
+fn coarse_start(
+    samples: &[Sample],
+    opts: &FitOptions,
+    grid: &ParabolicGrid,
+    nv: usize,
+    nd: usize,
+) -> Result<([Vec<f64>; 3], FitStats), FactorError> {
+    let coarse_res = (opts.res / 2).max(opts.dense_max_res.min(opts.res)).max(4);
+    let mut coarse_opts = FitOptions {
+        res: coarse_res,
+        hd_res: None,
+        ..opts.clone()
+    };
+    coarse_opts.hd_res = Some(if nd == 0 {
+        0
+    } else {
+        nd.min(coarse_opts.hd_res())
+    });
+    let coarse = fit(samples, &coarse_opts)?;
+    let m = coarse.material()?;
+    let scale = coarse.scale.to_array().map(f64::ln);
+    // ln r at the fine table's texel centres, bilinear in the coarse one:
+    // a pair (wo, wi) with exactly those theta_h and theta_d.
+    let step = std::f64::consts::FRAC_PI_2 / nd.max(1) as f64;
+    let r_logs: Vec<[f64; 3]> = (0..nd * nd)
+        .map(|t| {
+            let (th, td) = ((t / nd) as f64 + 0.5, (t % nd) as f64 + 0.5);
+            let (th, td) = (th * step, td * step);
+            let h = DVec3::new(th.sin(), 0.0, th.cos());
+            let side = DVec3::Y * td.sin();
+            m.log_r(h * td.cos() + side, h * td.cos() - side)
+        })
+        .collect();
+    let x = std::array::from_fn(|c| {
+        let mut x = Vec::with_capacity(2 * nv + nd * nd);
+        for &i in grid.valid() {
+            x.push(m.log_p(grid.texel_direction(i as usize))[c]);
+        }
+        for &i in grid.valid() {
+            x.push(m.log_q(grid.texel_direction(i as usize))[c] + scale[c]);
+        }
+        x.extend(r_logs.iter().map(|t| t[c]));
+        x
+    });
+    Ok((x, coarse.stats))
+}
 
 /// Graph-Laplacian rows of both maps and of the `theta_d` table, over
 /// unknown indices.

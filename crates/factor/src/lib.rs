@@ -130,7 +130,8 @@ pub struct Report {
     pub storage_texels: usize,
     /// SVD baselines, by rank.
     pub baselines: Vec<Baseline>,
-    /// Why there is no baseline, when there is none.
+    /// Why there is no baseline, when there is none, or how it was
+    /// computed, when that differs from the usual.
     pub baseline_note: Option<String>,
     /// CSV rows outside the domain.
     pub outside: usize,
@@ -180,7 +181,11 @@ impl fmt::Display for Report {
             )?;
         }
         if let Some(n) = &self.baseline_note {
-            writeln!(f, "(no SVD baseline: {n})")?;
+            if self.baselines.is_empty() {
+                writeln!(f, "(no SVD baseline: {n})")?;
+            } else {
+                writeln!(f, "(SVD baseline {n})")?;
+            }
         }
         Ok(())
     }
@@ -229,27 +234,29 @@ pub fn factorize(
     let storage = 2 * opts.fit.res * opts.fit.res + nd * nd;
     let (baselines, baseline_note) = if opts.svd_ranks == 0 {
         (Vec::new(), Some("disabled".to_string()))
-    } else if !source.is_evaluable() {
-        (
-            Vec::new(),
-            Some("scattered samples cannot be resampled on the SVD's grid".to_string()),
-        )
     } else if opts.fit.res > 64 {
         (
             Vec::new(),
             Some("computed only up to res 64 (its matrix has res^4 entries)".to_string()),
         )
     } else {
-        let fits = Separable::fit(source, opts.fit.res, theta, opts.svd_ranks).unwrap_or_default();
+        let fits = if source.is_evaluable() {
+            Separable::fit(source, opts.fit.res, theta, opts.svd_ranks)
+        } else {
+            Separable::fit_scattered(&train, opts.fit.res, opts.svd_ranks)
+        };
         (
-            fits.iter()
+            fits.unwrap_or_default()
+                .iter()
                 .map(|s| Baseline {
                     rank: s.rank(),
                     storage_texels: s.storage_texels(),
                     metrics: evaluate(&held, |wo, wi| s.eval(wo, wi)),
                 })
                 .collect(),
-            None,
+            (!source.is_evaluable()).then(|| {
+                "binned: each fitting sample's value goes to the matrix entry of its nearest h and d texels".to_string()
+            }),
         )
     };
     let report = Report {

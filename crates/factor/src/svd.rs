@@ -14,7 +14,7 @@
 //! analogue. Factors are signed, as the SVD's are; lookups interpolate
 //! bilinearly.
 
-use crate::source::Source;
+use crate::source::{Sample, Source};
 use isolux_core::{DVec3, Rgb};
 use isolux_materials::merl::half_diff_vectors;
 use isolux_materials::parabolic::ParabolicGrid;
@@ -44,7 +44,8 @@ pub fn from_half_diff(h: DVec3, d: DVec3) -> (DVec3, DVec3) {
 
 impl Separable {
     /// Fits ranks `1..=max_rank` at once; returns one approximation per
-    /// rank. `None` when the source cannot be evaluated (scattered data).
+    /// rank. `None` when the source cannot be evaluated (scattered data:
+    /// see [`Separable::fit_scattered`]).
     pub fn fit(
         source: &Source,
         res: usize,
@@ -57,10 +58,6 @@ impl Separable {
         let grid = ParabolicGrid::new(res).ok()?;
         let valid = grid.valid().to_vec();
         let nv = valid.len();
-        let mut ord = vec![u32::MAX; grid.len()];
-        for (k, &i) in valid.iter().enumerate() {
-            ord[i as usize] = k as u32;
-        }
         let cos_max = theta_max_deg.to_radians().cos() - 1e-9;
         // The matrix of f over (h texel, d texel); NaN marks a left-out entry.
         let m: Vec<[f32; 3]> = (0..nv * nv)
@@ -79,13 +76,79 @@ impl Separable {
                 }
             })
             .collect();
+        Some(Self::from_matrix(grid, &m, max_rank))
+    }
+
+    /// The same baseline for scattered measurements, which cannot be
+    /// evaluated at texel centres: each sample's value goes to the matrix
+    /// entry of the texels nearest to its `h` and `d` (the mean of the
+    /// samples that share an entry; entries without a sample are left
+    /// out, as missing ones are for a table). At `res` 32 that matrix has
+    /// 660,000 entries, so sparse data leaves most of it empty and the
+    /// alternating least squares runs on what there is.
+    pub fn fit_scattered(samples: &[Sample], res: usize, max_rank: usize) -> Option<Vec<Self>> {
+        if max_rank == 0 || samples.is_empty() {
+            return None;
+        }
+        let grid = ParabolicGrid::new(res).ok()?;
+        let nv = grid.valid().len();
+        let mut ord = vec![u32::MAX; grid.len()];
+        for (k, &i) in grid.valid().iter().enumerate() {
+            ord[i as usize] = k as u32;
+        }
+        let nearest = |v: DVec3| -> usize {
+            let taps = grid.taps(v);
+            let (i, _) = taps
+                .iter()
+                .copied()
+                .fold((0u32, -1.0), |a, t| if t.1 > a.1 { t } else { a });
+            ord[i as usize] as usize
+        };
+        let mut sum = vec![[0.0f64; 3]; nv * nv];
+        let mut count = vec![[0u32; 3]; nv * nv];
+        for s in samples {
+            let Some(f) = s.f else { continue };
+            let (h, d) = half_diff_vectors(s.wo, s.wi);
+            let e = nearest(h) * nv + nearest(d);
+            for (c, v) in f.to_array().into_iter().enumerate() {
+                if v.is_finite() {
+                    sum[e][c] += v;
+                    count[e][c] += 1;
+                }
+            }
+        }
+        let m: Vec<[f32; 3]> = sum
+            .iter()
+            .zip(&count)
+            .map(|(s, n)| {
+                std::array::from_fn(|c| {
+                    if n[c] > 0 {
+                        (s[c] / n[c] as f64) as f32
+                    } else {
+                        f32::NAN
+                    }
+                })
+            })
+            .collect();
+        Some(Self::from_matrix(grid, &m, max_rank))
+    }
+
+    /// Ranks `1..=max_rank` fitted to the `n_v x n_v` matrix `m` over
+    /// (h texel, d texel) of valid texels, NaN marking left-out entries.
+    fn from_matrix(grid: ParabolicGrid, m: &[[f32; 3]], max_rank: usize) -> Vec<Self> {
+        let res = grid.res();
+        let valid = grid.valid().to_vec();
+        let nv = valid.len();
+        let mut ord = vec![u32::MAX; grid.len()];
+        for (k, &i) in valid.iter().enumerate() {
+            ord[i as usize] = k as u32;
+        }
         let centres: Vec<(f64, f64)> = valid
             .iter()
             .map(|&i| grid.center(i as usize % res, i as usize / res))
             .collect();
         let mut u = vec![Vec::new(); 3];
         let mut v = vec![Vec::new(); 3];
-        let mut out = Vec::new();
         for c in 0..3 {
             let entry = |a: usize, b: usize| -> Option<f64> {
                 let x = m[a * nv + b][c];
@@ -95,15 +158,14 @@ impl Separable {
             u[c] = uc;
             v[c] = vc;
         }
-        for rank in 1..=max_rank {
-            out.push(Separable {
+        (1..=max_rank)
+            .map(|rank| Separable {
                 grid: grid.clone(),
                 ord: ord.clone(),
                 u: u.iter().map(|x| x[..rank].to_vec()).collect(),
                 v: v.iter().map(|x| x[..rank].to_vec()).collect(),
-            });
-        }
-        Some(out)
+            })
+            .collect()
     }
 
     /// Rank of the approximation.

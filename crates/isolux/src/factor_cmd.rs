@@ -134,15 +134,25 @@ pub fn run(a: FactorArgs) -> Result<()> {
     let t0 = Instant::now();
     let (fact, report) = factorize(&source, &opts)?;
     let s = &fact.stats;
+    let how = if s.cg_iterations > 0 {
+        format!(
+            "assembly {:.2} s, conjugate gradients {:.2} s ({} iterations), coarser fits that start them {:.2} s",
+            s.assemble_s, s.solve_s, s.cg_iterations, s.coarse_s
+        )
+    } else {
+        format!(
+            "assembly {:.2} s, Cholesky and solve {:.2} s, {} factorization{}",
+            s.assemble_s,
+            s.solve_s,
+            s.factorizations,
+            if s.factorizations == 1 { "" } else { "s" }
+        )
+    };
     eprintln!(
-        "isolux: fit {} unknowns from {} samples in {:.2} s (assembly {:.2} s, Cholesky and solve {:.2} s, {} factorization{}); total with baseline {:.2} s",
+        "isolux: fit {} unknowns from {} samples in {:.2} s ({how}); total with baseline {:.2} s",
         s.unknowns,
         s.samples,
-        s.assemble_s + s.solve_s,
-        s.assemble_s,
-        s.solve_s,
-        s.factorizations,
-        if s.factorizations == 1 { "" } else { "s" },
+        s.assemble_s + s.solve_s + s.coarse_s,
         t0.elapsed().as_secs_f64()
     );
     let ex = s.excluded;
