@@ -161,6 +161,11 @@ pub struct FitStats {
     pub solve_s: f64,
     /// Seconds in the coarser fits that start the conjugate gradients.
     pub coarse_s: f64,
+    /// The largest relative residual `|b - A x| / |b|` at which a
+    /// conjugate-gradient solve of this resolution stopped (0 for the
+    /// dense solve): above the tolerance `1e-5`, the iteration cap was
+    /// reached first.
+    pub cg_residual: f64,
 }
 
 impl Factorization {
@@ -281,11 +286,14 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         solve_s: 0.0,
         factorizations: 0,
         cg_iterations: 0,
-        cg: None,
+        cg_residual: 0.0,
+        cols: if warm.is_some() {
+            CgColumns::new(&rows, n)
+        } else {
+            CgColumns::default()
+        },
+        cg: warm.is_some(),
     };
-    if warm.is_some() {
-        solver.cg = Some(CgColumns::new(&rows, n));
-    }
     solver.assemble_s = t0.elapsed().as_secs_f64() - stats.coarse_s;
     let ln_f = |s: &Sample, c: usize| s.f.expect("usable").to_array()[c].ln();
     for g in &groups {
@@ -348,6 +356,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
     }
     stats.factorizations = solver.factorizations;
     stats.cg_iterations += solver.cg_iterations;
+    stats.cg_residual = solver.cg_residual;
     stats.assemble_s = solver.assemble_s;
     stats.solve_s = solver.solve_s;
     if x.iter().flatten().any(|v| !v.is_finite()) {
@@ -410,8 +419,12 @@ struct Solver<'a> {
     solve_s: f64,
     factorizations: usize,
     cg_iterations: usize,
+    cg_residual: f64,
+    /// The rows transposed (for each unknown, the samples that tap it),
+    /// for the conjugate gradients; empty otherwise.
+    cols: CgColumns,
     /// Set above [`DENSE_MAX_RES`]: solve by conjugate gradients.
-    cg: Option<CgColumns>,
+    cg: bool,
 }
 
 impl Solver<'_> {
@@ -423,7 +436,7 @@ impl Solver<'_> {
         targets: &[Vec<f64>],
         starts: &[Vec<f64>],
     ) -> Result<Vec<Vec<f64>>, FactorError> {
-        if self.cg.is_some() {
+        if self.cg {
             return Ok(targets
                 .iter()
                 .zip(starts)
@@ -435,6 +448,7 @@ impl Solver<'_> {
         let rows = self.rows;
         let wsum: f64 = weights.iter().sum();
         let wdata = 1.0 / wsum;
+        // Lower triangle, column-major: column j holds rows i >= j.
         // Lower triangle, column-major: column j holds rows i >= j.
         let mut ata = vec![0.0f64; n * n];
         let cols_per_chunk = n.div_ceil(rayon::current_num_threads().max(1) * 8).max(1);
@@ -514,15 +528,16 @@ type Row = [(u32, f64); TAPS];
 /// The largest `res` solved by a dense Cholesky factorization; above it
 /// the normal equations are solved matrix-free by preconditioned
 /// conjugate gradients, started from the fit at half the resolution.
-pub const DENSE_MAX_RES: usize = 64;
+pub const DENSE_MAX_RES: usize = 32;
 
 /// Relative residual at which the conjugate gradients stop.
-const CG_TOLERANCE: f64 = 1e-5;
+pub const CG_TOLERANCE: f64 = 1e-5;
 /// Iteration cap of one conjugate-gradient solve.
-const CG_MAX_ITERATIONS: usize = 300;
+pub const CG_MAX_ITERATIONS: usize = 300;
 
 /// The sample rows transposed (for each unknown, the samples that tap it),
 /// so that `A^T z` is a gather, parallel over unknowns and deterministic.
+#[derive(Default)]
 struct CgColumns {
     start: Vec<usize>,
     entries: Vec<(u32, f64)>,
@@ -601,7 +616,7 @@ impl Solver<'_> {
     /// from `x`; the same objective as the dense solve.
     fn solve_cg(&mut self, weights: &[f64], target: &[f64], mut x: Vec<f64>) -> Vec<f64> {
         let t = Instant::now();
-        let cols = self.cg.take().expect("conjugate gradients set up");
+        let cols = std::mem::take(&mut self.cols);
         let n = self.n;
         let wsum: f64 = weights.iter().sum();
         let wdata: Vec<f64> = weights.iter().map(|w| w / wsum).collect();
@@ -643,13 +658,18 @@ impl Solver<'_> {
         let mut rz = dot(&r, &z);
         let b_norm = dot(&b, &b).sqrt().max(f64::MIN_POSITIVE);
         let mut ap = vec![0.0; n];
-        for _ in 0..CG_MAX_ITERATIONS {
-            if dot(&r, &r).sqrt() <= CG_TOLERANCE * b_norm {
+        let mut iterations = 0;
+        loop {
+            let residual = dot(&r, &r).sqrt() / b_norm;
+            if residual <= CG_TOLERANCE || iterations == CG_MAX_ITERATIONS {
+                self.cg_residual = self.cg_residual.max(residual);
                 break;
             }
+            iterations += 1;
             self.apply(&cols, &wdata, eps, &p, &mut ap);
             let alpha = rz / dot(&p, &ap);
             if !alpha.is_finite() {
+                self.cg_residual = self.cg_residual.max(residual);
                 break;
             }
             x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
@@ -666,7 +686,7 @@ impl Solver<'_> {
                 .for_each(|(p, z)| *p = z + beta * *p);
             self.cg_iterations += 1;
         }
-        self.cg = Some(cols);
+        self.cols = cols;
         self.solve_s += t.elapsed().as_secs_f64();
         x
     }

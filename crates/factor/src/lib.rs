@@ -43,7 +43,9 @@ pub mod output;
 pub mod source;
 pub mod svd;
 
-pub use fit::{fit, Factorization, FitOptions, FitStats};
+pub use fit::{
+    fit, Factorization, FitOptions, FitStats, CG_MAX_ITERATIONS, CG_TOLERANCE, DENSE_MAX_RES,
+};
 pub use metrics::{evaluate, Metrics};
 pub use output::write_dir;
 pub use source::{draw, read_csv, Sample, Source};

@@ -155,6 +155,14 @@ pub fn run(a: FactorArgs) -> Result<()> {
         s.assemble_s + s.solve_s + s.coarse_s,
         t0.elapsed().as_secs_f64()
     );
+    if s.cg_residual > 100.0 * isolux_factor::CG_TOLERANCE {
+        eprintln!(
+            "isolux: warning: the conjugate gradients stopped at the cap of {} iterations with relative residual {:.1e} (tolerance {:.0e}); the factors may be imprecise: raise --smoothness or --fit-samples",
+            isolux_factor::CG_MAX_ITERATIONS,
+            s.cg_residual,
+            isolux_factor::CG_TOLERANCE
+        );
+    }
     let ex = s.excluded;
     if ex.iter().any(|e| *e > 0) {
         eprintln!(
