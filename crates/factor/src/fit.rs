@@ -196,10 +196,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
     let res = opts.res;
     let valid = grid.valid();
     let nv = valid.len();
-    let mut ord = vec![u32::MAX; grid.len()];
-    for (k, &i) in valid.iter().enumerate() {
-        ord[i as usize] = k as u32;
-    }
+    let ord = grid.valid_order();
     let t0 = Instant::now();
     // Rows: twelve taps per sample (four per lookup), plus two for the
     // theta_d factor when there is one (zero weights otherwise).
@@ -287,12 +284,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         factorizations: 0,
         cg_iterations: 0,
         cg_residual: 0.0,
-        cols: if warm.is_some() {
-            CgColumns::new(&rows, n)
-        } else {
-            CgColumns::default()
-        },
-        cg: warm.is_some(),
+        cg: warm.is_some().then(|| CgColumns::new(&rows, n)),
     };
     solver.assemble_s = t0.elapsed().as_secs_f64() - stats.coarse_s;
     let ln_f = |s: &Sample, c: usize| s.f.expect("usable").to_array()[c].ln();
@@ -420,11 +412,9 @@ struct Solver<'a> {
     factorizations: usize,
     cg_iterations: usize,
     cg_residual: f64,
-    /// The rows transposed (for each unknown, the samples that tap it),
-    /// for the conjugate gradients; empty otherwise.
-    cols: CgColumns,
-    /// Set above [`DENSE_MAX_RES`]: solve by conjugate gradients.
-    cg: bool,
+    /// Set above [`DENSE_MAX_RES`]: solve by conjugate gradients, over
+    /// the rows transposed.
+    cg: Option<CgColumns>,
 }
 
 impl Solver<'_> {
@@ -436,7 +426,7 @@ impl Solver<'_> {
         targets: &[Vec<f64>],
         starts: &[Vec<f64>],
     ) -> Result<Vec<Vec<f64>>, FactorError> {
-        if self.cg {
+        if self.cg.is_some() {
             return Ok(targets
                 .iter()
                 .zip(starts)
@@ -537,7 +527,6 @@ pub const CG_MAX_ITERATIONS: usize = 300;
 
 /// The sample rows transposed (for each unknown, the samples that tap it),
 /// so that `A^T z` is a gather, parallel over unknowns and deterministic.
-#[derive(Default)]
 struct CgColumns {
     start: Vec<usize>,
     entries: Vec<(u32, f64)>,
@@ -616,7 +605,7 @@ impl Solver<'_> {
     /// from `x`; the same objective as the dense solve.
     fn solve_cg(&mut self, weights: &[f64], target: &[f64], mut x: Vec<f64>) -> Vec<f64> {
         let t = Instant::now();
-        let cols = std::mem::take(&mut self.cols);
+        let cols = self.cg.as_ref().expect("conjugate gradients set up");
         let n = self.n;
         let wsum: f64 = weights.iter().sum();
         let wdata: Vec<f64> = weights.iter().map(|w| w / wsum).collect();
@@ -651,7 +640,7 @@ impl Solver<'_> {
             })
             .collect();
         let mut ax = vec![0.0; n];
-        self.apply(&cols, &wdata, eps, &x, &mut ax);
+        self.apply(cols, &wdata, eps, &x, &mut ax);
         let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
         let mut z: Vec<f64> = r.iter().zip(&diag).map(|(r, d)| r / d).collect();
         let mut p = z.clone();
@@ -666,7 +655,7 @@ impl Solver<'_> {
                 break;
             }
             iterations += 1;
-            self.apply(&cols, &wdata, eps, &p, &mut ap);
+            self.apply(cols, &wdata, eps, &p, &mut ap);
             let alpha = rz / dot(&p, &ap);
             if !alpha.is_finite() {
                 self.cg_residual = self.cg_residual.max(residual);
@@ -686,7 +675,6 @@ impl Solver<'_> {
                 .for_each(|(p, z)| *p = z + beta * *p);
             self.cg_iterations += 1;
         }
-        self.cols = cols;
         self.solve_s += t.elapsed().as_secs_f64();
         x
     }

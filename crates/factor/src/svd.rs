@@ -93,10 +93,7 @@ impl Separable {
         }
         let grid = ParabolicGrid::new(res).ok()?;
         let nv = grid.valid().len();
-        let mut ord = vec![u32::MAX; grid.len()];
-        for (k, &i) in grid.valid().iter().enumerate() {
-            ord[i as usize] = k as u32;
-        }
+        let ord = grid.valid_order();
         let nearest = |v: DVec3| -> usize {
             let taps = grid.taps(v);
             let (i, _) = taps
@@ -140,10 +137,7 @@ impl Separable {
         let res = grid.res();
         let valid = grid.valid().to_vec();
         let nv = valid.len();
-        let mut ord = vec![u32::MAX; grid.len()];
-        for (k, &i) in valid.iter().enumerate() {
-            ord[i as usize] = k as u32;
-        }
+        let ord = grid.valid_order();
         let centres: Vec<(f64, f64)> = valid
             .iter()
             .map(|&i| grid.center(i as usize % res, i as usize / res))

@@ -47,26 +47,32 @@ fn synthetic(res: usize) -> Factored {
     Factored::new(res, &p, &q, Rgb::new(0.2, 0.3, 0.1)).unwrap()
 }
 
+/// Settings of an exact-recovery fit at 16 x 16: no smoothing to speak of,
+/// the pure log fit, an `hd_res x hd_res` angle table, no baseline.
+fn exact_fit_options(hd_res: usize, seed: u64) -> RunOptions {
+    RunOptions {
+        fit: FitOptions {
+            res: 16,
+            smoothness: 1e-9,
+            theta_max_deg: 80.0,
+            refine: 0,
+            hd_res: Some(hd_res),
+            ..Default::default()
+        },
+        samples: 200_000,
+        held_out: 10_000,
+        seed,
+        svd_ranks: 0,
+    }
+}
+
 #[test]
 fn exact_product_is_recovered() {
     // The source is itself p q p with log-bilinear lookups on the same
     // grid, so the model can represent it exactly.
     let truth = synthetic(16);
     let src = source("synthetic", Material::Factored(truth.clone()));
-    let opts = RunOptions {
-        fit: FitOptions {
-            res: 16,
-            smoothness: 1e-9,
-            theta_max_deg: 80.0,
-            refine: 0,
-            hd_res: Some(0),
-            ..Default::default()
-        },
-        samples: 200_000,
-        held_out: 10_000,
-        seed: 5,
-        svd_ranks: 0,
-    };
+    let opts = exact_fit_options(0, 5);
     let (fact, report) = factorize(&src, &opts).unwrap();
     assert!(
         report.factored.relative_rms < 1e-3,
@@ -110,19 +116,7 @@ fn exact_product_with_angle_factor_is_recovered() {
         .collect();
     let truth = synthetic(16).with_hd(n, &r).unwrap();
     let src = source("synthetic", Material::Factored(truth.clone()));
-    let opts = RunOptions {
-        fit: FitOptions {
-            res: 16,
-            smoothness: 1e-9,
-            refine: 0,
-            hd_res: Some(n),
-            ..Default::default()
-        },
-        samples: 200_000,
-        held_out: 10_000,
-        seed: 6,
-        svd_ranks: 0,
-    };
+    let opts = exact_fit_options(n, 6);
     let (fact, report) = factorize(&src, &opts).unwrap();
     assert!(
         report.factored.relative_rms < 1e-3,

@@ -114,6 +114,17 @@ impl ParabolicGrid {
         &self.valid
     }
 
+    /// For each texel, its position in [`ParabolicGrid::valid`]
+    /// (`u32::MAX` for a texel outside the disk): the map from texels to
+    /// the unknowns of a fit over the valid texels.
+    pub fn valid_order(&self) -> Vec<u32> {
+        let mut ord = vec![u32::MAX; self.len()];
+        for (k, &i) in self.valid.iter().enumerate() {
+            ord[i as usize] = k as u32;
+        }
+        ord
+    }
+
     /// The valid texel that stands in for texel `i`.
     pub fn alias(&self, i: usize) -> usize {
         self.alias[i] as usize
