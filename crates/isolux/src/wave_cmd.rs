@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use isolux_core::{DVec3, Image};
 use isolux_materials::wave::{Wave, WaveFresnel};
 use isolux_wave::generate::{generate, Kind};
-use isolux_wave::{Comb, GaborSurface, Heightfield, LoadOptions, Model, Settings};
+use isolux_wave::{Comb, GaborSurface, Heightfield, LoadOptions, Model, Obliquity, Settings};
 use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -117,6 +117,15 @@ enum ModelArg {
     Ohs,
 }
 
+/// Obliquity factors of the BRDF.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ObliquityArg {
+    /// O = 1: reciprocal, albedo at most 1 (default).
+    Reciprocal,
+    /// O = cos_o / cos_i: the seed's factor (SPEC §3); albedo above 1 at grazing incidence.
+    Seed,
+}
+
 #[derive(Args, Debug)]
 struct BrdfArgs {
     /// Heightfield: .exr, 16-bit .png, or raw .f32 (with --raw-size).
@@ -159,6 +168,9 @@ struct BrdfArgs {
     /// Diffraction model.
     #[arg(long, value_enum, default_value_t = ModelArg::Ghs)]
     model: ModelArg,
+    /// Obliquity factor (see docs/wave-optics.md, "Energy").
+    #[arg(long, value_enum, default_value_t = ObliquityArg::Reciprocal)]
+    obliquity: ObliquityArg,
     /// Fresnel: none, or a metal (Ag, Al, Au, Cr, Cu, Fe, Ni, Ti).
     #[arg(long, default_value = "none")]
     fresnel: String,
@@ -306,6 +318,10 @@ fn brdf(b: BrdfArgs) -> Result<()> {
     let mut m = Wave::new(surface.clone(), model, fresnel);
     m.settings = Settings {
         hierarchy: !b.no_hierarchy,
+        obliquity: match b.obliquity {
+            ObliquityArg::Reciprocal => Obliquity::Reciprocal,
+            ObliquityArg::Seed => Obliquity::Seed,
+        },
         ..Settings::default()
     };
     m.query.center_um = [b.center_um[0], b.center_um[1]];

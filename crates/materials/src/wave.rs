@@ -7,8 +7,14 @@
 //! `docs/wave-optics.md`):
 //!
 //! ```text
-//! f(wi, wo) = F(lambda, wi.h) cos_o / (lambda^2 cos_i A_c) |sum_k w_k C_k FT[g_k](psi / lambda)|^2
+//! f(wi, wo) = F(lambda, wi.h) O / (lambda^2 A_c) |sum_k w_k C_k FT[g_k](psi / lambda)|^2
 //! ```
+//!
+//! with the obliquity factor `O = 1` (`obliquity = "reciprocal"`, the
+//! default: reciprocal, and the albedo is at most `F` by Parseval) or the
+//! seed's `cos_o / cos_i` (`"seed"`, SPEC §3 verbatim, which returns more
+//! energy than it receives at grazing incidence); the reasons are in the
+//! `isolux-wave` crate's `gabor` module docs.
 //!
 //! Spatially varying: each shading point maps to heightfield coordinates
 //! (`mapping`) and queries its own coherence area, narrowed to the pixel's
@@ -32,6 +38,7 @@
 //! | `vertical_scale` | float | 1 | multiplies every height |
 //! | `raw_size` | [int, int] | - | width and height of a raw file |
 //! | `model` | string | `"ghs"` | `"ghs"` (generalized Harvey-Shack) or `"ohs"` (original) |
+//! | `obliquity` | string | `"reciprocal"` | `"reciprocal"` (`O = 1`) or `"seed"` (`O = cos_o / cos_i`) |
 //! | `metal` / `ior` | string / float | none | Fresnel: a metal of [`crate::metals`] or a dielectric index; none means F = 1 |
 //! | `coherence_um` | float | 10 | standard deviation of the coherence area (um) |
 //! | `mapping` | string | `"planar"` | `"planar"`, `"spherical"` or `"cylindrical"` |
@@ -51,6 +58,7 @@
 //! type = "wave"
 //! heightfield = "brushed.exr"
 //! model = "ghs"
+//! obliquity = "reciprocal"
 //! metal = "Al"
 //! coherence_um = 10.0
 //! mapping = "spherical"
@@ -183,7 +191,7 @@ pub struct Wave {
     pub mapping: Mapping,
     /// Hero wavelengths per query.
     pub wavelengths: usize,
-    /// Kernel culling.
+    /// Obliquity factor and kernel culling.
     pub settings: Settings,
     /// The current shading point (set by [`Wave::at_point`]).
     pub query: WaveQuery,
@@ -198,6 +206,7 @@ impl PartialEq for Wave {
             && self.um_per_unit == o.um_per_unit
             && self.mapping == o.mapping
             && self.wavelengths == o.wavelengths
+            && self.settings == o.settings
             && self.query == o.query
     }
 }

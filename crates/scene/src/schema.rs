@@ -411,6 +411,7 @@ fn material(
                 "vertical_scale",
                 "raw_size",
                 "model",
+                "obliquity",
                 "metal",
                 "ior",
                 "coherence_um",
@@ -772,6 +773,10 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
     }
     if let Some(v) = t.get("wavelengths") {
         m.wavelengths = v.uint(1, 16)? as usize;
+    }
+    if let Some(v) = t.get("obliquity") {
+        m.settings.obliquity =
+            isolux_wave::Obliquity::parse(v.choice(&["reciprocal", "seed"])?).unwrap_or_default();
     }
     let center = match t.get("center") {
         Some(v) => vec3(&v)?,

@@ -312,6 +312,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"s\"\ntype = \"subsurface\"\nmedium = \"marble\"\nsingle_scattering = 1\n", "s.toml:5:21: material[0].single_scattering: expected a boolean (true or false), found an integer"),
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"nope.exr\"\n", "s.toml:4:15: material[0].heightfield: ./nope.exr: file not found"),
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\nmodel = \"kirchhoff\"\n", "s.toml:5:9: material[0].model: unknown value \"kirchhoff\" (valid: ghs, ohs)"),
+        ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\nobliquity = \"cos\"\n", "s.toml:5:13: material[0].obliquity: unknown value \"cos\" (valid: reciprocal, seed)"),
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\nmapping = \"spherical\"\naxis = \"x\"\n", "s.toml:1:1: material[0]: `axis` applies to mapping = \"planar\" only"),
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\ncoherence_um = 0\n", "s.toml:5:16: material[0].coherence_um: must be positive, got 0"),
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\nmetal = \"Au\"\nior = 1.5\n", "s.toml:1:1: material[0]: conflicting Fresnel keys: give only one of `metal`, `ior`"),

@@ -8,8 +8,28 @@
 //! `w(s) = exp(-|s - x_c|^2 / (2 sigma^2))` gives
 //!
 //! ```text
-//! f(wi, wo) = F cos_o kappa^2 / (cos_i A_c) |I(psi kappa)|^2,   A_c = integral w^2 = pi sigma^2
+//! f(wi, wo) = F O kappa^2 / A_c |I(psi kappa)|^2,   A_c = integral w^2 = pi sigma^2
 //! ```
+//!
+//! with the obliquity factor `O` ([`Obliquity`]): 1 by default
+//! (`reciprocal`), or the seed's `cos_o / cos_i` (`seed`, SPEC §3).
+//!
+//! # Why the default obliquity is 1
+//! Since `d^2 u = kappa^2 cos_o dw_o`, the directional albedo is
+//! `integral F O |I(u)|^2 / A_c d^2u` over the outgoing disk. With `O = 1`
+//! Parseval bounds it: `integral |I|^2 d^2u = integral w^2 |r|^2 = A_c`, so
+//! the albedo is at most `F` (less where orders go evanescent), and
+//! `f(wi, wo) = f(wo, wi)` (`psi` and `c3` are symmetric). The seed's
+//! `O = cos_o / cos_i` is neither: where light is diffracted toward the
+//! normal from grazing incidence (`cos_o > cos_i`) it returns more than it
+//! receives (a grating: 1.006 at 60 degrees, 1.19 at 75 degrees). Both are
+//! scalar approximations; against first-order perturbation theory for a
+//! shallow perfectly conducting sinusoid (unpolarized), at 75 degrees
+//! incidence and an order at 45.6 degrees the seed's factor overestimates
+//! the order's efficiency by 1.7x and `O = 1` underestimates it by 1.5x, and
+//! at normal incidence the two differ only by `cos_o` (1 at the specular
+//! peak). `O = 1` is the one that keeps energy and reciprocity, so it is
+//! the default; `obliquity = "seed"` keeps SPEC §3 verbatim.
 //!
 //! Each texel `k` (centre `c_k`, size `l`) becomes a Gabor kernel of width
 //! `zeta = l/2` from its height `h_k` and slope `g_k` (central
@@ -91,6 +111,36 @@ impl Model {
 /// Default culling threshold: the window's value at 3 sigma.
 pub const DEFAULT_EPS: f64 = 0.011_108_996_538_242_306; // exp(-4.5)
 
+/// The obliquity factor `O` of the BRDF (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Obliquity {
+    /// `O = 1`: reciprocal, directional albedo at most 1 (Parseval).
+    #[default]
+    Reciprocal,
+    /// `O = cos_o / cos_i`: the seed's eq. 4-5 factor (SPEC §3); the
+    /// albedo exceeds 1 at grazing incidence.
+    Seed,
+}
+
+impl Obliquity {
+    /// Parses `reciprocal` or `seed`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "reciprocal" => Some(Self::Reciprocal),
+            "seed" => Some(Self::Seed),
+            _ => None,
+        }
+    }
+
+    /// The factor for these cosines (both positive).
+    pub fn factor(self, cos_i: f64, cos_o: f64) -> f64 {
+        match self {
+            Self::Reciprocal => 1.0,
+            Self::Seed => cos_o / cos_i,
+        }
+    }
+}
+
 /// The coherence area of a query: a Gaussian of standard deviation
 /// `sigma_um` centred at `center_um`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -101,13 +151,15 @@ pub struct Footprint {
     pub sigma_um: f64,
 }
 
-/// Accuracy and acceleration settings.
+/// The obliquity factor, and accuracy and acceleration settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
     /// Relative amplitude under which a kernel is dropped (see module docs).
     pub eps: f64,
     /// Use the quadtree (off: visit every kernel of the window square).
     pub hierarchy: bool,
+    /// The BRDF's obliquity factor.
+    pub obliquity: Obliquity,
 }
 
 impl Default for Settings {
@@ -115,6 +167,7 @@ impl Default for Settings {
         Self {
             eps: DEFAULT_EPS,
             hierarchy: true,
+            obliquity: Obliquity::default(),
         }
     }
 }
@@ -386,9 +439,10 @@ impl GaborSurface {
         }
         let l2 = self.texel_um * self.texel_um;
         let ac = PI * fp.sigma_um * fp.sigma_um;
+        let o = set.obliquity.factor(wi.z, wo.z);
         for (j, (re, im)) in acc.iter().enumerate() {
             let k = comb.k0 + j as f64 * comb.dk;
-            out[j] = k * k * wo.z / wi.z * l2 * l2 * (re * re + im * im) / ac;
+            out[j] = k * k * o * l2 * l2 * (re * re + im * im) / ac;
         }
     }
 

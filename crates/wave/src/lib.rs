@@ -19,6 +19,6 @@ pub mod generate;
 pub mod heightfield;
 pub mod spectral;
 
-pub use gabor::{Footprint, GaborSurface, Model, Settings, DEFAULT_EPS};
+pub use gabor::{Footprint, GaborSurface, Model, Obliquity, Settings, DEFAULT_EPS};
 pub use heightfield::{Heightfield, HeightfieldError, LoadOptions};
 pub use spectral::Comb;
