@@ -289,6 +289,9 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
     let mut inside: Option<Subsurface> = None;
     let mut path_channel: Option<usize> = None;
     let mut medium_events = 0u32;
+    // The environment along the current ray was already counted (the
+    // mirror reflection of a subsurface boundary, below).
+    let mut env_counted = false;
     loop {
         // Free flight inside a medium limits the search for the surface.
         let mut t_max = f64::INFINITY;
@@ -320,12 +323,14 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                 let dir = f.to_world(DVec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
                 ray = Ray::new(p, dir.normalize());
                 prev_pdf = None;
+                env_counted = false;
                 continue;
             }
         }
         let Some((obj, hit)) = found else {
             let le = env.eval(ray.dir);
             let w = match prev_pdf {
+                _ if env_counted => 0.0,
                 Some(p) if env.is_sampled() => power_heuristic(p, env.pdf(ray.dir)),
                 _ => 1.0,
             };
@@ -373,12 +378,39 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                 l += beta * single_scattering_light(scene, m, &hit, wo, rng);
             }
         }
+        // The environment mirrored by a subsurface boundary, seen from
+        // outside, is added here with its Fresnel weight on every path;
+        // the random choice of reflection below then only carries what the
+        // mirror ray meets in the scene (its escape adds nothing). Without
+        // this the choice (probability F) makes the sun's reflection a
+        // few very bright samples: the dominant noise of a translucent
+        // object under a sky (docs/subsurface.md).
+        let mirror_env = match material.medium() {
+            Some(m) if wo.dot(ns) > 0.0 => {
+                let cos = wo.dot(ns);
+                let r = 2.0 * cos * ns - wo;
+                let origin = offset_origin(hit.p, hit.n, r);
+                if !scene
+                    .geometry
+                    .occluded(&Ray::new(origin, r), 0.0, f64::INFINITY)
+                {
+                    let f = isolux_materials::fresnel::dielectric(cos, m.boundary.ior);
+                    l += beta * env.eval(r) * f;
+                }
+                true
+            }
+            _ => false,
+        };
+        env_counted = false;
 
         // BSDF sampling.
         let uc = rng.next_f64();
         let Some(s) = bsdf.sample(wo, uc, rng.next_2d()) else {
             break;
         };
+        if mirror_env && s.flags.contains(BxdfFlags::REFLECTION) {
+            env_counted = true;
+        }
         // Dipole BSSRDF: light refracted into the medium re-emerges at x_o
         // from an entry point x_i sampled around it (the choice of
         // transmission, probability 1 - F(cos_o), cancels the factor
