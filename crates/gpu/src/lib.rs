@@ -45,6 +45,9 @@ pub const MAX_SUBDIVISIONS: i32 = 4096;
 /// the normal (the CPU's f64 path uses 1e-7; f32 hit points are good to
 /// about 1e-6 relative, so the margin is wider).
 pub const SPAWN_OFFSET: f32 = 1e-4;
+/// Perturbations a ray keeps per object after culling (those active on its
+/// span); a ray that meets more uses all of the object's perturbations.
+pub const MAX_CANDIDATES: u32 = 16;
 /// Environment kinds (`Params.counts.w`).
 pub const ENV_CONSTANT: u32 = 0;
 /// An equirectangular map, light-sampled.
@@ -60,6 +63,7 @@ pub fn prelude() -> String {
          const NO_ROOT: f32 = {NO_ROOT:e};\n\
          const MIN_WIDTH: f32 = {MIN_WIDTH:e};\n\
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
+         const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n\

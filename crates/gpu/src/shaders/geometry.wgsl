@@ -208,18 +208,44 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
     let first = obj.range.x;
     let count = obj.range.y;
     let base = q_along(obj.base, o, d);
+    // Culling: one pass keeps the perturbations active somewhere on the
+    // span. Q_i(t) with a negative leading coefficient (every bounded
+    // support, and others along some rays) is active only between its
+    // roots; no roots, or roots outside the span, drop it. Up to
+    // MAX_CANDIDATES are kept; beyond, every perturbation is used.
+    var cand: array<u32, MAX_CANDIDATES>;
+    var nc = 0u;
+    var all = false;
+    let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
+    for (var i = 0u; i < count; i++) {
+        let qa = q_along(perturbations[first + i].q, o, d);
+        if (qa.x < 0.0) {
+            let r = roots(qa);
+            if (r.y >= NO_ROOT || r.y < span.x - slack || r.x > span.y + slack) {
+                continue;
+            }
+        }
+        if (nc < MAX_CANDIDATES) {
+            cand[nc] = first + i;
+            nc++;
+        } else {
+            all = true;
+        }
+    }
+    let live = select(nc, count, all);
     var a = span.x;
     var guard = 0u;
     loop {
-        if (a >= span.y || guard > 2u * count + 2u) {
+        if (a >= span.y || guard > 2u * live + 2u) {
             break;
         }
         guard++;
         // Next breakpoint: the nearest root of an active Q_i beyond a.
         var b = span.y;
         let eps = 1e-6 * max(1.0, abs(a));
-        for (var i = 0u; i < count; i++) {
-            let r = roots(q_along(perturbations[first + i].q, o, d));
+        for (var j = 0u; j < live; j++) {
+            let pi = select(cand[j], first + j, all);
+            let r = roots(q_along(perturbations[pi].q, o, d));
             if (r.x > a + eps && r.x < b) {
                 b = r.x;
             }
@@ -232,8 +258,8 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
         let c = shift2(base, a, l);
         var p = array<f32, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
         var n_active = 0u;
-        for (var i = 0u; i < count; i++) {
-            let pert = perturbations[first + i];
+        for (var j = 0u; j < live; j++) {
+            let pert = perturbations[select(cand[j], first + j, all)];
             let qa = q_along(pert.q, o, d);
             if (qa.z + mid * (qa.y + mid * qa.x) <= 0.0) {
                 continue;
@@ -275,8 +301,8 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
             let t = a + s * l;
             let x = o + t * d;
             var g = q_grad(obj.base, x);
-            for (var i = 0u; i < count; i++) {
-                let pert = perturbations[first + i];
+            for (var j = 0u; j < live; j++) {
+                let pert = perturbations[select(cand[j], first + j, all)];
                 let qv = q_eval(pert.q, x);
                 if (qv > 0.0) {
                     g += 3.0 * pert.factor.x * qv * qv * q_grad(pert.q, x);
