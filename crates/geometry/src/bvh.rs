@@ -39,6 +39,25 @@ impl Bvh {
         Self { nodes, items }
     }
 
+    /// The nodes depth-first (a node's first child follows it), each as
+    /// its box, the index of its second child (interior nodes) and its
+    /// items (leaves: 1 to [`LEAF_SIZE`]; interior nodes: none). The
+    /// layout the GPU's traversal reads.
+    pub fn flatten(&self) -> Vec<(Aabb, u32, Vec<u32>)> {
+        self.nodes
+            .iter()
+            .map(|n| {
+                if n.count > 0 {
+                    let first = n.offset as usize;
+                    let items = self.items[first..first + n.count as usize].to_vec();
+                    (n.bounds, 0, items)
+                } else {
+                    (n.bounds, n.offset, Vec::new())
+                }
+            })
+            .collect()
+    }
+
     /// Whether the hierarchy is empty.
     pub fn is_empty(&self) -> bool {
         self.nodes.is_empty()

@@ -4,7 +4,8 @@
 //! unit test checks each size against the WGSL declaration's.
 
 use bytemuck::{Pod, Zeroable};
-use isolux_core::Rgb;
+use isolux_core::{Aabb, DVec3, Rgb};
+use isolux_geometry::bvh::{Bvh, LEAF_SIZE};
 use isolux_geometry::{Object, Quadric};
 use isolux_materials::{Fresnel, Material};
 
@@ -42,7 +43,9 @@ pub struct GpuPerturbation {
 
 /// An object: base quadric, bounding box, and its range of perturbations.
 /// WGSL: `struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>,
-/// range: vec4<u32> }` (`range.x` first perturbation, `range.y` count).
+/// range: vec4<u32> }` (`range.x` first perturbation, `range.y` count,
+/// `range.z` material, `range.w` the root of its perturbations' hierarchy
+/// in [`GpuScene::nodes`], [`NO_NODE`] when it has none).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuObject {
@@ -52,8 +55,27 @@ pub struct GpuObject {
     pub bmin: [f32; 4],
     /// Box maximum (`w` unused).
     pub bmax: [f32; 4],
-    /// `[first perturbation, count, material index, 0]`.
+    /// `[first perturbation, count, material index, hierarchy root]`.
     pub range: [u32; 4],
+}
+
+/// `GpuObject.range.w` of an object without perturbations.
+pub const NO_NODE: u32 = u32::MAX;
+
+/// A node of a bounding volume hierarchy, depth-first (a node's first
+/// child follows it). WGSL: `struct BvhNode { bmin: vec4<f32>, bmax:
+/// vec4<f32>, link: vec4<u32> }`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBvhNode {
+    /// Box minimum (`w` unused).
+    pub bmin: [f32; 4],
+    /// Box maximum (`w` unused).
+    pub bmax: [f32; 4],
+    /// Interior: `[second child, 0, 0, 0]`. Leaf: `[0, count (1 or 2),
+    /// item, item]` (object indices at the top level, absolute
+    /// perturbation indices under an object).
+    pub link: [u32; 4],
 }
 
 /// A ray: origin with `t_min` in `w`, direction with `t_max` in `w`.
@@ -76,13 +98,44 @@ pub struct GpuHit {
     pub v: [f32; 4],
 }
 
-/// Objects and their perturbations, flattened for upload.
+/// Objects and their perturbations, flattened for upload, with the
+/// hierarchies the traversal reads: the one over the objects' boxes (root
+/// at node 0 when there are objects) and one per object over its
+/// perturbations' supports clipped to the object's box.
 #[derive(Clone, Debug, Default)]
 pub struct GpuScene {
     /// Objects.
     pub objects: Vec<GpuObject>,
     /// All perturbations, each object's contiguous.
     pub perturbations: Vec<GpuPerturbation>,
+    /// Every hierarchy's nodes, the objects' first.
+    pub nodes: Vec<GpuBvhNode>,
+}
+
+/// Boxes are clamped to +-1e30 for f32.
+fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
+    let c = |v: f64| v.clamp(-1e30, 1e30) as f32;
+    (
+        [c(b.min.x), c(b.min.y), c(b.min.z), 0.0],
+        [c(b.max.x), c(b.max.y), c(b.max.z), 0.0],
+    )
+}
+
+/// Appends `boxes`' hierarchy to `nodes`, leaf items mapped by `item`;
+/// returns its root.
+fn push_bvh(nodes: &mut Vec<GpuBvhNode>, boxes: &[Aabb], item: impl Fn(u32) -> u32) -> u32 {
+    let root = nodes.len() as u32;
+    for (b, second, items) in Bvh::build(boxes).flatten() {
+        let (bmin, bmax) = clamp_box(&b);
+        let link = match items.as_slice() {
+            [] => [root + second, 0, 0, 0],
+            [a] => [0, 1, item(*a), 0],
+            [a, b] => [0, 2, item(*a), item(*b)],
+            _ => unreachable!("BVH leaves hold at most {LEAF_SIZE} items"),
+        };
+        nodes.push(GpuBvhNode { bmin, bmax, link });
+    }
+    root
 }
 
 impl GpuScene {
@@ -95,21 +148,51 @@ impl GpuScene {
     /// Flattens `objects`, object `i` wearing material `material[i]`.
     pub fn with_materials(objects: &[Object], material: &[usize]) -> Self {
         let mut s = Self::default();
+        let boxes: Vec<Aabb> = objects
+            .iter()
+            .map(|o| {
+                let (a, b) = clamp_box(&o.bbox());
+                let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
+                Aabb::new(v(a), v(b))
+            })
+            .collect();
+        if !objects.is_empty() {
+            push_bvh(&mut s.nodes, &boxes, |i| i);
+        }
         for (o, &mi) in objects.iter().zip(material) {
             let first = s.perturbations.len() as u32;
-            for p in o.perturbations() {
+            let bbox = o.bbox();
+            // Supports clipped to the object's box (an unbounded support
+            // takes the whole box); one that misses the box never acts.
+            let mut live = Vec::new();
+            let mut pboxes = Vec::new();
+            for (i, p) in o.perturbations().iter().enumerate() {
                 s.perturbations.push(GpuPerturbation {
                     q: GpuQuadric::new(&p.quadric),
                     factor: [p.factor as f32, 0.0, 0.0, 0.0],
                 });
+                let b = p
+                    .quadric
+                    .positive_bounds()
+                    .map_or(bbox, |pb| pb.intersection(&bbox));
+                if !b.is_empty() {
+                    live.push(first + i as u32);
+                    let (a, c) = clamp_box(&b);
+                    let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
+                    pboxes.push(Aabb::new(v(a), v(c)));
+                }
             }
-            let b = o.bbox();
-            let clamp = |v: f64| v.clamp(-1e30, 1e30) as f32;
+            let root = if pboxes.is_empty() {
+                NO_NODE
+            } else {
+                push_bvh(&mut s.nodes, &pboxes, |k| live[k as usize])
+            };
+            let (bmin, bmax) = clamp_box(&bbox);
             s.objects.push(GpuObject {
                 base: GpuQuadric::new(o.base()),
-                bmin: [clamp(b.min.x), clamp(b.min.y), clamp(b.min.z), 0.0],
-                bmax: [clamp(b.max.x), clamp(b.max.y), clamp(b.max.z), 0.0],
-                range: [first, o.perturbations().len() as u32, mi as u32, 0],
+                bmin,
+                bmax,
+                range: [first, o.perturbations().len() as u32, mi as u32, root],
             });
         }
         s
@@ -642,6 +725,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuQuadric>(), 48);
         assert_eq!(std::mem::size_of::<GpuPerturbation>(), 64);
         assert_eq!(std::mem::size_of::<GpuObject>(), 96);
+        assert_eq!(std::mem::size_of::<GpuBvhNode>(), 48);
         assert_eq!(std::mem::size_of::<GpuRay>(), 32);
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
@@ -664,6 +748,7 @@ mod tests {
                     Some("Quadric") => std::mem::size_of::<GpuQuadric>(),
                     Some("Perturbation") => std::mem::size_of::<GpuPerturbation>(),
                     Some("Object") => std::mem::size_of::<GpuObject>(),
+                    Some("BvhNode") => std::mem::size_of::<GpuBvhNode>(),
                     Some("Ray") => std::mem::size_of::<GpuRay>(),
                     Some("Material") => std::mem::size_of::<GpuMaterial>(),
                     Some("Light") => std::mem::size_of::<GpuLight>(),
@@ -676,6 +761,6 @@ mod tests {
                 seen.insert(ty.name.clone().unwrap());
             }
         }
-        assert_eq!(seen.len(), 9, "{seen:?}");
+        assert_eq!(seen.len(), 10, "{seen:?}");
     }
 }

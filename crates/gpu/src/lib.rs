@@ -47,7 +47,10 @@ pub const MAX_SUBDIVISIONS: i32 = 4096;
 pub const SPAWN_OFFSET: f32 = 1e-4;
 /// Perturbations a ray keeps per object after culling (those active on its
 /// span); a ray that meets more uses all of the object's perturbations.
-pub const MAX_CANDIDATES: u32 = 16;
+pub const MAX_CANDIDATES: u32 = 32;
+/// Entries of a BVH traversal's stack: the depth of a median-split
+/// hierarchy of up to 2^32 leaves.
+pub const BVH_STACK: u32 = 32;
 /// Environment kinds (`Params.counts.w`).
 pub const ENV_CONSTANT: u32 = 0;
 /// An equirectangular map, light-sampled.
@@ -64,10 +67,13 @@ pub fn prelude() -> String {
          const MIN_WIDTH: f32 = {MIN_WIDTH:e};\n\
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
+         const BVH_STACK: u32 = {BVH_STACK}u;\n\
+         const NO_NODE: u32 = {}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n\
          const LOD_BIAS: f32 = {:?};\n",
+        layout::NO_NODE,
         isolux_render::realtime::LOD_BIAS as f32
     );
     for (name, v) in layout::tag::ALL
@@ -220,7 +226,7 @@ impl Gpu {
             use wgpu::BufferBindingType as B;
             // objects, perturbations, materials, lights, env texels,
             // env cdf, accum (rw), params (uniform), material data,
-            // env levels.
+            // env levels, BVH nodes.
             let kinds = [
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -230,6 +236,7 @@ impl Gpu {
                 B::Storage { read_only: true },
                 B::Storage { read_only: false },
                 B::Uniform,
+                B::Storage { read_only: true },
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
             ];
@@ -471,13 +478,14 @@ impl Gpu {
         let objects = self.storage("objects", bytemuck::cast_slice(&scene.objects));
         let perts = self.storage("perturbations", bytemuck::cast_slice(&scene.perturbations));
         let ray_buf = self.storage("rays", bytemuck::cast_slice(rays));
+        let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&scene.nodes));
         let out = self.output("hits", (rays.len() * std::mem::size_of::<GpuHit>()) as u64);
         let counts = [rays.len() as u32, scene.objects.len() as u32, 0, 0];
         let uniform = self.uniform("counts", &counts);
         let groups = (rays.len() as u32).div_ceil(WORKGROUP_SIZE);
         self.run_and_read(
             pipeline,
-            &[&objects, &perts, &ray_buf, &out, &uniform],
+            &[&objects, &perts, &ray_buf, &out, &uniform, &nodes],
             (groups, 1),
             &out,
         )

@@ -260,6 +260,7 @@ impl Gpu {
         let accum = self.output("accumulation", npix * 16);
         let params_buf = self.uniform("params", &params);
         let levels = self.storage("env levels", bytemuck::cast_slice(&levels));
+        let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&geo.nodes));
         let bind = self.render_bind_group(&[
             &objects,
             &perts,
@@ -271,6 +272,7 @@ impl Gpu {
             &params_buf,
             &data,
             &levels,
+            &nodes,
         ]);
         Ok(GpuFrame {
             realtime,

@@ -12,12 +12,20 @@
 // Never marching. The prelude (constants) is generated from Rust.
 //
 // This file holds the structs and functions only; each kernel declares the
-// `objects` and `perturbations` storage buffers with its own bindings.
+// `objects`, `perturbations` and `nodes` storage buffers with its own
+// bindings.
 
 struct Quadric { c: array<vec4<f32>, 3> }
 struct Perturbation { q: Quadric, factor: vec4<f32> }
 struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>, range: vec4<u32> }
 struct Ray { o: vec4<f32>, d: vec4<f32> }
+// Depth-first BVH node (layout.rs `GpuBvhNode`): interior `link = (second
+// child, 0, _, _)`, the first child follows; leaf `link = (_, count,
+// item, item)`.
+struct BvhNode { bmin: vec4<f32>, bmax: vec4<f32>, link: vec4<u32> }
+
+// The object of the hit `scene_first_hit` returned.
+var<private> hit_object: u32;
 
 // Coefficients [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44].
 fn q_m(q: Quadric, p: vec3<f32>) -> vec3<f32> {
@@ -208,28 +216,58 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
     let first = obj.range.x;
     let count = obj.range.y;
     let base = q_along(obj.base, o, d);
-    // Culling: one pass keeps the perturbations active somewhere on the
-    // span. Q_i(t) with a negative leading coefficient (every bounded
+    // Culling: the object's hierarchy over its perturbations' supports
+    // (clipped to its box) yields those whose box the span crosses; of
+    // these, a Q_i(t) with a negative leading coefficient (every bounded
     // support, and others along some rays) is active only between its
-    // roots; no roots, or roots outside the span, drop it. Up to
+    // roots, and no roots, or roots outside the span, drop it. Up to
     // MAX_CANDIDATES are kept; beyond, every perturbation is used.
     var cand: array<u32, MAX_CANDIDATES>;
     var nc = 0u;
     var all = false;
     let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
-    for (var i = 0u; i < count; i++) {
-        let qa = q_along(perturbations[first + i].q, o, d);
-        if (qa.x < 0.0) {
-            let r = roots(qa);
-            if (r.y >= NO_ROOT || r.y < span.x - slack || r.x > span.y + slack) {
-                continue;
+    if (obj.range.w != NO_NODE) {
+        var stack: array<u32, BVH_STACK>;
+        var sp = 0u;
+        var node = obj.range.w;
+        loop {
+            let nd = nodes[node];
+            let bs = clip_box(o, d, nd.bmin.xyz, nd.bmax.xyz, span.x - slack, span.y + slack);
+            var descend = false;
+            if (bs.x <= bs.y) {
+                if (nd.link.y == 0u) {
+                    if (sp < BVH_STACK) {
+                        stack[sp] = nd.link.x;
+                        sp++;
+                    }
+                    node = node + 1u;
+                    descend = true;
+                } else {
+                    for (var k = 0u; k < nd.link.y; k++) {
+                        let pi = select(nd.link.z, nd.link.w, k == 1u);
+                        let qa = q_along(perturbations[pi].q, o, d);
+                        if (qa.x < 0.0) {
+                            let r = roots(qa);
+                            if (r.y >= NO_ROOT || r.y < span.x - slack || r.x > span.y + slack) {
+                                continue;
+                            }
+                        }
+                        if (nc < MAX_CANDIDATES) {
+                            cand[nc] = pi;
+                            nc++;
+                        } else {
+                            all = true;
+                        }
+                    }
+                }
             }
-        }
-        if (nc < MAX_CANDIDATES) {
-            cand[nc] = first + i;
-            nc++;
-        } else {
-            all = true;
+            if (!descend) {
+                if (sp == 0u) {
+                    break;
+                }
+                sp--;
+                node = stack[sp];
+            }
         }
     }
     let live = select(nc, count, all);
@@ -321,3 +359,53 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
     return vec4<f32>(MISS, 0.0, 0.0, 0.0);
 }
 
+
+// Nearest hit on [t0, t_max] over the `n` objects, through their
+// hierarchy (root: node 0): (t, normal), its object in `hit_object`. With
+// `any`, the first hit found (shadow rays).
+fn scene_first_hit(o: vec3<f32>, d: vec3<f32>, t0: f32, t_max: f32, n: u32, any: bool) -> vec4<f32> {
+    var best = vec4<f32>(MISS, 0.0, 0.0, 0.0);
+    if (n == 0u) {
+        return best;
+    }
+    var t1 = t_max;
+    var stack: array<u32, BVH_STACK>;
+    var sp = 0u;
+    var node = 0u;
+    loop {
+        let nd = nodes[node];
+        let bs = clip_box(o, d, nd.bmin.xyz, nd.bmax.xyz, t0, t1);
+        var descend = false;
+        if (bs.x <= bs.y) {
+            if (nd.link.y == 0u) {
+                if (sp < BVH_STACK) {
+                    stack[sp] = nd.link.x;
+                    sp++;
+                }
+                node = node + 1u;
+                descend = true;
+            } else {
+                for (var k = 0u; k < nd.link.y; k++) {
+                    let oi = select(nd.link.z, nd.link.w, k == 1u);
+                    let h = object_hit(oi, o, d, t0, t1);
+                    if (h.x >= 0.0 && h.x <= t1) {
+                        best = h;
+                        t1 = h.x;
+                        hit_object = oi;
+                        if (any) {
+                            return best;
+                        }
+                    }
+                }
+            }
+        }
+        if (!descend) {
+            if (sp == 0u) {
+                break;
+            }
+            sp--;
+            node = stack[sp];
+        }
+    }
+    return best;
+}

@@ -6,6 +6,7 @@
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 @group(0) @binding(3) var<storage, read_write> hits: array<vec4<f32>>;
 @group(0) @binding(4) var<uniform> counts: vec4<u32>; // rays, objects
+@group(0) @binding(5) var<storage, read> nodes: array<BvhNode>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -14,14 +15,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let ray = rays[i];
-    var best = vec4<f32>(MISS, 0.0, 0.0, 0.0);
-    var t1 = ray.d.w;
-    for (var k = 0u; k < counts.y; k++) {
-        let h = object_hit(k, ray.o.xyz, ray.d.xyz, ray.o.w, t1);
-        if (h.x >= 0.0 && h.x <= t1) {
-            best = h;
-            t1 = h.x;
-        }
-    }
-    hits[i] = best;
+    hits[i] = scene_first_hit(ray.o.xyz, ray.d.xyz, ray.o.w, ray.d.w, counts.y, false);
 }

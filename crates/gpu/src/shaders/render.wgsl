@@ -43,6 +43,7 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 @group(0) @binding(7) var<uniform> params: Params;
 @group(0) @binding(8) var<storage, read> material_data: array<f32>;
 @group(0) @binding(9) var<storage, read> env_levels: array<vec4<u32>>; // realtime.wgsl
+@group(0) @binding(10) var<storage, read> nodes: array<BvhNode>;
 
 var<private> rng_state: u32;
 
@@ -89,31 +90,14 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 
 // ---- Geometry ---------------------------------------------------------------
 
-// Nearest hit over all objects on [0, t1]: (t, normal), object in `hit_object`.
-var<private> hit_object: u32;
-
+// Nearest hit over all objects on [0, t_max]: (t, normal), object in
+// `hit_object` (geometry.wgsl).
 fn scene_hit(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> vec4<f32> {
-    var best = vec4<f32>(MISS, 0.0, 0.0, 0.0);
-    var t1 = t_max;
-    for (var k = 0u; k < params.counts.x; k++) {
-        let h = object_hit(k, o, d, 0.0, t1);
-        if (h.x >= 0.0 && h.x <= t1) {
-            best = h;
-            t1 = h.x;
-            hit_object = k;
-        }
-    }
-    return best;
+    return scene_first_hit(o, d, 0.0, t_max, params.counts.x, false);
 }
 
 fn occluded(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
-    for (var k = 0u; k < params.counts.x; k++) {
-        let h = object_hit(k, o, d, 0.0, t_max);
-        if (h.x >= 0.0) {
-            return true;
-        }
-    }
-    return false;
+    return scene_first_hit(o, d, 0.0, t_max, params.counts.x, true).x >= 0.0;
 }
 
 // The hit point moved off the surface along n to the side of w (f32: a
