@@ -23,6 +23,8 @@ pub mod layout;
 mod render;
 
 pub use render::{replace_unsupported, unsupported_material, GpuFrame};
+/// The wgpu this crate is built on (the viewer draws with the same).
+pub use wgpu;
 
 use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuQuery, GpuRay, GpuScene};
 use std::sync::OnceLock;
@@ -157,16 +159,28 @@ impl Gpu {
     /// Opens the first adapter (high performance preferred) and compiles the
     /// kernels.
     pub fn new() -> Result<Self, GpuError> {
-        let instance = wgpu::Instance::new(&wgpu::InstanceDescriptor {
-            backends: wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12,
-            ..Default::default()
-        });
+        let instance = Self::instance();
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
             compatible_surface: None,
         }))
         .map_err(|_| GpuError::NoAdapter)?;
+        Self::with_adapter(&adapter)
+    }
+
+    /// The instance [`Gpu::new`] opens its adapter from: Vulkan, Metal and
+    /// DX12 (a window's surface, as in `isolux view`, is made from it).
+    pub fn instance() -> wgpu::Instance {
+        wgpu::Instance::new(&wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12,
+            ..Default::default()
+        })
+    }
+
+    /// Opens a device on `adapter` (for example one compatible with a
+    /// window's surface).
+    pub fn with_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("isolux"),
@@ -176,6 +190,7 @@ impl Gpu {
             required_limits: adapter.limits(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
         Ok(Self {
@@ -189,6 +204,16 @@ impl Gpu {
             render_module: OnceLock::new(),
             adapter: format!("{} ({:?})", info.name, info.backend),
         })
+    }
+
+    /// The device, for callers that draw with it (the viewer).
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The queue.
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
     }
 
     fn pipeline<'a>(
@@ -425,13 +450,16 @@ impl Gpu {
 
     /// Waits until the queue is idle.
     pub fn wait(&self) -> Result<(), GpuError> {
-        // wgpu gives up a wait after 60 s (`CLEANUP_WAIT_MS`), but the
-        // work goes on: a long pass on a CPU driver (lavapipe on a busy
-        // machine) is not an error, so wait again, up to half an hour.
+        // Waits of 60 s each: a long pass on a CPU driver (lavapipe on a
+        // busy machine) is not an error, so wait again, up to half an hour.
         for _ in 0..30 {
-            match self.device.poll(wgpu::PollType::Wait) {
+            match self.device.poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: Some(std::time::Duration::from_secs(60)),
+            }) {
                 Ok(_) => return Ok(()),
                 Err(wgpu::PollError::Timeout) => continue,
+                Err(e) => return Err(GpuError::Readback(e.to_string())),
             }
         }
         Err(GpuError::Readback(

@@ -6,7 +6,7 @@
 use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
 use crate::{Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
 use isolux_core::{Image, Rgb, PI};
-use isolux_render::{Environment, RenderStats, Scene};
+use isolux_render::{Camera, Environment, RenderStats, Scene};
 use wgpu::util::DeviceExt;
 
 /// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
@@ -396,6 +396,34 @@ impl GpuFrame {
             );
         }
         gpu.queue.submit(Some(enc.finish()));
+    }
+
+    /// Moves the camera (same film size) and clears the accumulation.
+    pub fn set_camera(&mut self, gpu: &Gpu, camera: &Camera) -> Result<(), GpuError> {
+        let [origin, forward, right, up] = camera
+            .rig(self.params.film[0], self.params.film[1])
+            .map_err(GpuError::Setup)?
+            .basis();
+        let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+        self.params.origin = v4(origin);
+        self.params.forward = v4(forward);
+        self.params.right = v4(right);
+        self.params.up = v4(up);
+        self.reset(gpu);
+        Ok(())
+    }
+
+    /// The accumulation buffer: per pixel, row by row from the top, the
+    /// sum of the samples' RGB and the count of dropped samples
+    /// (`vec4<f32>`); divide by [`GpuFrame::samples`]. Storage usage, so a
+    /// display shader can read it in place.
+    pub fn accumulation(&self) -> &wgpu::Buffer {
+        &self.accum
+    }
+
+    /// Film width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.params.film[0], self.params.film[1])
     }
 
     /// Clears the accumulation (progressive rendering restarts).

@@ -7,6 +7,7 @@ mod brdf_cmd;
 mod factor_cmd;
 mod render_cmd;
 mod sss_cmd;
+mod view_cmd;
 mod wave_cmd;
 
 use clap::{Parser, Subcommand};
@@ -34,6 +35,9 @@ enum Command {
     Heightfield(wave_cmd::HeightfieldArgs),
     /// Wave-optics diffraction BRDF of a heightfield.
     Wave(wave_cmd::WaveArgs),
+    /// Interactive viewer: orbit, live material and light editing, real-time
+    /// mode while moving, progressive path tracing when still (GPU).
+    View(view_cmd::ViewArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),
 }
@@ -47,6 +51,7 @@ fn main() {
         Command::Factor(a) => factor_cmd::run(a),
         Command::Heightfield(a) => wave_cmd::run_heightfield(a),
         Command::Wave(a) => wave_cmd::run_wave(a),
+        Command::View(a) => view_cmd::run(a),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

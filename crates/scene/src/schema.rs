@@ -120,6 +120,39 @@ pub fn parse_str(
     Ok(scene)
 }
 
+/// Parses one material from TOML text holding its keys at the top level
+/// (`name = "gold"`, `type = "ggx"`, ...), as `[[material]]` would in a
+/// scene: `names` and `earlier` are the materials defined before it (a
+/// `mix` refers to them), `base_dir` resolves file names. Used by `isolux
+/// view` to rebuild a material edited live, with the scene file's checks
+/// and messages.
+///
+/// ```
+/// let m = isolux_scene::parse_material(
+///     "name = \"gold\"\ntype = \"ggx\"\nroughness = 0.3\nmetal = \"Au\"\n",
+///     "edit".as_ref(), &[], &[], ".".as_ref(),
+/// ).unwrap();
+/// assert_eq!(m.type_name(), "ggx");
+/// let err = isolux_scene::parse_material(
+///     "name = \"x\"\ntype = \"ggx\"\nroughness = -1\n",
+///     "edit".as_ref(), &[], &[], ".".as_ref(),
+/// ).unwrap_err();
+/// assert_eq!(err.to_string(), "edit:3:13: roughness: roughness must lie in (0, 10], got -1");
+/// ```
+pub fn parse_material(
+    src: &str,
+    file: &Path,
+    names: &[String],
+    earlier: &[Material],
+    base_dir: &Path,
+) -> std::result::Result<Material, SceneError> {
+    let doc = Doc::new(file, src);
+    let root = doc.parse()?;
+    let t = Table::root(&doc, &root);
+    t.req("name")?.str()?;
+    material(&t, names, earlier, base_dir)
+}
+
 fn vec3(v: &Value) -> Result<DVec3> {
     Ok(DVec3::from_array(v.numbers::<3>()?))
 }

@@ -1,0 +1,202 @@
+//! `isolux view` end to end: the viewer starts under Xvfb (a virtual X
+//! server) on whatever adapter exists (lavapipe in CI), draws a few frames
+//! of an analytic scene and saves a screenshot, which is checked against
+//! the closed form: a diffuse sphere of albedo 0.5 under a constant sky of
+//! radiance 1 is 0.5 on every pixel it covers and the sky 1 elsewhere, and
+//! it covers the projected disk of angular radius `asin(r / d)`.
+//!
+//! Outside CI, a machine without `xvfb-run` or without an adapter skips
+//! the window test (saying so); under CI (`CI` set, as `.ci/run` installs
+//! both) it fails instead.
+
+use std::path::Path;
+use std::process::Command;
+
+const SPHERE: &str = r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov_y = 40.0
+
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+
+[[material]]
+name = "grey"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+
+[[object]]
+material = "grey"
+base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }
+"#;
+
+fn isolux() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_isolux"))
+}
+
+fn have_xvfb() -> bool {
+    Command::new("sh")
+        .args(["-c", "command -v xvfb-run"])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// Runs the viewer under Xvfb in `mode`; the screenshot's path, or None
+/// when this machine cannot run it (outside CI).
+fn view_screenshot(dir: &Path, mode: &str) -> Option<isolux_io::RgbImage> {
+    let scene = dir.join(format!("sphere-{mode}.toml"));
+    std::fs::write(&scene, SPHERE).unwrap();
+    let shot = dir.join(format!("shot-{mode}.exr"));
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_isolux"))
+        .arg("view")
+        .arg(&scene)
+        .args(["--width", "600", "--height", "200", "--frames", "3"])
+        .args(["--mode", mode, "--screenshot"])
+        .arg(&shot)
+        .output()
+        .expect("xvfb-run starts");
+    let err = String::from_utf8_lossy(&o.stderr);
+    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        eprintln!("skipped: no GPU adapter");
+        return None;
+    }
+    assert!(
+        o.status.success(),
+        "isolux view --mode {mode} failed: {err}"
+    );
+    Some(isolux_io::read_rgb_image(&shot).unwrap())
+}
+
+fn check_sphere(img: &isolux_io::RgbImage, mode: &str) {
+    let (w, h) = (img.width, img.height);
+    // The window is 600 wide with a side panel: the image area is what
+    // is left of it.
+    assert!((160..600).contains(&w) && h == 200, "{mode}: {w} x {h}");
+    let (mut sky, mut sphere, mut other) = (0usize, 0usize, 0usize);
+    for p in &img.pixels {
+        assert!(p.iter().all(|c| c.is_finite()), "{mode}: {p:?}");
+        if p.iter().all(|&c| (c - 1.0).abs() < 1e-3) {
+            sky += 1;
+        } else if p.iter().all(|&c| (c - 0.5).abs() < 2e-3) {
+            sphere += 1;
+        } else {
+            other += 1;
+        }
+    }
+    // Projected disk: radius tan(asin(1/4)) / tan(20 deg) of half the height.
+    let rad = (0.25f64.asin().tan() / 20f64.to_radians().tan()) * h as f64 / 2.0;
+    let disk = std::f64::consts::PI * rad * rad;
+    let covered = sphere as f64 + other as f64 / 2.0;
+    assert!(
+        (covered / disk - 1.0).abs() < 0.03,
+        "{mode}: sphere covers {covered} pixels, the disk {disk} (sky {sky}, sphere {sphere}, other {other}, {w} x {h})"
+    );
+    // Only the silhouette's pixels mix sphere and sky.
+    assert!(
+        (other as f64) < 4.0 * 2.0 * std::f64::consts::PI * rad,
+        "{mode}: {other} pixels are neither 0.5 nor 1 (sky {sky}, sphere {sphere})"
+    );
+    assert!(sky > 0 && sphere > 0, "{mode}: blank screenshot");
+}
+
+#[test]
+fn viewer_under_xvfb_shows_the_analytic_sphere_in_both_modes() {
+    if !have_xvfb() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "xvfb-run is missing (bash .ci/run installs it)"
+        );
+        eprintln!("skipped: no xvfb-run");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().to_path_buf();
+    // The two runs in parallel: each spends most of its time compiling
+    // its kernel on lavapipe.
+    let realtime = std::thread::spawn({
+        let path = path.clone();
+        move || view_screenshot(&path, "realtime")
+    });
+    let traced = view_screenshot(&path, "path");
+    let realtime = realtime.join().unwrap();
+    for (img, mode) in [(realtime, "realtime"), (traced, "path")] {
+        if let Some(img) = img {
+            check_sphere(&img, mode);
+        }
+    }
+}
+
+#[test]
+fn viewer_without_a_display_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(&scene, SPHERE).unwrap();
+    let o = isolux()
+        .arg("view")
+        .arg(&scene)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("no display") && err.contains("xvfb-run"),
+        "{err}"
+    );
+}
+
+#[test]
+fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        SPHERE.replace(
+            "type = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]",
+            "type = \"subsurface\"\nmedium = \"skimmilk\"",
+        ),
+    )
+    .unwrap();
+    let o = isolux().arg("view").arg(&scene).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("material \"grey\" (type subsurface) does not run on the GPU"),
+        "{err}"
+    );
+
+    std::fs::write(&scene, SPHERE).unwrap();
+    for (flags, want) in [
+        (
+            &["--realtime-spp", "30"][..],
+            "--realtime-spp must lie in 4..=25",
+        ),
+        (
+            &["--frames", "2", "--screenshot", "x.bmp"][..],
+            "unknown screenshot format",
+        ),
+        (&["--max-spp", "0"][..], "--max-spp must be at least 1"),
+    ] {
+        let o = isolux()
+            .arg("view")
+            .arg(&scene)
+            .args(flags)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{flags:?}: {err}");
+        assert!(err.contains(want), "{flags:?}: {err}");
+    }
+    // A missing scene names the file.
+    let o = isolux().args(["view", "nope.toml"]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("nope.toml") && o.status.code() == Some(1),
+        "{err}"
+    );
+}

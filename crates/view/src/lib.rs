@@ -1,0 +1,926 @@
+//! # isolux-view
+//!
+//! `isolux view SCENE.toml`: an interactive window over the GPU renderer
+//! (`isolux-gpu`). A winit window with a wgpu surface on the same device
+//! the compute kernels run on; the central area shows the renderer's
+//! accumulation buffer directly ([`display`]), an egui side panel edits
+//! the scene live.
+//!
+//! - **Orbit and zoom**: drag in the image to turn about the scene
+//!   camera's `look_at` ([`orbit`]), the wheel zooms.
+//! - **Modes**: while the view changes (a drag, an edit, and for a quarter
+//!   of a second after) each frame is the real-time mode
+//!   (`isolux render --realtime`: point lights plus the prefiltered
+//!   environment, `--realtime-spp` samples per pixel on the sub-pixel
+//!   grid); when still, progressive path tracing adds a sample per pixel
+//!   per frame up to `--max-spp`.
+//! - **Live editing** of material parameters and models ([`params`]:
+//!   every edit is re-read with the scene format's own checks, and a
+//!   refused value shows the scene format's message), and of the point
+//!   lights' positions and intensities; exposure and tone map.
+//! - **Screenshot**: the `P` key (or the panel's button) writes the image
+//!   shown, at film resolution, to `<scene>-view-<n>.png` in the current
+//!   directory.
+//!
+//! A scripted run (`--frames N --screenshot FILE`) draws `N` frames, saves
+//! the last and exits: the CI test runs it under Xvfb on lavapipe.
+//!
+//! The scene's materials must all run on the GPU (the same rule as
+//! `render --gpu`; docs/gpu.md lists them).
+#![warn(missing_docs)]
+
+pub mod display;
+pub mod orbit;
+pub mod params;
+
+use anyhow::{anyhow, bail, Context as _};
+use display::{Display, DisplayParams};
+use isolux_gpu::{wgpu, Gpu, GpuFrame};
+use isolux_io::Tonemap;
+use isolux_render::{FilmSettings, Scene};
+use orbit::Orbit;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use winit::application::ApplicationHandler;
+use winit::event::WindowEvent;
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::window::{Window, WindowId};
+
+/// Which renderer the viewer draws with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Mode {
+    /// Real-time while the view changes, progressive path tracing when
+    /// still.
+    #[default]
+    Auto,
+    /// Always the real-time mode.
+    Realtime,
+    /// Always progressive path tracing.
+    Path,
+}
+
+/// Settings of a viewer session.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Scene file.
+    pub scene: PathBuf,
+    /// Window width in pixels (the side panel included).
+    pub width: u32,
+    /// Window height in pixels.
+    pub height: u32,
+    /// Samples per pixel of the real-time mode (4-25).
+    pub realtime_spp: u32,
+    /// Progressive path tracing stops at this many samples per pixel.
+    pub max_spp: u32,
+    /// Renderer choice.
+    pub mode: Mode,
+    /// Exposure in stops.
+    pub exposure: f64,
+    /// Tone map of the display and of PNG screenshots.
+    pub tonemap: Tonemap,
+    /// Scripted run: draw this many frames, then exit.
+    pub frames: Option<u32>,
+    /// Scripted run: save the last frame here (`.png` or `.exr`).
+    pub screenshot: Option<PathBuf>,
+}
+
+/// Opens the viewer and runs until the window closes (or the scripted
+/// frames are drawn).
+pub fn run(opts: Options) -> anyhow::Result<()> {
+    if !(4..=25).contains(&opts.realtime_spp) {
+        bail!(
+            "--realtime-spp must lie in 4..=25 (the seed's sub-pixel grids), got {}",
+            opts.realtime_spp
+        );
+    }
+    if opts.max_spp == 0 {
+        bail!("--max-spp must be at least 1");
+    }
+    if let Some(s) = &opts.screenshot {
+        if isolux_io::OutputFormat::from_path(s).is_none() {
+            bail!(
+                "{}: unknown screenshot format: use a .png or .exr file name",
+                s.display()
+            );
+        }
+    }
+    let state = State::load(&opts)?;
+    if let Some((name, ty)) = isolux_gpu::unsupported_material(&state.scene) {
+        bail!(
+            "material \"{name}\" (type {ty}) does not run on the GPU yet, so `isolux view` cannot \
+             show it (docs/gpu.md lists the models that do; `isolux render` renders it on the CPU)"
+        );
+    }
+    check_display()?;
+    #[allow(unused_mut)]
+    let mut builder = EventLoop::builder();
+    #[cfg(all(unix, not(target_os = "macos"), not(target_os = "ios")))]
+    if std::env::var_os("WAYLAND_DISPLAY").is_none_or(|v| v.is_empty()) {
+        // X11 only: winit would try Wayland first, and libwayland prints
+        // errors to stderr when there is none.
+        use winit::platform::x11::EventLoopBuilderExtX11;
+        builder.with_x11();
+    }
+    let event_loop = builder.build().context("cannot open a window")?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut app = App {
+        opts,
+        state,
+        running: None,
+        error: None,
+    };
+    event_loop
+        .run_app(&mut app)
+        .context("window event loop failed")?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// A clear error rather than a backend panic when there is no display.
+fn check_display() -> anyhow::Result<()> {
+    #[cfg(all(unix, not(target_os = "macos"), not(target_os = "ios")))]
+    {
+        let set = |k: &str| std::env::var_os(k).is_some_and(|v| !v.is_empty());
+        if !set("DISPLAY") && !set("WAYLAND_DISPLAY") {
+            bail!(
+                "no display: `isolux view` opens a window; set DISPLAY (X11) or WAYLAND_DISPLAY, \
+                 or run it under a virtual X server (`xvfb-run isolux view ...`)"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The scene and everything the panel edits.
+struct State {
+    scene: Scene,
+    /// The materials' tables as in the scene file (edited live).
+    tables: Vec<toml::Table>,
+    base_dir: PathBuf,
+    file_name: String,
+    scene_stem: String,
+    orbit: Orbit,
+    initial_orbit: Orbit,
+    selected: usize,
+    material_error: Option<String>,
+    exposure: f64,
+    tonemap: Tonemap,
+    /// Last change of view or scene.
+    last_change: Instant,
+    status: String,
+}
+
+impl State {
+    fn load(opts: &Options) -> anyhow::Result<Self> {
+        let scene = isolux_scene::load(&opts.scene)?;
+        let src = std::fs::read_to_string(&opts.scene)
+            .with_context(|| format!("{}: cannot read scene file", opts.scene.display()))?;
+        let doc: toml::Table = toml::from_str(&src)
+            .with_context(|| format!("{}: invalid TOML", opts.scene.display()))?;
+        let tables: Vec<toml::Table> = doc
+            .get("material")
+            .and_then(|v| v.as_array())
+            .map(|a| a.iter().filter_map(|m| m.as_table().cloned()).collect())
+            .unwrap_or_default();
+        if tables.len() != scene.materials.len() {
+            bail!(
+                "{}: the [[material]] tables do not match the materials read",
+                opts.scene.display()
+            );
+        }
+        let orbit = Orbit::from_camera(&scene.camera);
+        Ok(Self {
+            orbit,
+            initial_orbit: orbit,
+            tables,
+            base_dir: opts.scene.parent().unwrap_or(Path::new(".")).to_path_buf(),
+            file_name: opts.scene.display().to_string(),
+            scene_stem: opts
+                .scene
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "isolux".into()),
+            scene,
+            selected: 0,
+            material_error: None,
+            exposure: opts.exposure,
+            tonemap: opts.tonemap,
+            // Still at start: path tracing right away in the auto mode.
+            last_change: Instant::now() - Duration::from_secs(1),
+            status: String::new(),
+        })
+    }
+
+    /// Re-reads material `i` from its table, then the mixes after it (a
+    /// mix copies its components when read).
+    fn rebuild_material(&mut self, i: usize) -> Result<(), String> {
+        let read = |s: &Self, j: usize| {
+            let label = format!("material \"{}\" (edited)", s.scene.material_names[j]);
+            let m = isolux_scene::parse_material(
+                &params::to_source(&s.tables[j]),
+                label.as_ref(),
+                &s.scene.material_names[..j],
+                &s.scene.materials[..j],
+                &s.base_dir,
+            )
+            .map_err(|e| e.to_string())?;
+            if !isolux_gpu::layout::supported(&m) {
+                return Err(format!(
+                    "{label}: type {} does not run on the GPU",
+                    m.type_name()
+                ));
+            }
+            Ok(m)
+        };
+        self.scene.materials[i] = read(self, i)?;
+        for j in i + 1..self.tables.len() {
+            if self.tables[j].get("type").and_then(|v| v.as_str()) == Some("mix") {
+                self.scene.materials[j] = read(self, j)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The side panel and the image area; returns what changed.
+    fn ui(&mut self, ctx: &egui::Context, info: &FrameInfo) -> UiOutcome {
+        let mut out = UiOutcome::default();
+        egui::SidePanel::right("isolux-panel")
+            .default_width(300.0)
+            .show(ctx, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui, info, &mut out));
+            });
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ctx, |ui| {
+                let rect = ui.max_rect();
+                let r = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+                out.viewport = rect;
+                if r.dragged() {
+                    let d = r.drag_delta();
+                    self.orbit.drag(d.x as f64, d.y as f64);
+                    out.camera = true;
+                    out.dragging = true;
+                }
+                if r.hovered() {
+                    let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+                    if scroll != 0.0 {
+                        self.orbit.zoom(scroll as f64 / 50.0);
+                        out.camera = true;
+                    }
+                }
+            });
+        if !ctx.wants_keyboard_input() && ctx.input(|i| i.key_pressed(egui::Key::P)) {
+            out.screenshot = true;
+        }
+        out
+    }
+
+    fn panel(&mut self, ui: &mut egui::Ui, info: &FrameInfo, out: &mut UiOutcome) {
+        ui.heading("Isolux");
+        ui.label(&self.file_name);
+        ui.label(format!("adapter: {}", info.adapter));
+        if info.film.0 > 0 {
+            ui.label(format!(
+                "{} x {}, {}, {:.1} ms per frame",
+                info.film.0, info.film.1, info.mode, info.frame_ms
+            ));
+        } else {
+            ui.label(&info.mode);
+        }
+        if !self.status.is_empty() {
+            ui.label(&self.status);
+        }
+        ui.separator();
+        ui.horizontal(|ui| {
+            ui.label("exposure");
+            ui.add(egui::Slider::new(&mut self.exposure, -8.0..=8.0).suffix(" stops"));
+        });
+        ui.horizontal(|ui| {
+            ui.label("tone map");
+            egui::ComboBox::from_id_salt("tonemap")
+                .selected_text(match self.tonemap {
+                    Tonemap::Clamp => "clamp",
+                    Tonemap::Reinhard => "reinhard",
+                })
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(&mut self.tonemap, Tonemap::Clamp, "clamp");
+                    ui.selectable_value(&mut self.tonemap, Tonemap::Reinhard, "reinhard");
+                });
+        });
+        if ui.button("Screenshot (P)").clicked() {
+            out.screenshot = true;
+        }
+        ui.separator();
+        egui::CollapsingHeader::new("Camera")
+            .default_open(true)
+            .show(ui, |ui| {
+                ui.label("drag the image to orbit, wheel to zoom");
+                let mut c = false;
+                c |= ui
+                    .add(egui::Slider::new(&mut self.orbit.fov_y, 5.0..=120.0).text("fov_y"))
+                    .changed();
+                c |= ui
+                    .add(
+                        egui::DragValue::new(&mut self.orbit.distance)
+                            .speed(0.01)
+                            .range(1e-3..=1e5)
+                            .prefix("distance "),
+                    )
+                    .changed();
+                if ui.button("Reset to the scene's camera").clicked() {
+                    self.orbit = self.initial_orbit;
+                    c = true;
+                }
+                out.camera |= c;
+            });
+        egui::CollapsingHeader::new("Lights")
+            .default_open(true)
+            .show(ui, |ui| {
+                if self.scene.lights.is_empty() {
+                    ui.label("no point lights");
+                }
+                for (i, l) in self.scene.lights.iter_mut().enumerate() {
+                    ui.label(format!("light {i}"));
+                    ui.horizontal(|ui| {
+                        ui.label("position");
+                        for v in [&mut l.position.x, &mut l.position.y, &mut l.position.z] {
+                            out.scene |= ui.add(egui::DragValue::new(v).speed(0.02)).changed();
+                        }
+                    });
+                    ui.horizontal(|ui| {
+                        ui.label("intensity");
+                        for v in [&mut l.intensity.r, &mut l.intensity.g, &mut l.intensity.b] {
+                            out.scene |= ui
+                                .add(egui::DragValue::new(v).speed(0.1).range(0.0..=1e9))
+                                .changed();
+                        }
+                    });
+                }
+            });
+        egui::CollapsingHeader::new("Materials")
+            .default_open(true)
+            .show(ui, |ui| self.materials_ui(ui, out));
+    }
+
+    fn materials_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {
+        use params::{editor, number, numbers3, Editor, SWITCHABLE};
+        use toml::Value;
+        if self.tables.is_empty() {
+            ui.label("no materials");
+            return;
+        }
+        let names = self.scene.material_names.clone();
+        let before = self.selected;
+        egui::ComboBox::from_label("material")
+            .selected_text(names[self.selected].as_str())
+            .show_ui(ui, |ui| {
+                for (i, n) in names.iter().enumerate() {
+                    ui.selectable_value(&mut self.selected, i, n.as_str());
+                }
+            });
+        if self.selected != before {
+            self.material_error = None;
+        }
+        let i = self.selected;
+        let mut changed = false;
+        let t = &mut self.tables[i];
+        let ty = t
+            .get("type")
+            .and_then(|v| v.as_str())
+            .unwrap_or("")
+            .to_string();
+        if SWITCHABLE.contains(&ty.as_str()) {
+            let mut new_ty = ty.clone();
+            egui::ComboBox::from_label("type")
+                .selected_text(ty.as_str())
+                .show_ui(ui, |ui| {
+                    for s in SWITCHABLE {
+                        ui.selectable_value(&mut new_ty, s.to_string(), *s);
+                    }
+                });
+            if new_ty != ty {
+                *t = params::template(&names[i], &new_ty);
+                changed = true;
+            }
+        } else {
+            ui.label(format!(
+                "type: {ty} (reads files or other materials: not switchable)"
+            ));
+        }
+        let keys: Vec<String> = t
+            .keys()
+            .filter(|k| *k != "name" && *k != "type")
+            .cloned()
+            .collect();
+        for k in keys {
+            let v = t[&k].clone();
+            match editor(&k, &v) {
+                Editor::Number => {
+                    let mut x = number(&v).unwrap_or(0.0);
+                    let speed = (x.abs() * 0.01).max(0.001);
+                    if ui
+                        .add(
+                            egui::DragValue::new(&mut x)
+                                .speed(speed)
+                                .prefix(format!("{k} ")),
+                        )
+                        .changed()
+                    {
+                        t.insert(k, Value::Float(x));
+                        changed = true;
+                    }
+                }
+                Editor::Color | Editor::Vector => {
+                    let mut c = numbers3(&v).unwrap_or([0.0; 3]);
+                    let color = editor(&k, &v) == Editor::Color;
+                    let mut edit = false;
+                    ui.horizontal(|ui| {
+                        ui.label(&k);
+                        if color {
+                            let mut f = c.map(|x| x.clamp(0.0, 1.0) as f32);
+                            if ui.color_edit_button_rgb(&mut f).changed() {
+                                c = f.map(|x| x as f64);
+                                edit = true;
+                            }
+                        }
+                        for x in c.iter_mut() {
+                            let mut d = egui::DragValue::new(x).speed(0.005);
+                            if color {
+                                d = d.range(0.0..=1.0);
+                            }
+                            edit |= ui.add(d).changed();
+                        }
+                    });
+                    if edit {
+                        t.insert(k, params::array3(c));
+                        changed = true;
+                    }
+                }
+                Editor::Choice(options) => {
+                    let cur = v.as_str().unwrap_or("").to_string();
+                    let mut sel = cur.clone();
+                    egui::ComboBox::from_label(k.as_str())
+                        .selected_text(cur.as_str())
+                        .show_ui(ui, |ui| {
+                            for o in &options {
+                                ui.selectable_value(&mut sel, o.to_string(), *o);
+                            }
+                        });
+                    if sel != cur {
+                        t.insert(k, Value::String(sel));
+                        changed = true;
+                    }
+                }
+                Editor::ReadOnly => {
+                    ui.label(format!("{k} = {v}"));
+                }
+            }
+        }
+        if changed {
+            match self.rebuild_material(i) {
+                Ok(()) => {
+                    self.material_error = None;
+                    out.scene = true;
+                }
+                Err(e) => self.material_error = Some(e),
+            }
+        }
+        if let Some(e) = &self.material_error {
+            ui.colored_label(egui::Color32::LIGHT_RED, e);
+            ui.label("(the last valid version is shown)");
+        }
+    }
+}
+
+/// What the panel reports each frame.
+struct UiOutcome {
+    viewport: egui::Rect,
+    camera: bool,
+    scene: bool,
+    dragging: bool,
+    screenshot: bool,
+}
+
+impl Default for UiOutcome {
+    fn default() -> Self {
+        Self {
+            viewport: egui::Rect::NOTHING,
+            camera: false,
+            scene: false,
+            dragging: false,
+            screenshot: false,
+        }
+    }
+}
+
+/// What the panel shows about the last frame.
+struct FrameInfo {
+    adapter: String,
+    film: (u32, u32),
+    mode: String,
+    frame_ms: f64,
+}
+
+/// The renderer's two frames at the current film size.
+struct Frames {
+    realtime: GpuFrame,
+    path: GpuFrame,
+    film: (u32, u32),
+}
+
+/// The window and the device state.
+struct Running {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    gpu: Gpu,
+    display: Display,
+    encode_srgb: bool,
+    egui_ctx: egui::Context,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+    frames: Option<Frames>,
+    /// The frame drawn last is the real-time one.
+    showing_realtime: bool,
+    frames_drawn: u32,
+    last_present: Instant,
+    frame_ms: f64,
+    screenshots: u32,
+}
+
+struct App {
+    opts: Options,
+    state: State,
+    running: Option<Running>,
+    error: Option<anyhow::Error>,
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.running.is_some() {
+            return;
+        }
+        match Running::new(event_loop, &self.opts) {
+            Ok(r) => self.running = Some(r),
+            Err(e) => {
+                self.error = Some(e);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(r) = self.running.as_mut() else {
+            return;
+        };
+        let response = r.egui_state.on_window_event(&r.window, &event);
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                r.config.width = size.width.max(1);
+                r.config.height = size.height.max(1);
+                r.surface.configure(r.gpu.device(), &r.config);
+                r.window.request_redraw();
+            }
+            WindowEvent::RedrawRequested => match r.redraw(&mut self.state, &self.opts) {
+                Ok(true) => {}
+                Ok(false) => event_loop.exit(),
+                Err(e) => {
+                    self.error = Some(e);
+                    event_loop.exit();
+                }
+            },
+            _ => {
+                if response.repaint {
+                    r.window.request_redraw();
+                }
+            }
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(r) = self.running.as_ref() else {
+            return;
+        };
+        // Keep drawing while there is work (moving, or samples to add);
+        // otherwise sleep until an event.
+        let busy = self.opts.frames.is_some()
+            || r.frames
+                .as_ref()
+                .is_none_or(|f| r.showing_realtime || f.path.samples < self.opts.max_spp.max(1))
+            || self.state.last_change.elapsed() < Duration::from_millis(400);
+        if busy {
+            event_loop.set_control_flow(ControlFlow::Poll);
+            r.window.request_redraw();
+        } else {
+            event_loop.set_control_flow(ControlFlow::Wait);
+        }
+    }
+}
+
+impl Running {
+    fn new(event_loop: &ActiveEventLoop, opts: &Options) -> anyhow::Result<Self> {
+        let attrs = Window::default_attributes()
+            .with_title(format!("Isolux - {}", opts.scene.display()))
+            .with_inner_size(winit::dpi::PhysicalSize::new(
+                opts.width.max(64),
+                opts.height.max(64),
+            ));
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .context("cannot open a window")?,
+        );
+        let instance = Gpu::instance();
+        let surface = instance
+            .create_surface(window.clone())
+            .context("cannot draw into the window (no Vulkan, Metal or DX12 surface)")?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: Some(&surface),
+        }))
+        .map_err(|_| anyhow!(isolux_gpu::GpuError::NoAdapter))?;
+        let gpu = Gpu::with_adapter(&adapter)?;
+        let size = window.inner_size();
+        let mut config = surface
+            .get_default_config(&adapter, size.width.max(1), size.height.max(1))
+            .ok_or_else(|| anyhow!("the GPU adapter cannot present to this window"))?;
+        // Prefer a format that encodes sRGB itself.
+        let caps = surface.get_capabilities(&adapter);
+        if let Some(f) = caps.formats.iter().find(|f| f.is_srgb()) {
+            config.format = *f;
+        }
+        config.present_mode = wgpu::PresentMode::AutoVsync;
+        surface.configure(gpu.device(), &config);
+        let encode_srgb = !config.format.is_srgb();
+        let display = Display::new(gpu.device(), config.format);
+        let egui_ctx = egui::Context::default();
+        let egui_state = egui_winit::State::new(
+            egui_ctx.clone(),
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(gpu.device().limits().max_texture_dimension_2d as usize),
+        );
+        let egui_renderer =
+            egui_wgpu::Renderer::new(gpu.device(), config.format, Default::default());
+        Ok(Self {
+            window,
+            surface,
+            config,
+            gpu,
+            display,
+            encode_srgb,
+            egui_ctx,
+            egui_state,
+            egui_renderer,
+            frames: None,
+            showing_realtime: false,
+            frames_drawn: 0,
+            last_present: Instant::now(),
+            frame_ms: 0.0,
+            screenshots: 0,
+        })
+    }
+
+    /// Uploads the scene for both modes at `film` pixels.
+    fn prepare(
+        &mut self,
+        state: &mut State,
+        opts: &Options,
+        film: (u32, u32),
+    ) -> anyhow::Result<()> {
+        let scene = &mut state.scene;
+        scene.camera = state.orbit.camera();
+        scene.film = FilmSettings {
+            width: film.0,
+            height: film.1,
+            spp: opts.max_spp,
+        };
+        let path = self.gpu.prepare(scene)?;
+        scene.film.spp = opts.realtime_spp;
+        let realtime = self.gpu.prepare_realtime(scene)?;
+        self.frames = Some(Frames {
+            realtime,
+            path,
+            film,
+        });
+        Ok(())
+    }
+
+    /// Draws one frame; `Ok(false)` ends a scripted run.
+    fn redraw(&mut self, state: &mut State, opts: &Options) -> anyhow::Result<bool> {
+        let info = FrameInfo {
+            adapter: self.gpu.adapter.clone(),
+            film: self.frames.as_ref().map_or((0, 0), |f| f.film),
+            mode: match &self.frames {
+                Some(f) if self.showing_realtime => {
+                    format!("real-time, {} spp", f.realtime.samples)
+                }
+                Some(f) => format!("path tracing, {} / {} spp", f.path.samples, opts.max_spp),
+                None => "starting".into(),
+            },
+            frame_ms: self.frame_ms,
+        };
+        let input = self.egui_state.take_egui_input(&self.window);
+        let mut outcome = UiOutcome::default();
+        let full = self
+            .egui_ctx
+            .run(input, |ctx| outcome = state.ui(ctx, &info));
+        self.egui_state
+            .handle_platform_output(&self.window, full.platform_output);
+
+        // The image area in framebuffer pixels.
+        let ppp = full.pixels_per_point;
+        let v = outcome.viewport;
+        let area = [
+            (v.min.x * ppp).round().max(0.0),
+            (v.min.y * ppp).round().max(0.0),
+            (v.width() * ppp).round(),
+            (v.height() * ppp).round(),
+        ];
+        let area = [
+            area[0],
+            area[1],
+            area[2].min(self.config.width as f32 - area[0]).max(0.0),
+            area[3].min(self.config.height as f32 - area[1]).max(0.0),
+        ];
+        let film = (area[2] as u32, area[3] as u32);
+        let film_ok = film.0 >= 1 && film.1 >= 1;
+        if outcome.camera || outcome.scene {
+            state.last_change = Instant::now();
+        }
+        if film_ok {
+            let stale = self.frames.as_ref().is_none_or(|f| f.film != film);
+            if stale || outcome.scene {
+                if let Err(e) = self.prepare(state, opts, film) {
+                    state.status = format!("cannot render: {e}");
+                    self.frames = None;
+                }
+            } else if outcome.camera {
+                let camera = state.orbit.camera();
+                if let Some(f) = self.frames.as_mut() {
+                    f.path.set_camera(&self.gpu, &camera)?;
+                    f.realtime.set_camera(&self.gpu, &camera)?;
+                }
+            }
+        }
+
+        // Render: real-time while moving, else add path samples.
+        if let Some(f) = self.frames.as_mut() {
+            let moving =
+                outcome.dragging || state.last_change.elapsed() < Duration::from_millis(250);
+            let realtime = match opts.mode {
+                Mode::Realtime => true,
+                Mode::Path => false,
+                Mode::Auto => moving,
+            };
+            if realtime {
+                f.realtime.run(&self.gpu, opts.realtime_spp);
+            } else if f.path.samples < opts.max_spp {
+                f.path.run(&self.gpu, 1);
+            }
+            self.showing_realtime = realtime;
+        }
+
+        // Draw.
+        let texture = match self.surface.get_current_texture() {
+            Ok(t) => t,
+            Err(wgpu::SurfaceError::Lost | wgpu::SurfaceError::Outdated) => {
+                self.surface.configure(self.gpu.device(), &self.config);
+                return Ok(true);
+            }
+            Err(wgpu::SurfaceError::Timeout) => return Ok(true),
+            Err(e) => bail!("cannot draw into the window: {e}"),
+        };
+        let view = texture
+            .texture
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let device = self.gpu.device();
+        let queue = self.gpu.queue();
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: [self.config.width, self.config.height],
+            pixels_per_point: ppp,
+        };
+        let jobs = self.egui_ctx.tessellate(full.shapes, ppp);
+        for (id, delta) in &full.textures_delta.set {
+            self.egui_renderer.update_texture(device, queue, *id, delta);
+        }
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("viewer frame"),
+        });
+        let extra = self
+            .egui_renderer
+            .update_buffers(device, queue, &mut enc, &jobs, &screen);
+        {
+            let mut pass = enc
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("viewer"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                })
+                .forget_lifetime();
+            if let (Some(f), true) = (&self.frames, film_ok && area[2] > 0.0 && area[3] > 0.0) {
+                let frame = if self.showing_realtime {
+                    &f.realtime
+                } else {
+                    &f.path
+                };
+                let mut flags = 0;
+                if state.tonemap == Tonemap::Reinhard {
+                    flags |= display::REINHARD;
+                }
+                if self.encode_srgb {
+                    flags |= display::ENCODE_SRGB;
+                }
+                let params = DisplayParams {
+                    scale: (2f64.powf(state.exposure) / frame.samples.max(1) as f64) as f32,
+                    flags,
+                    ..Default::default()
+                };
+                self.display
+                    .draw(device, queue, &mut pass, frame, area, params);
+                pass.set_viewport(
+                    0.0,
+                    0.0,
+                    self.config.width as f32,
+                    self.config.height as f32,
+                    0.0,
+                    1.0,
+                );
+            }
+            self.egui_renderer.render(&mut pass, &jobs, &screen);
+        }
+        queue.submit(extra.into_iter().chain(Some(enc.finish())));
+        self.window.pre_present_notify();
+        texture.present();
+        for id in &full.textures_delta.free {
+            self.egui_renderer.free_texture(id);
+        }
+        let now = Instant::now();
+        self.frame_ms = (now - self.last_present).as_secs_f64() * 1e3;
+        self.last_present = now;
+        self.frames_drawn += 1;
+
+        if outcome.screenshot {
+            let path = self.next_screenshot_path(state);
+            match self.save(state, &path) {
+                Ok(()) => state.status = format!("saved {}", path.display()),
+                Err(e) => state.status = format!("screenshot failed: {e}"),
+            }
+        }
+        if let Some(n) = opts.frames {
+            if self.frames_drawn >= n {
+                if let Some(path) = &opts.screenshot {
+                    self.save(state, path)?;
+                }
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+
+    fn next_screenshot_path(&mut self, state: &State) -> PathBuf {
+        loop {
+            self.screenshots += 1;
+            let p = PathBuf::from(format!(
+                "{}-view-{:03}.png",
+                state.scene_stem, self.screenshots
+            ));
+            if !p.exists() {
+                return p;
+            }
+        }
+    }
+
+    /// Writes the image shown at film resolution.
+    fn save(&self, state: &State, path: &Path) -> anyhow::Result<()> {
+        let f = self
+            .frames
+            .as_ref()
+            .ok_or_else(|| anyhow!("nothing rendered yet (the window's image area is empty)"))?;
+        let frame = if self.showing_realtime {
+            &f.realtime
+        } else {
+            &f.path
+        };
+        let (image, _) = frame.image(&self.gpu)?;
+        isolux_io::write_image(path, &image, state.exposure, state.tonemap)?;
+        Ok(())
+    }
+}

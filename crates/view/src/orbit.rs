@@ -1,0 +1,169 @@
+//! The viewer's camera: an orbit about the scene camera's `look_at`.
+//!
+//! The eye sits at `target + d (cos(pitch) (cos(yaw) u + sin(yaw) w) +
+//! sin(pitch) up)`, where `(u, up, w)` is a fixed orthonormal frame around
+//! the scene camera's (normalized) `up`. Dragging turns yaw and pitch (the
+//! pitch stays within 89 degrees of the horizon, so `up` is never parallel
+//! to the view direction), the wheel scales the distance.
+
+use glam::DVec3;
+use isolux_render::Camera;
+
+/// Largest pitch in radians (89 degrees).
+const MAX_PITCH: f64 = 89.0 * std::f64::consts::PI / 180.0;
+/// Radians of yaw and pitch per pixel dragged.
+const RADIANS_PER_PIXEL: f64 = 0.008;
+/// Distance factor per wheel step.
+const ZOOM_PER_STEP: f64 = 0.9;
+
+/// An orbit camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Orbit {
+    /// The point orbited (the scene camera's `look_at`).
+    pub target: DVec3,
+    /// World up (unit).
+    pub up: DVec3,
+    /// First horizontal axis (unit, perpendicular to `up`).
+    u: DVec3,
+    /// Second horizontal axis, `up x u`.
+    w: DVec3,
+    /// Eye distance from `target`.
+    pub distance: f64,
+    /// Angle about `up`, radians.
+    pub yaw: f64,
+    /// Elevation above the plane perpendicular to `up`, radians.
+    pub pitch: f64,
+    /// Vertical field of view in degrees.
+    pub fov_y: f64,
+}
+
+impl Orbit {
+    /// The orbit through `camera` (same eye, target, up and field of view,
+    /// the pitch clamped to 89 degrees).
+    pub fn from_camera(camera: &Camera) -> Self {
+        let up = camera.up.try_normalize().unwrap_or(DVec3::Y);
+        let helper = if up.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
+        let u = (helper - up * helper.dot(up)).normalize();
+        let w = up.cross(u);
+        let offset = camera.position - camera.look_at;
+        let distance = offset.length().max(1e-6);
+        let horizontal = DVec3::new(offset.dot(u), offset.dot(w), 0.0);
+        let yaw = horizontal.y.atan2(horizontal.x);
+        let pitch = (offset.dot(up) / distance)
+            .clamp(-1.0, 1.0)
+            .asin()
+            .clamp(-MAX_PITCH, MAX_PITCH);
+        Self {
+            target: camera.look_at,
+            up,
+            u,
+            w,
+            distance,
+            yaw,
+            pitch,
+            fov_y: camera.fov_y,
+        }
+    }
+
+    /// The eye position.
+    pub fn eye(&self) -> DVec3 {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        self.target + self.distance * (cp * (cy * self.u + sy * self.w) + sp * self.up)
+    }
+
+    /// The camera this orbit describes.
+    pub fn camera(&self) -> Camera {
+        Camera {
+            position: self.eye(),
+            look_at: self.target,
+            up: self.up,
+            fov_y: self.fov_y,
+        }
+    }
+
+    /// Turns by a mouse drag of `(dx, dy)` pixels: right turns the scene
+    /// to the right, down raises the eye.
+    pub fn drag(&mut self, dx: f64, dy: f64) {
+        self.yaw -= dx * RADIANS_PER_PIXEL;
+        self.pitch = (self.pitch + dy * RADIANS_PER_PIXEL).clamp(-MAX_PITCH, MAX_PITCH);
+    }
+
+    /// Moves the eye closer (`steps > 0`) or away, by 10% per step.
+    pub fn zoom(&mut self, steps: f64) {
+        self.distance = (self.distance * ZOOM_PER_STEP.powf(steps)).clamp(1e-4, 1e6);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: DVec3, b: DVec3, tol: f64) -> bool {
+        (a - b).length() <= tol * (1.0 + b.length())
+    }
+
+    #[test]
+    fn round_trips_cameras_within_the_pitch_range() {
+        let mut s = 0x1234_5678_u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..200 {
+            let up = DVec3::new(next(), next(), next()).normalize();
+            let look_at = DVec3::new(next(), next(), next()) * 3.0;
+            let mut dir = DVec3::new(next(), next(), next()).normalize();
+            // Keep within 80 degrees of the horizon.
+            if dir.dot(up).abs() > 0.98 {
+                dir = (dir - up * dir.dot(up)).normalize();
+            }
+            let cam = Camera {
+                position: look_at + dir * (1.0 + 5.0 * next().abs()),
+                look_at,
+                up,
+                fov_y: 35.0,
+            };
+            let o = Orbit::from_camera(&cam);
+            let back = o.camera();
+            assert!(close(back.position, cam.position, 1e-9), "{back:?} {cam:?}");
+            assert_eq!(back.look_at, cam.look_at);
+            assert!(back.rig(64, 48).is_ok());
+        }
+    }
+
+    #[test]
+    fn dragging_keeps_the_distance_and_never_flips_over() {
+        let cam = Camera {
+            position: DVec3::new(0.0, 3.4, 7.2),
+            look_at: DVec3::new(0.0, -0.15, 0.0),
+            up: DVec3::Y,
+            fov_y: 42.0,
+        };
+        let mut o = Orbit::from_camera(&cam);
+        let d = (cam.position - cam.look_at).length();
+        for k in 0..500 {
+            o.drag(37.0, if k < 250 { -41.0 } else { 53.0 });
+            let c = o.camera();
+            assert!(((c.position - c.look_at).length() - d).abs() < 1e-9);
+            assert!(o.pitch.abs() <= MAX_PITCH + 1e-12);
+            assert!(c.rig(64, 48).is_ok(), "up parallel to the view at step {k}");
+        }
+        // Dragging right then back left returns to the start.
+        let mut a = Orbit::from_camera(&cam);
+        a.drag(120.0, 0.0);
+        a.drag(-120.0, 0.0);
+        assert!(close(a.eye(), Orbit::from_camera(&cam).eye(), 1e-12));
+    }
+
+    #[test]
+    fn zoom_scales_the_distance() {
+        let mut o = Orbit::from_camera(&Camera::default());
+        o.zoom(1.0);
+        assert!((o.distance - 3.6).abs() < 1e-12);
+        o.zoom(-2.0);
+        assert!((o.distance - 4.0 / 0.9).abs() < 1e-12);
+    }
+}
