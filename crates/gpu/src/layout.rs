@@ -230,8 +230,11 @@ pub mod tag {
     pub const MIX: u32 = 12;
     /// A factored BRDF `scale p(wo) q(h) p(wi)` from its texel maps.
     pub const FACTORED: u32 = 13;
+    /// The local (BRDF) approximation of a translucent medium: dipole
+    /// diffuse reflectance, single scattering, a smooth Fresnel mirror.
+    pub const SUBSURFACE_BRDF: u32 = 14;
     /// Every tag with its WGSL name, for the prelude.
-    pub const ALL: [(&str, u32); 14] = [
+    pub const ALL: [(&str, u32); 15] = [
         ("MAT_DIFFUSE", DIFFUSE),
         ("MAT_PHONG", PHONG),
         ("MAT_BLINN_PHONG", BLINN_PHONG),
@@ -246,6 +249,7 @@ pub mod tag {
         ("MAT_HEIDRICH_SEIDEL", HEIDRICH_SEIDEL),
         ("MAT_MIX", MIX),
         ("MAT_FACTORED", FACTORED),
+        ("MAT_SUBSURFACE_BRDF", SUBSURFACE_BRDF),
     ];
 }
 
@@ -394,8 +398,7 @@ pub struct GpuMaterials {
 
 impl GpuMaterials {
     /// The GPU mirror of `materials`, or the index of the first one not on
-    /// the GPU (`merl`, `subsurface`, `subsurface_brdf`, `wave`, or a mix
-    /// of them).
+    /// the GPU (`merl`, `subsurface`, `wave`, or a mix of them).
     ///
     /// | tag | a | b | c | d | e |
     /// |---|---|---|---|---|---|
@@ -411,6 +414,7 @@ impl GpuMaterials {
     /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | | |
     /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7 | |
     /// | factored | scale | | | | |
+    /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
     ///
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
@@ -601,6 +605,11 @@ impl GpuMaterials {
                 let alpha = p.coat.map_or(0.0, |c| c.distribution.alpha_x);
                 g.b = [p.ior as f32, alpha as f32, p.f_dr_internal() as f32, 0.0];
                 g.tag[3] = p.coat.is_some() as u32;
+            }
+            Material::SubsurfaceBrdf(b) => {
+                g.tag[0] = tag::SUBSURFACE_BRDF;
+                g.a = rgb4(b.r_d, b.eta);
+                g.b = rgb4(b.single_albedo, b.g);
             }
             _ => return None,
         }

@@ -26,7 +26,7 @@ use isolux_materials::gaussian::GaussianDistribution;
 use isolux_materials::microfacet::{Kind, Microfacet};
 use isolux_materials::{
     Beckmann, BlinnPhong, BxdfModel, Conductor, CookTorrance, Dielectric, Diffuse, Factored,
-    Fresnel, Gaussian, Ggx, HeidrichSeidel, Material, Mix, Phong, Plastic, Ward,
+    Fresnel, Gaussian, Ggx, HeidrichSeidel, Material, Mix, Phong, Plastic, SubsurfaceBrdf, Ward,
 };
 
 /// A factored material from synthetic maps: `p` a smooth colour ramp,
@@ -120,6 +120,25 @@ fn library() -> Vec<(&'static str, Material)> {
         (
             "plastic smooth",
             Material::Plastic(Plastic::new(1.5, Rgb::new(0.7, 0.2, 0.1), None)),
+        ),
+        (
+            // Marble (Jensen et al. 2001, 1/mm), a strongly forward g.
+            "subsurface_brdf marble",
+            Material::SubsurfaceBrdf(SubsurfaceBrdf::new(
+                Rgb::new(2.19, 2.62, 3.00),
+                Rgb::new(0.0021, 0.0041, 0.0071),
+                0.8,
+                1.5,
+            )),
+        ),
+        (
+            "subsurface_brdf absorbing, g -0.3",
+            Material::SubsurfaceBrdf(SubsurfaceBrdf::new(
+                Rgb::new(0.7, 1.2, 1.9),
+                Rgb::new(0.5, 0.2, 0.05),
+                -0.3,
+                1.33,
+            )),
         ),
         (
             "plastic rough 0.2",

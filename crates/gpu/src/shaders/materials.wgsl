@@ -14,6 +14,8 @@
 //   DIELECTRIC   a.x ior
 //   PLASTIC      a.rgb reflectance, b.x ior, b.y coat alpha, b.z F_dr(int);
 //                tag.w 1 for a rough coat
+//   SUBSURFACE_BRDF a.rgb dipole R_d, a.w eta, b.rgb single-scattering
+//                albedo, b.w g
 
 struct Material { tag: vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e: vec4<f32>, idx: vec4<u32> }
 
@@ -872,6 +874,35 @@ fn plastic_p_coat(m: Material, wo: vec3<f32>) -> f32 {
     return clamp(fresnel_dielectric(wo.z, m.b.x), 0.02, 0.98);
 }
 
+// ---- Subsurface BRDF (local approximation of a translucent medium) -------
+
+// Henyey-Greenstein, normalized over the sphere.
+fn hg_phase(cos_t: f32, g: f32) -> f32 {
+    let denom = 1.0 + g * g - 2.0 * g * cos_t;
+    return 0.25 * INV_PI * (1.0 - g * g) / (denom * sqrt(max(denom, 0.0)));
+}
+
+// R_d T(wi) T(wo) / pi plus single scattering (Hanrahan-Krueger), as
+// SubsurfaceBrdf::f and subsurface::phase::single_scattering.
+fn sss_brdf_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let eta = m.a.w;
+    let t = (1.0 - fresnel_dielectric(wi.z, eta)) * (1.0 - fresnel_dielectric(wo.z, eta));
+    var single = 0.0;
+    let ti = refract_z(wi, eta);
+    let to = refract_z(wo, eta);
+    if (ti.w != 0.0 && to.w != 0.0) {
+        single = t * hg_phase(dot(ti.xyz, -to.xyz), m.b.w) / (abs(ti.z) + abs(to.z));
+    }
+    return m.a.rgb * (t * INV_PI) + m.b.rgb * single;
+}
+
+fn sss_brdf_p_mirror(m: Material, wo: vec3<f32>) -> f32 {
+    return clamp(fresnel_dielectric(wo.z, m.a.w), 0.02, 0.98);
+}
+
 // ---- The dispatch ---------------------------------------------------------
 
 fn is_beckmann(m: Material) -> bool {
@@ -897,6 +928,9 @@ fn base_flags(m: Material) -> u32 {
         }
         case MAT_PLASTIC: {
             return FLAG_REFLECTION | FLAG_DIFFUSE | select(FLAG_SPECULAR, FLAG_GLOSSY, m.tag.w == 1u);
+        }
+        case MAT_SUBSURFACE_BRDF: {
+            return FLAG_REFLECTION | FLAG_DIFFUSE | FLAG_SPECULAR;
         }
         default: {
             return 0u;
@@ -941,6 +975,9 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
             }
             return f;
         }
+        case MAT_SUBSURFACE_BRDF: {
+            return sss_brdf_f(m, wo, wi);
+        }
         default: {
             return vec3<f32>(0.0);
         }
@@ -984,6 +1021,12 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
                 p += pc * mfr_pdf(false, m.b.y, m.b.y, wo, wi);
             }
             return p;
+        }
+        case MAT_SUBSURFACE_BRDF: {
+            if (wo.z <= 0.0 || wi.z <= 0.0) {
+                return 0.0;
+            }
+            return (1.0 - sss_brdf_p_mirror(m, wo)) * cosine_pdf(wi.z);
         }
         default: {
             return 0.0;
@@ -1119,6 +1162,18 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
                 let wi = mirror_z(wo);
                 let f = fresnel_dielectric(wo.z, m.b.x);
                 return BsdfSample(wi, vec3<f32>(f / wi.z), pc, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+            }
+            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+        }
+        case MAT_SUBSURFACE_BRDF: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            let pm = sss_brdf_p_mirror(m, wo);
+            if (uc < pm) {
+                let wi = mirror_z(wo);
+                let f = fresnel_dielectric(wo.z, m.a.w);
+                return BsdfSample(wi, vec3<f32>(f / wi.z), pm, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
             }
             return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
         }
