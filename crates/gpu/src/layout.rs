@@ -233,8 +233,10 @@ pub mod tag {
     /// The local (BRDF) approximation of a translucent medium: dipole
     /// diffuse reflectance, single scattering, a smooth Fresnel mirror.
     pub const SUBSURFACE_BRDF: u32 = 14;
+    /// A MERL measured BRDF, its table in the material data.
+    pub const MERL: u32 = 15;
     /// Every tag with its WGSL name, for the prelude.
-    pub const ALL: [(&str, u32); 15] = [
+    pub const ALL: [(&str, u32); 16] = [
         ("MAT_DIFFUSE", DIFFUSE),
         ("MAT_PHONG", PHONG),
         ("MAT_BLINN_PHONG", BLINN_PHONG),
@@ -250,6 +252,7 @@ pub mod tag {
         ("MAT_MIX", MIX),
         ("MAT_FACTORED", FACTORED),
         ("MAT_SUBSURFACE_BRDF", SUBSURFACE_BRDF),
+        ("MAT_MERL", MERL),
     ];
 }
 
@@ -398,7 +401,7 @@ pub struct GpuMaterials {
 
 impl GpuMaterials {
     /// The GPU mirror of `materials`, or the index of the first one not on
-    /// the GPU (`merl`, `subsurface`, `wave`, or a mix of them).
+    /// the GPU (`subsurface`, `wave`, or a mix of them).
     ///
     /// | tag | a | b | c | d | e |
     /// |---|---|---|---|---|---|
@@ -415,6 +418,7 @@ impl GpuMaterials {
     /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7 | |
     /// | factored | scale | | | | |
     /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
+    /// | merl | | | | | |
     ///
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
@@ -605,6 +609,11 @@ impl GpuMaterials {
                 let alpha = p.coat.map_or(0.0, |c| c.distribution.alpha_x);
                 g.b = [p.ior as f32, alpha as f32, p.f_dr_internal() as f32, 0.0];
                 g.tag[3] = p.coat.is_some() as u32;
+            }
+            Material::Merl(t) => {
+                g.tag[0] = tag::MERL;
+                g.idx[0] = self.data.len() as u32;
+                self.data.extend_from_slice(t.table());
             }
             Material::SubsurfaceBrdf(b) => {
                 g.tag[0] = tag::SUBSURFACE_BRDF;

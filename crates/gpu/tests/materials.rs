@@ -29,6 +29,32 @@ use isolux_materials::{
     Fresnel, Gaussian, Ggx, HeidrichSeidel, Material, Mix, Phong, Plastic, SubsurfaceBrdf, Ward,
 };
 
+/// A synthetic MERL table: a sharp highlight in theta_h over a colour
+/// floor, varying in theta_d and phi_d, with a block of missing entries
+/// at grazing theta_d (which the lookup must skip, as the CPU does).
+fn merl() -> Material {
+    use isolux_materials::merl::{Merl, PLANE};
+    let mut raw = vec![0.0; 3 * PLANE];
+    for th in 0..90 {
+        for td in 0..90 {
+            for pd in 0..180 {
+                let i = pd + 180 * td + 16200 * th;
+                let x = th as f64 / 6.0;
+                let phi = pd as f64 * std::f64::consts::PI / 90.0;
+                for k in 0..3 {
+                    let v = 1500.0
+                        * (0.05 * (k + 1) as f64
+                            + 3.0 * (-x * x).exp() * (1.0 + 0.4 * (td as f64 / 30.0).sin()))
+                        * (1.0 + 0.2 * phi.cos());
+                    let missing = td >= 84 && pd % 7 < 3;
+                    raw[k * PLANE + i] = if missing { -1.0 } else { v };
+                }
+            }
+        }
+    }
+    Material::Merl(Merl::from_bytes(&Merl::encode(&raw)).unwrap())
+}
+
 /// A factored material from synthetic maps: `p` a smooth colour ramp,
 /// `q` a peak at the map's centre (a highlight) over a floor.
 fn factored(res: usize, width: f64) -> Material {
@@ -204,6 +230,7 @@ fn library() -> Vec<(&'static str, Material)> {
             "heidrich_seidel 5",
             Material::HeidrichSeidel(HeidrichSeidel::new(5.0, Rgb::WHITE, Rgb::BLACK, Rgb::BLACK)),
         ),
+        ("merl synthetic, with gaps", merl()),
         ("factored 16, wide", factored(16, 0.6)),
         ("factored 32, narrow", factored(32, 0.15)),
         ("factored 16, r table", factored_hd(16, 0.3, 7)),

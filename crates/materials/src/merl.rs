@@ -150,6 +150,13 @@ impl Merl {
         self.missing
     }
 
+    /// The whole table: the R, G and B planes, [`PLANE`] values each,
+    /// already scaled, negative where missing (index `phi_d + 180 theta_d
+    /// + 16200 theta_h` within a plane). The GPU uploads it as is.
+    pub fn table(&self) -> &[f32] {
+        &self.data
+    }
+
     /// The stored (scaled) value at table indices, `None` if missing.
     pub fn entry(&self, channel: usize, th: usize, td: usize, pd: usize) -> Option<f64> {
         let v = self.data[channel * PLANE + pd + 180 * td + 16200 * th];

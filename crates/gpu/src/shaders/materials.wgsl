@@ -16,6 +16,8 @@
 //                tag.w 1 for a rough coat
 //   SUBSURFACE_BRDF a.rgb dipole R_d, a.w eta, b.rgb single-scattering
 //                albedo, b.w g
+//   MERL         idx.x: the R, G, B planes (90 x 90 x 180 each) in the
+//                material data
 
 struct Material { tag: vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e: vec4<f32>, idx: vec4<u32> }
 
@@ -903,6 +905,77 @@ fn sss_brdf_p_mirror(m: Material, wo: vec3<f32>) -> f32 {
     return clamp(fresnel_dielectric(wo.z, m.a.w), 0.02, 0.98);
 }
 
+// ---- MERL measured BRDF (crates/materials/src/merl.rs) --------------------
+
+const MERL_PLANE: u32 = 1458000u;
+
+// Angle of v from +z: atan2 keeps f32 accuracy near the pole, where acos
+// loses it (the highlight, where theta_h's square-root index is steepest).
+fn polar_angle(v: vec3<f32>) -> f32 {
+    return atan2(length(v.xy), v.z);
+}
+
+fn azimuth(v: vec3<f32>) -> f32 {
+    if (v.x == 0.0 && v.y == 0.0) {
+        return 0.0;
+    }
+    return atan2(v.y, v.x);
+}
+
+// Trilinear lookup over (theta_h, theta_d, phi_d) skipping missing
+// samples, as Merl::lookup; black where all eight are missing.
+fn merl_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if (wo.z <= 0.0 || wi.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let h = normalize(wo + wi);
+    let theta_h = polar_angle(h);
+    let phi_h = azimuth(h);
+    let c1 = cos(-phi_h);
+    let s1 = sin(-phi_h);
+    let t = vec3<f32>(c1 * wi.x - s1 * wi.y, s1 * wi.x + c1 * wi.y, wi.z);
+    let c2 = cos(-theta_h);
+    let s2 = sin(-theta_h);
+    let d = vec3<f32>(c2 * t.x + s2 * t.z, t.y, -s2 * t.x + c2 * t.z);
+    let theta_d = polar_angle(d);
+    var phi_d = azimuth(d);
+    phi_d = phi_d - PI * floor(phi_d / PI);
+    let ch = clamp(sqrt(max(theta_h / (0.5 * PI), 0.0)) * 90.0, 0.0, 89.0);
+    let cd = clamp(theta_d / (0.5 * PI) * 90.0, 0.0, 89.0);
+    var cp = phi_d / PI * 180.0;
+    cp = cp - 180.0 * floor(cp / 180.0);
+    let ih = min(u32(floor(ch)), 88u);
+    let id = min(u32(floor(cd)), 88u);
+    let ip = min(u32(floor(cp)), 179u);
+    let fh = ch - f32(ih);
+    let fd = cd - f32(id);
+    let fp = cp - f32(ip);
+    var sum = vec3<f32>(0.0);
+    var wsum = vec3<f32>(0.0);
+    let base = m.idx.x;
+    for (var k = 0u; k < 8u; k++) {
+        let a = k & 1u;
+        let b = (k >> 1u) & 1u;
+        let c = (k >> 2u) & 1u;
+        let w = select(1.0 - fh, fh, a == 1u) * select(1.0 - fd, fd, b == 1u) * select(1.0 - fp, fp, c == 1u);
+        if (w == 0.0) {
+            continue;
+        }
+        let at = base + (ip + c) % 180u + 180u * (id + b) + 16200u * (ih + a);
+        for (var ch3 = 0u; ch3 < 3u; ch3++) {
+            let v = material_data[at + ch3 * MERL_PLANE];
+            if (v >= 0.0) {
+                sum[ch3] += w * v;
+                wsum[ch3] += w;
+            }
+        }
+    }
+    if (wsum.x <= 0.0 || wsum.y <= 0.0 || wsum.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    return sum / wsum;
+}
+
 // ---- The dispatch ---------------------------------------------------------
 
 fn is_beckmann(m: Material) -> bool {
@@ -917,7 +990,7 @@ fn base_flags(m: Material) -> u32 {
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD, MAT_COOK_TORRANCE, MAT_GAUSSIAN, MAT_HEIDRICH_SEIDEL: {
             return FLAG_REFLECTION | FLAG_DIFFUSE | FLAG_GLOSSY;
         }
-        case MAT_GGX, MAT_BECKMANN, MAT_FACTORED: {
+        case MAT_GGX, MAT_BECKMANN, MAT_FACTORED, MAT_MERL: {
             return FLAG_REFLECTION | FLAG_GLOSSY;
         }
         case MAT_CONDUCTOR: {
@@ -978,6 +1051,9 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
         case MAT_SUBSURFACE_BRDF: {
             return sss_brdf_f(m, wo, wi);
         }
+        case MAT_MERL: {
+            return merl_f(m, wo, wi);
+        }
         default: {
             return vec3<f32>(0.0);
         }
@@ -1027,6 +1103,12 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
                 return 0.0;
             }
             return (1.0 - sss_brdf_p_mirror(m, wo)) * cosine_pdf(wi.z);
+        }
+        case MAT_MERL: {
+            if (wo.z <= 0.0 || wi.z <= 0.0) {
+                return 0.0;
+            }
+            return cosine_pdf(wi.z);
         }
         default: {
             return 0.0;
@@ -1176,6 +1258,12 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
                 return BsdfSample(wi, vec3<f32>(f / wi.z), pm, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
             }
             return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+        }
+        case MAT_MERL: {
+            if (wo.z <= 0.0) {
+                return no_sample();
+            }
+            return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
         }
         default: {
             return no_sample();
