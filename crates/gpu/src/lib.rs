@@ -149,6 +149,7 @@ pub struct Gpu {
     material_eval: OnceLock<wgpu::ComputePipeline>,
     render: OnceLock<wgpu::ComputePipeline>,
     realtime: OnceLock<wgpu::ComputePipeline>,
+    aov: OnceLock<wgpu::ComputePipeline>,
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
     render_module: OnceLock<wgpu::ShaderModule>,
     /// Adapter name and back end, for reports.
@@ -200,6 +201,7 @@ impl Gpu {
             material_eval: OnceLock::new(),
             render: OnceLock::new(),
             realtime: OnceLock::new(),
+            aov: OnceLock::new(),
             render_layout: OnceLock::new(),
             render_module: OnceLock::new(),
             adapter: format!("{} ({:?})", info.name, info.backend),
@@ -251,7 +253,7 @@ impl Gpu {
             use wgpu::BufferBindingType as B;
             // objects, perturbations, materials, lights, env texels,
             // env cdf, accum (rw), params (uniform), material data,
-            // env levels, BVH nodes.
+            // env levels, BVH nodes, AOVs (rw), material albedos.
             let kinds = [
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -263,6 +265,8 @@ impl Gpu {
                 B::Uniform,
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
+                B::Storage { read_only: true },
+                B::Storage { read_only: false },
                 B::Storage { read_only: true },
             ];
             let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
@@ -299,11 +303,24 @@ impl Gpu {
     /// The path tracer (`realtime` false, entry `main`) or the real-time
     /// mode (entry `realtime`) of `render.wgsl`.
     fn render_pipeline(&self, realtime: bool) -> &wgpu::ComputePipeline {
-        let cell = if realtime {
-            &self.realtime
+        let (cell, entry) = if realtime {
+            (&self.realtime, "realtime")
         } else {
-            &self.render
+            (&self.render, "main")
         };
+        self.render_entry(cell, entry)
+    }
+
+    /// The AOV kernel (`aov_main` of `render.wgsl`).
+    fn aov_pipeline(&self) -> &wgpu::ComputePipeline {
+        self.render_entry(&self.aov, "aov_main")
+    }
+
+    fn render_entry<'a>(
+        &'a self,
+        cell: &'a OnceLock<wgpu::ComputePipeline>,
+        entry: &'static str,
+    ) -> &'a wgpu::ComputePipeline {
         cell.get_or_init(|| {
             let module = self.render_module.get_or_init(|| {
                 self.device
@@ -312,7 +329,6 @@ impl Gpu {
                         source: wgpu::ShaderSource::Wgsl(render_source().into()),
                     })
             });
-            let entry = if realtime { "realtime" } else { "main" };
             self.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(entry),

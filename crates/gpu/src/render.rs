@@ -5,7 +5,7 @@
 
 use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
 use crate::{Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
-use isolux_core::{Image, Rgb, PI};
+use isolux_core::{Aovs, Image, Rgb, PI};
 use isolux_render::{Camera, Environment, RenderStats, Scene};
 use wgpu::util::DeviceExt;
 
@@ -50,6 +50,8 @@ pub struct GpuFrame {
     accum: wgpu::Buffer,
     params_buf: wgpu::Buffer,
     params: GpuParams,
+    /// The AOV buffer, when the frame was prepared with AOVs.
+    aov: Option<wgpu::Buffer>,
     /// Samples per pixel accumulated so far.
     pub samples: u32,
 }
@@ -147,24 +149,42 @@ impl Gpu {
     /// Uploads `scene` for path tracing at its film size. Fails, naming
     /// it, on a material not on the GPU, and on an invalid camera.
     pub fn prepare(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
-        self.prepare_mode(scene, false)
+        self.prepare_mode(scene, false, false)
     }
 
     /// Uploads `scene` for the real-time mode (`isolux_render::realtime`):
     /// each [`GpuFrame::run`] renders a whole frame of `count` samples per
     /// pixel, replacing the last.
     pub fn prepare_realtime(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
-        self.prepare_mode(scene, true)
+        self.prepare_mode(scene, true, false)
     }
 
     /// Renders `scene` in the real-time mode at its film's `spp`.
     pub fn render_realtime(&self, scene: &Scene) -> Result<(Image, RenderStats), GpuError> {
-        let mut frame = self.prepare_realtime(scene)?;
-        frame.run(self, scene.film.spp);
-        frame.image(self)
+        self.render_realtime_with_aov(scene, false)
     }
 
-    fn prepare_mode(&self, scene: &Scene, realtime: bool) -> Result<GpuFrame, GpuError> {
+    /// [`Gpu::render_realtime`], with the AOV layers when `aov` is set.
+    pub fn render_realtime_with_aov(
+        &self,
+        scene: &Scene,
+        aov: bool,
+    ) -> Result<(Image, RenderStats), GpuError> {
+        let mut frame = self.prepare_mode(scene, true, aov)?;
+        frame.run(self, scene.film.spp);
+        let (mut image, stats) = frame.image(self)?;
+        if aov {
+            image.aov = Some(frame.aovs(self)?);
+        }
+        Ok((image, stats))
+    }
+
+    fn prepare_mode(
+        &self,
+        scene: &Scene,
+        realtime: bool,
+        with_aov: bool,
+    ) -> Result<GpuFrame, GpuError> {
         if let Some((name, type_name)) = unsupported_material(scene) {
             return Err(GpuError::Unsupported { name, type_name });
         }
@@ -261,6 +281,19 @@ impl Gpu {
         let params_buf = self.uniform("params", &params);
         let levels = self.storage("env levels", bytemuck::cast_slice(&levels));
         let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&geo.nodes));
+        // Albedo per scene material (the CPU's `albedo()`, the AOV's
+        // definition), and the AOV buffer when asked for (else a stub).
+        let albedos: Vec<[f32; 4]> = scene
+            .materials
+            .iter()
+            .map(|m| {
+                let a = isolux_materials::BxdfModel::albedo(m);
+                [a.r as f32, a.g as f32, a.b as f32, 0.0]
+            })
+            .collect();
+        let albedos = self.storage("albedos", bytemuck::cast_slice(&albedos));
+        let aov = with_aov.then(|| self.output("aov", npix * 32));
+        let aov_stub = self.output("aov stub", 32);
         let bind = self.render_bind_group(&[
             &objects,
             &perts,
@@ -273,6 +306,8 @@ impl Gpu {
             &data,
             &levels,
             &nodes,
+            aov.as_ref().unwrap_or(&aov_stub),
+            &albedos,
         ]);
         Ok(GpuFrame {
             realtime,
@@ -280,6 +315,7 @@ impl Gpu {
             accum,
             params_buf,
             params,
+            aov,
             samples: 0,
         })
     }
@@ -293,7 +329,19 @@ impl Gpu {
         scene: &Scene,
         progress: &dyn Fn(usize, usize),
     ) -> Result<(Image, RenderStats), GpuError> {
-        let mut frame = self.prepare(scene)?;
+        self.render_with_aov(scene, false, progress)
+    }
+
+    /// [`Gpu::render`], with the AOV layers (albedo, normal, depth of the
+    /// first hit, averaged over each pixel's samples as on the CPU) when
+    /// `aov` is set.
+    pub fn render_with_aov(
+        &self,
+        scene: &Scene,
+        aov: bool,
+        progress: &dyn Fn(usize, usize),
+    ) -> Result<(Image, RenderStats), GpuError> {
+        let mut frame = self.prepare_mode(scene, false, aov)?;
         let spp = scene.film.spp;
         let per_pass = spp.div_ceil(16);
         let passes = spp.div_ceil(per_pass) as usize;
@@ -303,7 +351,11 @@ impl Gpu {
             self.wait()?;
             progress(k + 1, passes);
         }
-        frame.image(self)
+        let (mut image, stats) = frame.image(self)?;
+        if aov {
+            image.aov = Some(frame.aovs(self)?);
+        }
+        Ok((image, stats))
     }
 }
 
@@ -396,6 +448,68 @@ impl GpuFrame {
             );
         }
         gpu.queue.submit(Some(enc.finish()));
+    }
+
+    /// The AOVs of the first hit over the samples taken so far (at the
+    /// same sub-pixel positions), for a frame prepared with AOVs.
+    pub fn aovs(&self, gpu: &Gpu) -> Result<Aovs, GpuError> {
+        let buf = self
+            .aov
+            .as_ref()
+            .ok_or_else(|| GpuError::Setup("the frame was prepared without AOVs".into()))?;
+        // One dispatch per sample (see `aov_main`), their parameters
+        // copied into the uniform inside the command stream.
+        let count = self.samples.max(1);
+        let size = std::mem::size_of::<GpuParams>() as u64;
+        let blocks: Vec<GpuParams> = (0..count)
+            .map(|s| {
+                let mut p = self.params;
+                p.pass_info[0] = s;
+                p.pass_info[1] = 1;
+                p
+            })
+            .collect();
+        let staging = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("aov parameters"),
+                contents: bytemuck::cast_slice(&blocks),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            });
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("aov pass"),
+            });
+        enc.clear_buffer(buf, 0, None);
+        for s in 0..count as u64 {
+            enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("aov sample"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(gpu.aov_pipeline());
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.dispatch_workgroups(
+                self.params.film[0].div_ceil(TILE),
+                self.params.film[1].div_ceil(TILE),
+                1,
+            );
+        }
+        gpu.queue.submit(Some(enc.finish()));
+        let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
+        let inv = 1.0 / count as f32;
+        let mut out = Aovs::default();
+        for px in raw.chunks_exact(2) {
+            out.albedo
+                .push([px[0][0] * inv, px[0][1] * inv, px[0][2] * inv]);
+            out.depth.push(px[0][3] * inv);
+            let n = [px[1][0], px[1][1], px[1][2]];
+            let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            out.normal
+                .push(if l > 0.0 { n.map(|c| c / l) } else { [0.0; 3] });
+        }
+        Ok(out)
     }
 
     /// Moves the camera (same film size) and clears the accumulation.

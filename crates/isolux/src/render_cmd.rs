@@ -58,8 +58,7 @@ pub struct RenderArgs {
     pub quiet: bool,
     /// Render on the GPU (wgpu compute shaders). Refuses, naming it, a
     /// material not on the GPU yet (docs/gpu.md lists the models that
-    /// are); never falls back to the CPU. `--threads` and `--aov` do not
-    /// apply.
+    /// are); never falls back to the CPU. `--threads` does not apply.
     #[arg(long)]
     pub gpu: bool,
     /// The seed's real-time mode: point lights (shadowed) plus prefiltered
@@ -127,9 +126,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bail!("{name} must be at least 1");
         }
     }
-    if a.gpu && a.aov {
-        bail!("--aov is not available with --gpu yet (docs/gpu.md): render without --gpu");
-    }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),
         Some(n) => n,
@@ -177,9 +173,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         start = Instant::now();
         if a.realtime {
-            gpu.render_realtime(&scene).context("--gpu --realtime")?
+            gpu.render_realtime_with_aov(&scene, a.aov)
+                .context("--gpu --realtime")?
         } else {
-            gpu.render(&scene, &progress).context("--gpu")?
+            gpu.render_with_aov(&scene, a.aov, &progress)
+                .context("--gpu")?
         }
     } else {
         start = Instant::now();

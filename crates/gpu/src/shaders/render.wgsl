@@ -44,6 +44,9 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 @group(0) @binding(8) var<storage, read> material_data: array<f32>;
 @group(0) @binding(9) var<storage, read> env_levels: array<vec4<u32>>; // realtime.wgsl
 @group(0) @binding(10) var<storage, read> nodes: array<BvhNode>;
+// AOVs (aov_main): per pixel (albedo, depth) then (normal, 0).
+@group(0) @binding(11) var<storage, read_write> aov: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read> albedos: array<vec4<f32>>; // per material
 
 var<private> rng_state: u32;
 
@@ -353,4 +356,39 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     accum[pixel] = acc;
+}
+
+// AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
+// position as in `main`, added to the pixel's sums: the material's albedo
+// and the distance (0 on a miss), the outward normal. One sample per
+// dispatch: a loop over the samples around the intersection lost some of
+// its iterations (the defect of docs/gpu.md); the host divides.
+@compute @workgroup_size(8, 8)
+fn aov_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = params.film.x;
+    let height = params.film.y;
+    if (gid.x >= width || gid.y >= height) {
+        return;
+    }
+    let pixel = gid.y * width + gid.x;
+    let gm = params.film.z;
+    let gn = params.film.w;
+    let cells = gm * gn;
+    let seed = params.pass_info.z;
+    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
+    let s = params.pass_info.x;
+    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
+    let c = (s + offset) % cells;
+    let j = rand2();
+    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
+    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
+    let sx = 2.0 * fx / f32(width) - 1.0;
+    let sy = 1.0 - 2.0 * fy / f32(height);
+    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
+    let h = scene_hit(params.origin.xyz, dir, 3.0e38);
+    if (h.x >= 0.0) {
+        let a = albedos[objects[hit_object].range.z].rgb;
+        aov[2u * pixel] += vec4<f32>(a, h.x);
+        aov[2u * pixel + 1u] += vec4<f32>(h.yzw, 0.0);
+    }
 }
