@@ -55,12 +55,18 @@ fn main() {
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {
-        // One line: the chain of causes joined.
-        let msg = e
-            .chain()
-            .map(|c| c.to_string())
-            .collect::<Vec<_>>()
-            .join(": ");
+        // One line: the chain of causes joined, skipping a cause that its
+        // parent's message already ends with (errors that print their
+        // source, like `LoadError::Read`).
+        let mut msg = String::new();
+        for c in e.chain() {
+            let c = c.to_string();
+            if msg.is_empty() {
+                msg = c;
+            } else if !msg.ends_with(&c) {
+                msg = format!("{msg}: {c}");
+            }
+        }
         eprintln!("isolux: error: {msg}");
         std::process::exit(1);
     }

@@ -159,6 +159,12 @@ fn usage_errors_are_clear() {
         assert_eq!(st.status.code(), Some(1), "{args:?}");
         let err = String::from_utf8_lossy(&st.stderr);
         assert!(err.contains(want), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
+        // No cause repeated (an error that prints its source, chained).
+        let parts: Vec<&str> = err.trim().split(": ").collect();
+        for w in parts.windows(2) {
+            assert_ne!(w[0], w[1], "{args:?}: repeated cause: {err}");
+        }
     }
     // Missing required flag: clap's usage error, exit 2.
     let st = isolux().args(["render", s]).output().unwrap();
@@ -186,7 +192,7 @@ fn help_documents_every_flag() {
     }
     let out = isolux().arg("--help").output().unwrap();
     let help = String::from_utf8_lossy(&out.stdout);
-    assert!(help.contains("render") && help.contains("bench"));
+    assert!(help.contains("render") && help.contains("bench") && help.contains("view"));
 }
 
 #[test]
