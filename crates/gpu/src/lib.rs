@@ -64,9 +64,9 @@ pub fn prelude() -> String {
     use isolux_materials::BxdfFlags as F;
     let mut s = format!(
         "const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
-         const MISS: f32 = {MISS:?};\n\
-         const NO_ROOT: f32 = {NO_ROOT:e};\n\
-         const MIN_WIDTH: f32 = {MIN_WIDTH:e};\n\
+         const MISS = {MISS:?};\n\
+         const NO_ROOT = {NO_ROOT:e};\n\
+         const MIN_WIDTH = {:e};\n\
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
          const BVH_STACK: u32 = {BVH_STACK}u;\n\
@@ -75,8 +75,13 @@ pub fn prelude() -> String {
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n\
          const LOD_BIAS: f32 = {:?};\n",
+        MIN_WIDTH as f64,
         layout::NO_NODE,
         isolux_render::realtime::LOD_BIAS as f32
+    );
+    s += &format!(
+        "const MAX_MEDIUM_EVENTS: u32 = {}u;\n",
+        isolux_render::integrator::MAX_MEDIUM_EVENTS
     );
     for (name, v) in layout::tag::ALL
         .iter()
@@ -97,9 +102,47 @@ pub fn prelude() -> String {
     s
 }
 
-/// The intersection kernel with its prelude.
+/// Floating-point precision of the GPU intersection (`geometry.wgsl`
+/// computes in an alias `real`).
+///
+/// Decision (docs/gpu.md, measured there): f32 is the default everywhere.
+/// Each segment is reparameterized to `s in [0, 1]`, which keeps the
+/// degree-6 polynomial well conditioned in f32, and the conformance suite
+/// bounds its error against the CPU's f64; f64 (where the adapter offers
+/// `SHADER_F64`) is available for comparison and for scenes that need it
+/// (`isolux bench gpu --f64`, [`Gpu::set_precision`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// 32-bit floats (every adapter).
+    #[default]
+    F32,
+    /// 64-bit floats (adapters with `wgpu::Features::SHADER_F64`).
+    F64,
+}
+
+impl Precision {
+    /// The WGSL scalar type.
+    pub fn wgsl(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+}
+
+/// `geometry.wgsl` computing in `precision`.
+pub fn geometry_source(precision: Precision) -> String {
+    format!("alias real = {};\n", precision.wgsl()) + include_str!("shaders/geometry.wgsl")
+}
+
+/// The intersection kernel with its prelude (f32).
 pub fn intersect_source() -> String {
-    prelude() + include_str!("shaders/geometry.wgsl") + include_str!("shaders/intersect.wgsl")
+    intersect_source_with(Precision::F32)
+}
+
+/// The intersection kernel computing in `precision`.
+pub fn intersect_source_with(precision: Precision) -> String {
+    prelude() + &geometry_source(precision) + include_str!("shaders/intersect.wgsl")
 }
 
 /// The material conformance kernel with its prelude.
@@ -107,10 +150,15 @@ pub fn material_eval_source() -> String {
     prelude() + include_str!("shaders/materials.wgsl") + include_str!("shaders/material_eval.wgsl")
 }
 
-/// The path tracer with its prelude.
+/// The path tracer with its prelude (f32 intersection).
 pub fn render_source() -> String {
+    render_source_with(Precision::F32)
+}
+
+/// The path tracer and real-time kernels, intersecting in `precision`.
+pub fn render_source_with(precision: Precision) -> String {
     prelude()
-        + include_str!("shaders/geometry.wgsl")
+        + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
@@ -152,6 +200,8 @@ pub struct Gpu {
     aov: OnceLock<wgpu::ComputePipeline>,
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
     render_module: OnceLock<wgpu::ShaderModule>,
+    precision: Precision,
+    f64_supported: bool,
     /// Adapter name and back end, for reports.
     pub adapter: String,
 }
@@ -183,9 +233,17 @@ impl Gpu {
     /// window's surface).
     pub fn with_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
+        // f64 is requested where offered, so that `set_precision` can
+        // switch the intersection without reopening the device.
+        let f64_supported = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let required_features = if f64_supported {
+            wgpu::Features::SHADER_F64
+        } else {
+            wgpu::Features::empty()
+        };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("isolux"),
-            required_features: wgpu::Features::empty(),
+            required_features,
             // The path tracer binds seven storage buffers: ask for what
             // the adapter offers rather than the downlevel minimum (4).
             required_limits: adapter.limits(),
@@ -204,8 +262,41 @@ impl Gpu {
             aov: OnceLock::new(),
             render_layout: OnceLock::new(),
             render_module: OnceLock::new(),
+            precision: Precision::F32,
+            f64_supported,
             adapter: format!("{} ({:?})", info.name, info.backend),
         })
+    }
+
+    /// Whether the adapter offers f64 in shaders (`SHADER_F64`).
+    pub fn supports_f64(&self) -> bool {
+        self.f64_supported
+    }
+
+    /// The precision the intersection computes in.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// Sets the precision of the intersection in every kernel (compiled
+    /// again on next use). f64 on an adapter without `SHADER_F64` is an
+    /// error naming the adapter.
+    pub fn set_precision(&mut self, precision: Precision) -> Result<(), GpuError> {
+        if precision == Precision::F64 && !self.f64_supported {
+            return Err(GpuError::Setup(format!(
+                "the adapter {} does not offer f64 in shaders (SHADER_F64); use f32",
+                self.adapter
+            )));
+        }
+        if precision != self.precision {
+            self.precision = precision;
+            self.intersect = OnceLock::new();
+            self.render = OnceLock::new();
+            self.realtime = OnceLock::new();
+            self.aov = OnceLock::new();
+            self.render_module = OnceLock::new();
+        }
+        Ok(())
     }
 
     /// The device, for callers that draw with it (the viewer).
@@ -326,7 +417,7 @@ impl Gpu {
                 self.device
                     .create_shader_module(wgpu::ShaderModuleDescriptor {
                         label: Some("render"),
-                        source: wgpu::ShaderSource::Wgsl(render_source().into()),
+                        source: wgpu::ShaderSource::Wgsl(render_source_with(self.precision).into()),
                     })
             });
             self.device
@@ -518,7 +609,9 @@ impl Gpu {
         if rays.is_empty() {
             return Ok(Vec::new());
         }
-        let pipeline = self.pipeline(&self.intersect, "intersect", intersect_source);
+        let pipeline = self.pipeline(&self.intersect, "intersect", || {
+            intersect_source_with(self.precision)
+        });
         let objects = self.storage("objects", bytemuck::cast_slice(&scene.objects));
         let perts = self.storage("perturbations", bytemuck::cast_slice(&scene.perturbations));
         let ray_buf = self.storage("rays", bytemuck::cast_slice(rays));
@@ -538,6 +631,32 @@ impl Gpu {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn f64_variants_validate_with_naga() {
+        use super::Precision::F64;
+        for src in [
+            super::intersect_source_with(F64),
+            super::render_source_with(F64),
+        ] {
+            let module = naga::front::wgsl::parse_str(&src)
+                .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::FLOAT64,
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
+            // Without the capability the same source must be refused, so
+            // that the test above really exercised f64.
+            assert!(naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::empty(),
+            )
+            .validate(&module)
+            .is_err());
+        }
+    }
+
     #[test]
     fn shaders_validate_with_naga() {
         for src in [

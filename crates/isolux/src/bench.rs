@@ -50,6 +50,10 @@ pub struct BenchArgs {
     /// `gpu`: do not time the CPU path (slow on few cores).
     #[arg(long)]
     pub skip_cpu: bool,
+    /// `gpu`: also time the intersection in f64 (adapters with
+    /// SHADER_F64), in a column beside f32.
+    #[arg(long)]
+    pub f64: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, rows in parallel.
@@ -400,8 +404,15 @@ fn wave(repeat: u32) -> Result<()> {
 /// yet are replaced by a grey diffuse, on both sides, and named in the
 /// output.
 fn gpu(a: &BenchArgs) -> Result<()> {
+    use isolux_gpu::Precision;
     use isolux_render::{render, RenderOptions};
-    let gpu = isolux_gpu::Gpu::new()?;
+    let mut gpu = isolux_gpu::Gpu::new()?;
+    if a.f64 && !gpu.supports_f64() {
+        bail!(
+            "--f64: the adapter {} does not offer f64 in shaders (SHADER_F64)",
+            gpu.adapter
+        );
+    }
     let scenes = if a.scenes.is_empty() {
         vec![std::path::PathBuf::from(concat!(
             env!("CARGO_MANIFEST_DIR"),
@@ -415,8 +426,13 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         "adapter: {}; CPU: {threads} threads; {}x{}; best of {}",
         gpu.adapter, a.width, a.height, a.repeat
     );
-    println!("| scene | mode | spp | GPU (ms/frame) | CPU (ms/frame) | CPU / GPU |");
-    println!("|---|---|---:|---:|---:|---:|");
+    if a.f64 {
+        println!("| scene | mode | spp | GPU (ms/frame) | GPU f64 (ms/frame) | f64 / f32 | CPU (ms/frame) | CPU / GPU |");
+        println!("|---|---|---:|---:|---:|---:|---:|---:|");
+    } else {
+        println!("| scene | mode | spp | GPU (ms/frame) | CPU (ms/frame) | CPU / GPU |");
+        println!("|---|---|---:|---:|---:|---:|");
+    }
     for path in &scenes {
         let mut scene = isolux_scene::load(path)?;
         let replaced = isolux_gpu::replace_unsupported(&mut scene);
@@ -437,28 +453,41 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             } else {
                 gpu.prepare(&scene)?
             };
-            // Warm-up: compiles the kernel, touches the buffers, and gives
-            // the GPU half a second to raise its clocks (an idle H100 starts
-            // at 345 MHz: a cold first mode measured 3x slow).
-            let warm = Instant::now();
-            while warm.elapsed().as_secs_f64() < 0.5 {
-                frame.reset(&gpu);
-                frame.run(&gpu, spp);
-                gpu.wait()?;
-            }
-            let mut g = f64::INFINITY;
-            for _ in 0..a.repeat.max(1) {
-                frame.reset(&gpu);
-                gpu.wait()?;
-                let t = Instant::now();
-                frame.run(&gpu, spp);
-                gpu.wait()?;
-                g = g.min(t.elapsed().as_secs_f64());
-            }
-            let (img, _) = frame.image(&gpu)?;
-            if img.rgb.iter().flatten().any(|c| !c.is_finite()) {
-                bail!("{name}: the GPU image has non-finite pixels");
-            }
+            let mut time = |gpu: &isolux_gpu::Gpu| -> Result<f64> {
+                // Warm-up: compiles the kernel, touches the buffers, and
+                // gives the GPU half a second to raise its clocks (an idle
+                // H100 starts at 345 MHz: a cold first mode measured 3x
+                // slow).
+                let warm = Instant::now();
+                while warm.elapsed().as_secs_f64() < 0.5 {
+                    frame.reset(gpu);
+                    frame.run(gpu, spp);
+                    gpu.wait()?;
+                }
+                let mut g = f64::INFINITY;
+                for _ in 0..a.repeat.max(1) {
+                    frame.reset(gpu);
+                    gpu.wait()?;
+                    let t = Instant::now();
+                    frame.run(gpu, spp);
+                    gpu.wait()?;
+                    g = g.min(t.elapsed().as_secs_f64());
+                }
+                let (img, _) = frame.image(gpu)?;
+                if img.rgb.iter().flatten().any(|c| !c.is_finite()) {
+                    bail!("{name}: the GPU image has non-finite pixels");
+                }
+                Ok(g)
+            };
+            let g = time(&gpu)?;
+            let g64 = if a.f64 {
+                gpu.set_precision(Precision::F64)?;
+                let t = time(&gpu);
+                gpu.set_precision(Precision::F32)?;
+                Some(t?)
+            } else {
+                None
+            };
             let (c, ratio) = if a.skip_cpu {
                 ("-".to_string(), "-".to_string())
             } else {
@@ -473,10 +502,18 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 });
                 (format!("{:.1}", t * 1e3), format!("{:.1}", t / g))
             };
-            println!(
-                "| {name} | {mode} | {spp} | {:.2} | {c} | {ratio} |",
-                g * 1e3
-            );
+            match g64 {
+                Some(g64) => println!(
+                    "| {name} | {mode} | {spp} | {:.2} | {:.2} | {:.2} | {c} | {ratio} |",
+                    g * 1e3,
+                    g64 * 1e3,
+                    g64 / g
+                ),
+                None => println!(
+                    "| {name} | {mode} | {spp} | {:.2} | {c} | {ratio} |",
+                    g * 1e3
+                ),
+            }
         }
         if !replaced.is_empty() {
             println!(

@@ -11,6 +11,11 @@
 // (left first) down to 2^-12 of the segment, then refined by regula falsi.
 // Never marching. The prelude (constants) is generated from Rust.
 //
+// Precision: every computation is in `real`, an alias the Rust side
+// prepends (`geometry_source`): f32, or f64 on adapters with
+// SHADER_F64 when asked for (`Precision::F64`). Buffers stay f32; the
+// entry `scene_first_hit` takes and returns f32.
+//
 // This file holds the structs and functions only; each kernel declares the
 // `objects`, `perturbations` and `nodes` storage buffers with its own
 // bindings.
@@ -28,50 +33,50 @@ struct BvhNode { bmin: vec4<f32>, bmax: vec4<f32>, link: vec4<u32> }
 var<private> hit_object: u32;
 
 // Coefficients [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44].
-fn q_m(q: Quadric, p: vec3<f32>) -> vec3<f32> {
-    let a = q.c[0];
-    let b = q.c[1];
-    return vec3<f32>(
+fn q_m(q: Quadric, p: vec3<real>) -> vec3<real> {
+    let a = vec4<real>(q.c[0]);
+    let b = vec4<real>(q.c[1]);
+    return vec3<real>(
         a.x * p.x + a.w * p.y + b.x * p.z,
         a.w * p.x + a.y * p.y + b.y * p.z,
         b.x * p.x + b.y * p.y + a.z * p.z,
     );
 }
 
-fn q_b(q: Quadric) -> vec3<f32> {
-    return vec3<f32>(q.c[1].z, q.c[1].w, q.c[2].x);
+fn q_b(q: Quadric) -> vec3<real> {
+    return vec3<real>(vec3<f32>(q.c[1].z, q.c[1].w, q.c[2].x));
 }
 
-fn q_eval(q: Quadric, p: vec3<f32>) -> f32 {
-    return dot(p, q_m(q, p)) + 2.0 * dot(q_b(q), p) + q.c[2].y;
+fn q_eval(q: Quadric, p: vec3<real>) -> real {
+    return dot(p, q_m(q, p)) + 2.0 * dot(q_b(q), p) + real(q.c[2].y);
 }
 
-fn q_grad(q: Quadric, p: vec3<f32>) -> vec3<f32> {
+fn q_grad(q: Quadric, p: vec3<real>) -> vec3<real> {
     return 2.0 * (q_m(q, p) + q_b(q));
 }
 
 // (A, B, C) with Q(o + t d) = A t^2 + B t + C.
-fn q_along(q: Quadric, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+fn q_along(q: Quadric, o: vec3<real>, d: vec3<real>) -> vec3<real> {
     let md = q_m(q, d);
     let b = q_b(q);
-    return vec3<f32>(dot(d, md), 2.0 * (dot(o, md) + dot(b, d)), q_eval(q, o));
+    return vec3<real>(dot(d, md), 2.0 * (dot(o, md) + dot(b, d)), q_eval(q, o));
 }
 
 // Real roots of A t^2 + B t + C, ascending; NO_ROOT where absent.
-fn roots(c: vec3<f32>) -> vec2<f32> {
+fn roots(c: vec3<real>) -> vec2<real> {
     let a = c.x;
     let b = c.y;
     let k = c.z;
     if (abs(a) < 1e-30) {
         if (abs(b) < 1e-30) {
-            return vec2<f32>(NO_ROOT, NO_ROOT);
+            return vec2<real>(NO_ROOT, NO_ROOT);
         }
         let r = -k / b;
-        return vec2<f32>(r, NO_ROOT);
+        return vec2<real>(r, NO_ROOT);
     }
     let disc = b * b - 4.0 * a * k;
     if (disc < 0.0) {
-        return vec2<f32>(NO_ROOT, NO_ROOT);
+        return vec2<real>(NO_ROOT, NO_ROOT);
     }
     let s = sqrt(disc);
     let qq = -0.5 * (b + select(-s, s, b >= 0.0));
@@ -82,15 +87,15 @@ fn roots(c: vec3<f32>) -> vec2<f32> {
         r0 = r1;
         r1 = t;
     }
-    return vec2<f32>(r0, r1);
+    return vec2<real>(r0, r1);
 }
 
 // Coefficients in s of the quadratic (A, B, C) on t = a + l s.
-fn shift2(c: vec3<f32>, a: f32, l: f32) -> vec3<f32> {
-    return vec3<f32>(c.z + a * (c.y + a * c.x), (2.0 * c.x * a + c.y) * l, c.x * l * l);
+fn shift2(c: vec3<real>, a: real, l: real) -> vec3<real> {
+    return vec3<real>(c.z + a * (c.y + a * c.x), (2.0 * c.x * a + c.y) * l, c.x * l * l);
 }
 
-fn poly_eval(p: array<f32, 7>, s: f32) -> f32 {
+fn poly_eval(p: array<real, 7>, s: real) -> real {
     var q = p;
     var v = q[6];
     for (var k = 5; k >= 0; k--) {
@@ -100,7 +105,7 @@ fn poly_eval(p: array<f32, 7>, s: f32) -> f32 {
 }
 
 // Bernstein control points of p on [u, v] (s = u + (v - u) x, x in [0, 1]).
-fn bernstein(p: array<f32, 7>, u: f32, v: f32) -> array<f32, 7> {
+fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
     // Taylor shift to u (synthetic division), then scale by (v - u)^k.
     var g = p;
     for (var i = 0; i < 6; i++) {
@@ -109,20 +114,20 @@ fn bernstein(p: array<f32, 7>, u: f32, v: f32) -> array<f32, 7> {
         }
     }
     let h = v - u;
-    var hk = 1.0;
+    var hk: real = 1.0;
     for (var k = 0; k < 7; k++) {
         g[k] = g[k] * hk;
         hk = hk * h;
     }
     // b_k = sum_{j <= k} C(k, j) / C(6, j) g_j.
-    var binom6 = array<f32, 7>(1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0);
-    var b: array<f32, 7>;
+    var binom6 = array<real, 7>(1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0);
+    var b: array<real, 7>;
     for (var k = 0; k < 7; k++) {
-        var s = 0.0;
-        var ckj = 1.0; // C(k, j)
+        var s: real = 0.0;
+        var ckj: real = 1.0; // C(k, j)
         for (var j = 0; j <= k; j++) {
             s = s + ckj / binom6[j] * g[j];
-            ckj = ckj * f32(k - j) / f32(j + 1);
+            ckj = ckj * real(k - j) / real(j + 1);
         }
         b[k] = s;
     }
@@ -130,10 +135,10 @@ fn bernstein(p: array<f32, 7>, u: f32, v: f32) -> array<f32, 7> {
 }
 
 // First sign change of p on [0, 1], or -1.
-fn first_root(p: array<f32, 7>) -> f32 {
-    var stack: array<vec2<f32>, 48>;
+fn first_root(p: array<real, 7>) -> real {
+    var stack: array<vec2<real>, 48>;
     var top = 1;
-    stack[0] = vec2<f32>(0.0, 1.0);
+    stack[0] = vec2<real>(0.0, 1.0);
     var guard = 0;
     loop {
         if (top == 0 || guard > MAX_SUBDIVISIONS) {
@@ -189,29 +194,29 @@ fn first_root(p: array<f32, 7>) -> f32 {
             continue;
         }
         let mid = 0.5 * (iv.x + iv.y);
-        stack[top] = vec2<f32>(mid, iv.y);
-        stack[top + 1] = vec2<f32>(iv.x, mid);
+        stack[top] = vec2<real>(mid, iv.y);
+        stack[top + 1] = vec2<real>(iv.x, mid);
         top += 2;
     }
     return -1.0;
 }
 
 // Slab test: (t_near, t_far), empty when t_near > t_far.
-fn clip_box(o: vec3<f32>, d: vec3<f32>, bmin: vec3<f32>, bmax: vec3<f32>, t0: f32, t1: f32) -> vec2<f32> {
+fn clip_box(o: vec3<real>, d: vec3<real>, bmin: vec3<real>, bmax: vec3<real>, t0: real, t1: real) -> vec2<real> {
     let inv = 1.0 / d;
     let ta = (bmin - o) * inv;
     let tb = (bmax - o) * inv;
     let tn = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z));
     let tf = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
-    return vec2<f32>(max(tn, t0), min(tf, t1));
+    return vec2<real>(max(tn, t0), min(tf, t1));
 }
 
 // First hit of object `oi` on [t0, t1]: (t, outward normal), t < 0 if none.
-fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32> {
+fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4<real> {
     let obj = objects[oi];
-    let span = clip_box(o, d, obj.bmin.xyz, obj.bmax.xyz, t0, t1);
+    let span = clip_box(o, d, vec3<real>(obj.bmin.xyz), vec3<real>(obj.bmax.xyz), t0, t1);
     if (!(span.x <= span.y)) {
-        return vec4<f32>(MISS, 0.0, 0.0, 0.0);
+        return vec4<real>(MISS, 0.0, 0.0, 0.0);
     }
     let first = obj.range.x;
     let count = obj.range.y;
@@ -232,7 +237,7 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
         var node = obj.range.w;
         loop {
             let nd = nodes[node];
-            let bs = clip_box(o, d, nd.bmin.xyz, nd.bmax.xyz, span.x - slack, span.y + slack);
+            let bs = clip_box(o, d, vec3<real>(nd.bmin.xyz), vec3<real>(nd.bmax.xyz), span.x - slack, span.y + slack);
             var descend = false;
             if (bs.x <= bs.y) {
                 if (nd.link.y == 0u) {
@@ -294,7 +299,7 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
         let l = b - a;
         let mid = a + 0.5 * l;
         let c = shift2(base, a, l);
-        var p = array<f32, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
+        var p = array<real, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
         var n_active = 0u;
         for (var j = 0u; j < live; j++) {
             let pert = perturbations[select(cand[j], first + j, all)];
@@ -304,7 +309,7 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
             }
             n_active++;
             let q = shift2(qa, a, l);
-            let f = pert.factor.x;
+            let f = real(pert.factor.x);
             // q^2 (degree 4), then q^3 (degree 6).
             let s0 = q.x * q.x;
             let s1 = 2.0 * q.x * q.y;
@@ -321,9 +326,9 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
         }
         // No perturbation active: the base quadric's closed form (as on the
         // CPU), its first root in [0, 1] where the sign changes.
-        var s = -1.0;
+        var s: real = -1.0;
         if (n_active == 0u) {
-            let r = roots(vec3<f32>(c.z, c.y, c.x));
+            let r = roots(vec3<real>(c.z, c.y, c.x));
             let f0 = c.x;
             if (f0 == 0.0) {
                 s = 0.0;
@@ -343,7 +348,7 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
                 let pert = perturbations[select(cand[j], first + j, all)];
                 let qv = q_eval(pert.q, x);
                 if (qv > 0.0) {
-                    g += 3.0 * pert.factor.x * qv * qv * q_grad(pert.q, x);
+                    g += 3.0 * real(pert.factor.x) * qv * qv * q_grad(pert.q, x);
                 }
             }
             var n = -d;
@@ -352,11 +357,11 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
             } else {
                 n = -normalize(d);
             }
-            return vec4<f32>(t, n);
+            return vec4<real>(t, n);
         }
         a = b;
     }
-    return vec4<f32>(MISS, 0.0, 0.0, 0.0);
+    return vec4<real>(MISS, 0.0, 0.0, 0.0);
 }
 
 
@@ -364,7 +369,20 @@ fn object_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32
 // hierarchy (root: node 0): (t, normal), its object in `hit_object`. With
 // `any`, the first hit found (shadow rays).
 fn scene_first_hit(o: vec3<f32>, d: vec3<f32>, t0: f32, t_max: f32, n: u32, any: bool) -> vec4<f32> {
-    var best = vec4<f32>(MISS, 0.0, 0.0, 0.0);
+    let h = scene_hit_real(vec3<real>(o), vec3<real>(d), real(t0), real(t_max), n, any);
+    return vec4<f32>(h);
+}
+
+// First hit of object `oi` alone on [t0, t1] (f32 in and out): the probe
+// rays of the dipole BSSRDF (render.wgsl).
+fn object_first_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32> {
+    return vec4<f32>(object_hit(oi, vec3<real>(o), vec3<real>(d), real(t0), real(t1)));
+}
+
+// `scene_first_hit` in the precision `real` (f32, or f64 where the
+// adapter offers it and the caller asked for it).
+fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, any: bool) -> vec4<real> {
+    var best = vec4<real>(MISS, 0.0, 0.0, 0.0);
     if (n == 0u) {
         return best;
     }
@@ -374,7 +392,7 @@ fn scene_first_hit(o: vec3<f32>, d: vec3<f32>, t0: f32, t_max: f32, n: u32, any:
     var node = 0u;
     loop {
         let nd = nodes[node];
-        let bs = clip_box(o, d, nd.bmin.xyz, nd.bmax.xyz, t0, t1);
+        let bs = clip_box(o, d, vec3<real>(nd.bmin.xyz), vec3<real>(nd.bmax.xyz), t0, t1);
         var descend = false;
         if (bs.x <= bs.y) {
             if (nd.link.y == 0u) {
