@@ -235,8 +235,18 @@ pub mod tag {
     pub const SUBSURFACE_BRDF: u32 = 14;
     /// A MERL measured BRDF, its table in the material data.
     pub const MERL: u32 = 15;
+    /// A translucent medium behind a smooth dielectric boundary (dipole
+    /// BSSRDF or random walk, in the integrator).
+    pub const SUBSURFACE: u32 = 16;
+    /// Internal (never in a scene): the single-scattering lobe at the exit
+    /// point of a `subsurface` material, which the integrator builds from
+    /// it for next-event estimation (`a.w` eta, `b` albedo and g).
+    pub const SSS_SINGLE_LOBE: u32 = 17;
+    /// Internal: the entry side's angular factor `S_w` of the dipole
+    /// BSSRDF at the entry point (`a.x` ior, `a.w` `1 - F_dr,ext`).
+    pub const SSS_ENTRY_LOBE: u32 = 18;
     /// Every tag with its WGSL name, for the prelude.
-    pub const ALL: [(&str, u32); 16] = [
+    pub const ALL: [(&str, u32); 19] = [
         ("MAT_DIFFUSE", DIFFUSE),
         ("MAT_PHONG", PHONG),
         ("MAT_BLINN_PHONG", BLINN_PHONG),
@@ -253,6 +263,9 @@ pub mod tag {
         ("MAT_FACTORED", FACTORED),
         ("MAT_SUBSURFACE_BRDF", SUBSURFACE_BRDF),
         ("MAT_MERL", MERL),
+        ("MAT_SUBSURFACE", SUBSURFACE),
+        ("MAT_SSS_SINGLE_LOBE", SSS_SINGLE_LOBE),
+        ("MAT_SSS_ENTRY_LOBE", SSS_ENTRY_LOBE),
     ];
 }
 
@@ -364,8 +377,12 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
 /// have, at most [`MAX_MIX_COMPONENTS`] once flattened).
 pub fn supported(m: &Material) -> bool {
     match m {
-        Material::Mix(_) => flatten_mix(m, 1.0, 1.0)
-            .is_some_and(|c| c.len() <= MAX_MIX_COMPONENTS && c.iter().all(|(m, ..)| supported(m))),
+        // A medium inside a mix is not one the integrator can enter (the
+        // CPU treats it as its boundary alone): refused rather than guessed.
+        Material::Mix(_) => flatten_mix(m, 1.0, 1.0).is_some_and(|c| {
+            c.len() <= MAX_MIX_COMPONENTS
+                && c.iter().all(|(m, ..)| supported(m) && m.medium().is_none())
+        }),
         _ => GpuMaterials::default().leaf(m).is_some(),
     }
 }
@@ -419,6 +436,7 @@ impl GpuMaterials {
     /// | factored | scale | | | | |
     /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
     /// | merl | | | | | |
+    /// | subsurface | ior, g, r_max, `1 - F_dr,ext` | sigma_s, single scattering (0/1) | sigma_a | | |
     ///
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
@@ -429,7 +447,11 @@ impl GpuMaterials {
     /// marginal table and its `res` conditional tables (each `[n, cdf,
     /// pdf]`, `2 res + 2` floats); at `idx[1]`: `n`, the side of the `r(theta_h,
     /// theta_d)` table (0: none), then `ln r` per texel (3 floats each,
-    /// row-major, rows `theta_h`).
+    /// row-major, rows `theta_h`). A `subsurface` material keeps its mode
+    /// in `tag.w` (0 dipole, 1 random walk), its per-channel dipoles at
+    /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b) and the radial
+    /// sampling tables of the channels at `idx[1..4]` (each `[n, cdf,
+    /// pdf]`), all in scene units.
     pub fn new(materials: &[Material]) -> Result<Self, usize> {
         let mut out = GpuMaterials {
             materials: vec![GpuMaterial::default(); materials.len()],
@@ -620,6 +642,27 @@ impl GpuMaterials {
                 g.a = rgb4(b.r_d, b.eta);
                 g.b = rgb4(b.single_albedo, b.g);
             }
+            Material::Subsurface(m) => {
+                use isolux_materials::subsurface_material::SubsurfaceMode;
+                g.tag[0] = tag::SUBSURFACE;
+                g.tag[3] = (m.mode == SubsurfaceMode::RandomWalk) as u32;
+                g.a = [
+                    m.boundary.ior as f32,
+                    m.g as f32,
+                    m.r_max() as f32,
+                    m.sw_norm as f32,
+                ];
+                g.b = rgb4(m.sigma_s, m.single_scattering as u32 as f64);
+                g.c = rgb4(m.sigma_a, 0.0);
+                g.idx[0] = self.data.len() as u32;
+                for d in &m.dipoles {
+                    self.data
+                        .extend([d.sigma_tr, d.z_r, d.z_v, d.albedo_reduced].map(|v| v as f32));
+                }
+                for c in 0..3 {
+                    g.idx[1 + c] = self.table(m.radial_table(c));
+                }
+            }
             _ => return None,
         }
         Some(g)
@@ -734,6 +777,26 @@ mod tests {
         assert_eq!(GpuMaterials::new(&[grey(0.5), nine]).unwrap_err(), 1);
         let zero = mix(vec![(grey(0.5), 0.0)]);
         assert!(!supported(&zero));
+        // A medium alone runs on the GPU; inside a mix it is refused.
+        let milk = Material::Subsurface(isolux_materials::Subsurface::new(
+            Rgb::new(2.0, 2.5, 3.0),
+            Rgb::new(0.01, 0.02, 0.05),
+            0.5,
+            1.3,
+            isolux_materials::subsurface_material::SubsurfaceMode::Dipole,
+        ));
+        assert!(supported(&milk));
+        assert!(!supported(&mix(vec![
+            (milk.clone(), 1.0),
+            (grey(0.5), 1.0)
+        ])));
+        let g = GpuMaterials::new(&[milk]).unwrap();
+        let m = g.materials[0];
+        assert_eq!((m.tag[0], m.tag[3]), (tag::SUBSURFACE, 0));
+        // Dipoles, then three tables of 4096 bins ([n, cdf, pdf]).
+        assert_eq!(m.idx, [0, 12, 12 + 8194, 12 + 2 * 8194]);
+        assert_eq!(g.data[12], 4096.0);
+        assert_eq!(g.data.len(), 12 + 3 * 8194);
     }
 
     #[test]

@@ -371,10 +371,63 @@ impl GpuFrame {
             self.realtime_frame(gpu, count);
             return;
         }
-        self.params.pass_info[0] = self.samples;
-        self.params.pass_info[1] = count;
-        self.dispatch(gpu);
+        // One dispatch per sample, all in one submission: a kernel
+        // looping over several samples of its pixel lost many of them on
+        // long paths (the loop defect of docs/gpu.md: a random-walk medium
+        // at 16 samples per dispatch came out 38% dark).
+        self.dispatch_samples(gpu, gpu.render_pipeline(false), self.samples, count, 1);
         self.samples += count;
+    }
+
+    /// Queues `count` dispatches of `pipeline` in one submission, sample
+    /// `first + s` in the `s`-th (`pass_info = [first + s, field]`); each
+    /// dispatch's parameters are copied into the uniform from a staging
+    /// buffer inside the command stream, so no submission waits on a
+    /// `write_buffer` (on an H100 four submissions cost about 2 ms).
+    fn dispatch_samples(
+        &self,
+        gpu: &Gpu,
+        pipeline: &wgpu::ComputePipeline,
+        first: u32,
+        count: u32,
+        field: u32,
+    ) {
+        let size = std::mem::size_of::<GpuParams>() as u64;
+        let blocks: Vec<GpuParams> = (0..count)
+            .map(|s| {
+                let mut p = self.params;
+                p.pass_info[0] = first + s;
+                p.pass_info[1] = field;
+                p
+            })
+            .collect();
+        let staging = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("sample parameters"),
+                contents: bytemuck::cast_slice(&blocks),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            });
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("samples"),
+            });
+        for s in 0..count as u64 {
+            enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("sample"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.dispatch_workgroups(
+                self.params.film[0].div_ceil(TILE),
+                self.params.film[1].div_ceil(TILE),
+                1,
+            );
+        }
+        gpu.queue.submit(Some(enc.finish()));
     }
 
     /// A real-time frame of `count` samples per pixel: one dispatch per
@@ -383,71 +436,10 @@ impl GpuFrame {
     /// buffer inside the command stream, so no submission waits on a
     /// `write_buffer` (on an H100 four submissions cost about 2 ms).
     fn realtime_frame(&mut self, gpu: &Gpu, count: u32) {
-        let size = std::mem::size_of::<GpuParams>() as u64;
-        let blocks: Vec<GpuParams> = (0..count)
-            .map(|s| {
-                let mut p = self.params;
-                p.pass_info[0] = s;
-                p.pass_info[1] = count;
-                p
-            })
-            .collect();
-        let staging = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("real-time parameters"),
-                contents: bytemuck::cast_slice(&blocks),
-                usage: wgpu::BufferUsages::COPY_SRC,
-            });
-        let pipeline = gpu.render_pipeline(true);
-        let mut enc = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("real-time frame"),
-            });
-        for s in 0..count as u64 {
-            enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("real-time sample"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &self.bind, &[]);
-            pass.dispatch_workgroups(
-                self.params.film[0].div_ceil(TILE),
-                self.params.film[1].div_ceil(TILE),
-                1,
-            );
-        }
-        gpu.queue.submit(Some(enc.finish()));
+        self.dispatch_samples(gpu, gpu.render_pipeline(true), 0, count, count);
         self.params.pass_info[0] = 0;
         self.params.pass_info[1] = count;
         self.samples = count;
-    }
-
-    fn dispatch(&self, gpu: &Gpu) {
-        gpu.queue
-            .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&self.params));
-        let pipeline = gpu.render_pipeline(self.realtime);
-        let mut enc = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("render pass"),
-            });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("render"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &self.bind, &[]);
-            pass.dispatch_workgroups(
-                self.params.film[0].div_ceil(TILE),
-                self.params.film[1].div_ceil(TILE),
-                1,
-            );
-        }
-        gpu.queue.submit(Some(enc.finish()));
     }
 
     /// The AOVs of the first hit over the samples taken so far (at the

@@ -124,6 +124,144 @@ fn mean_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
 }
 
+/// `(block |GPU - CPU|, block |CPU - CPU'|, mean GPU, mean CPU)` of
+/// `scene` rendered on both back ends, the CPU twice with different seeds.
+fn compare_with_cpu(gpu: &Gpu, scene: &mut Scene, what: &str) -> (f64, f64, f64, f64) {
+    let g = blocks(&gpu_image(gpu, scene));
+    let c1 = blocks(&cpu_image(scene));
+    scene.integrator.seed += 1;
+    let c2 = blocks(&cpu_image(scene));
+    let noise = mean_abs_diff(&c1, &c2);
+    let diff = mean_abs_diff(&g, &c1);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (mg, mc) = (mean(&g), mean(&c1));
+    eprintln!(
+        "{what}: block |GPU - CPU| {diff:.5}, |CPU - CPU'| {noise:.5}; means GPU {mg:.5} CPU {mc:.5}"
+    );
+    (diff, noise, mg, mc)
+}
+
+/// Subsurface scattering (`examples/scenes/translucent*.toml`): the
+/// dipole BSSRDF with single scattering under point lights and a dim sky,
+/// and the volumetric random walk under an environment map, GPU against
+/// CPU within noise (as the gallery). A translucent object's light comes
+/// from elsewhere on its surface (probe rays, reservoir choice of the
+/// hit) or from hundreds of scattering events, all of it on the GPU.
+#[test]
+fn translucent_scenes_match_the_cpu_within_noise() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    for (name, spp) in [
+        ("translucent.toml", 16),
+        ("translucent-random-walk.toml", 16),
+    ] {
+        let mut scene = example(name);
+        assert!(isolux_gpu::unsupported_material(&scene).is_none());
+        scene.film.width = 128;
+        scene.film.height = 72;
+        scene.film.spp = spp;
+        let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, name);
+        assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    }
+}
+
+/// A non-absorbing random-walk medium behind a glass boundary, a sphere
+/// under a white sky: every photon that enters leaves again, so each
+/// channel's expected radiance is exactly 1 (closed form; the path carries
+/// one channel, which adds colour noise only). With absorption every
+/// channel loses energy, most where it absorbs most. The same check as the
+/// CPU's (`crates/isolux/tests/analytic.rs`), on the GPU.
+#[test]
+fn random_walk_medium_conserves_energy_on_the_gpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let src = r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov_y = 30.0
+[film]
+width = 96
+height = 64
+spp = 32
+[integrator]
+max_depth = 16
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "medium"
+type = "subsurface"
+sigma_s = [2.0, 1.0, 0.5]
+sigma_a = [0.0, 0.0, 0.0]
+g = 0.3
+scale = 1.0
+mode = "random_walk"
+[[object]]
+material = "medium"
+base = { type = "sphere", center = [0.3, -0.2, 0.0], radius = 0.8 }
+"#;
+    // Per-channel mean and standard error over the sphere's pixels (those
+    // that differ from the white background).
+    let stats = |img: &Image| {
+        let px: Vec<&[f32; 3]> = img
+            .rgb
+            .iter()
+            .filter(|p| p.iter().any(|v| (v - 1.0).abs() > 1e-6))
+            .collect();
+        let n = px.len() as f64;
+        assert!(n > 500.0, "too few sphere pixels: {n}");
+        let mut out = [(0.0, 0.0); 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let m = px.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+            let v = px.iter().map(|p| (p[c] as f64 - m).powi(2)).sum::<f64>() / n;
+            *o = (m, (v / n).sqrt());
+        }
+        out
+    };
+    let scene = isolux_scene::parse_str(src, Path::new("furnace.toml"), Path::new(".")).unwrap();
+    let s = stats(&gpu_image(&gpu, &scene));
+    eprintln!("non-absorbing, GPU: {s:?}");
+    for (c, (m, se)) in s.iter().enumerate() {
+        assert!(
+            (m - 1.0).abs() < 4.0 * se + 2e-3,
+            "channel {c}: {m} +- {se}"
+        );
+    }
+    let src = src.replace("sigma_a = [0.0, 0.0, 0.0]", "sigma_a = [0.05, 0.5, 2.0]");
+    let scene = isolux_scene::parse_str(&src, Path::new("furnace.toml"), Path::new(".")).unwrap();
+    let s = stats(&gpu_image(&gpu, &scene));
+    eprintln!("absorbing, GPU: {s:?}");
+    for (c, (m, se)) in s.iter().enumerate() {
+        assert!(*m < 1.0 - 4.0 * se, "channel {c}: {m}");
+    }
+    assert!(s[0].0 > s[1].0 && s[1].0 > s[2].0, "{s:?}");
+}
+
+/// The random walk at many samples (`--ignored`: 13 minutes on
+/// lavapipe): the image means of GPU and CPU converge together, and agree
+/// per block within the measured noise. Tracks the loop defect of
+/// docs/gpu.md: measured on lavapipe, GPU 0.4124 against CPU 0.4203
+/// (-1.9%, block difference 1.8x the noise) with one sample per dispatch;
+/// 0.2598 (-38%) when a dispatch looped over 16 samples.
+#[test]
+#[ignore]
+fn translucent_random_walk_converges_to_the_cpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = example("translucent-random-walk.toml");
+    scene.film.width = 64;
+    scene.film.height = 40;
+    scene.film.spp = 256;
+    let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, "random walk, 256 spp");
+    assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
+    assert!((mg - mc).abs() <= 0.01 * mc, "{mg} vs {mc}");
+}
+
 #[test]
 fn gallery_matches_the_cpu_within_noise() {
     let Some(gpu) = common::open("GPU image tests") else {

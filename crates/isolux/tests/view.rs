@@ -154,11 +154,23 @@ fn viewer_without_a_display_says_so() {
 fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("s.toml");
+    // A mix of nine leaves (the GPU takes at most eight): refused by name.
+    let mut leaves = String::new();
+    let mut parts = Vec::new();
+    for i in 0..9 {
+        leaves += &format!(
+            "[[material]]\nname = \"leaf{i}\"\ntype = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]\n\n"
+        );
+        parts.push(format!("{{ material = \"leaf{i}\", weight = 0.1 }}"));
+    }
     std::fs::write(
         &scene,
         SPHERE.replace(
-            "type = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]",
-            "type = \"subsurface\"\nmedium = \"skimmilk\"",
+            "[[material]]\nname = \"grey\"\ntype = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]",
+            &format!(
+                "{leaves}[[material]]\nname = \"grey\"\ntype = \"mix\"\ncomponents = [{}]",
+                parts.join(", ")
+            ),
         ),
     )
     .unwrap();
@@ -166,7 +178,7 @@ fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("material \"grey\" (type subsurface) does not run on the GPU"),
+        err.contains("material \"grey\" (type mix) does not run on the GPU"),
         "{err}"
     );
 

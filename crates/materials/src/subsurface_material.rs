@@ -191,6 +191,12 @@ impl Subsurface {
         self.r_max * x * x
     }
 
+    /// The radial sampling table of channel `c` (`R_d(r) 2 pi r dr/dx` in
+    /// `x = sqrt(r / r_max)`), for back ends that sample it themselves.
+    pub fn radial_table(&self, c: usize) -> &Distribution1D {
+        &self.radial[c]
+    }
+
     /// Radius beyond which the profile is ignored.
     pub fn r_max(&self) -> f64 {
         self.r_max

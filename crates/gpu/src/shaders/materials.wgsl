@@ -18,6 +18,10 @@
 //                albedo, b.w g
 //   MERL         idx.x: the R, G, B planes (90 x 90 x 180 each) in the
 //                material data
+//   SUBSURFACE   a.x ior (its boundary: the DIELECTRIC's lobes), a.y g,
+//                a.z r_max, a.w 1 - F_dr,ext; b.rgb sigma_s, b.w single
+//                scattering on; c.rgb sigma_a; tag.w 1 for random walk;
+//                idx.x dipoles, idx.yzw radial tables (render.wgsl)
 
 struct Material { tag: vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e: vec4<f32>, idx: vec4<u32> }
 
@@ -996,7 +1000,7 @@ fn base_flags(m: Material) -> u32 {
         case MAT_CONDUCTOR: {
             return FLAG_REFLECTION | FLAG_SPECULAR;
         }
-        case MAT_DIELECTRIC: {
+        case MAT_DIELECTRIC, MAT_SUBSURFACE: {
             return FLAG_REFLECTION | FLAG_TRANSMISSION | FLAG_SPECULAR;
         }
         case MAT_PLASTIC: {
@@ -1048,8 +1052,14 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
             }
             return f;
         }
-        case MAT_SUBSURFACE_BRDF: {
+        case MAT_SUBSURFACE_BRDF, MAT_SSS_SINGLE_LOBE: {
             return sss_brdf_f(m, wo, wi);
+        }
+        case MAT_SSS_ENTRY_LOBE: {
+            if (wi.z <= 0.0) {
+                return vec3<f32>(0.0);
+            }
+            return vec3<f32>((1.0 - fresnel_dielectric(wi.z, m.a.x)) * INV_PI / m.a.w);
         }
         case MAT_MERL: {
             return merl_f(m, wo, wi);
@@ -1103,6 +1113,10 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
                 return 0.0;
             }
             return (1.0 - sss_brdf_p_mirror(m, wo)) * cosine_pdf(wi.z);
+        }
+        case MAT_SSS_SINGLE_LOBE, MAT_SSS_ENTRY_LOBE: {
+            // Estimated with cosine-sampled directions (render.wgsl).
+            return cosine_pdf(wi.z);
         }
         case MAT_MERL: {
             if (wo.z <= 0.0 || wi.z <= 0.0) {
@@ -1215,7 +1229,7 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             let wi = mirror_z(wo);
             return BsdfSample(wi, fresnel_eval(m.tag.y, m.b, m.c, wo.z) / wi.z, 1.0, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
         }
-        case MAT_DIELECTRIC: {
+        case MAT_DIELECTRIC, MAT_SUBSURFACE: {
             if (wo.z == 0.0) {
                 return no_sample();
             }

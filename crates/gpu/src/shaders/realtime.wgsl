@@ -80,6 +80,11 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     }
     let obj = objects[hit_object];
     let m = materials[obj.range.z];
+    // No real-time model for a medium (its light comes from elsewhere on
+    // the surface), black as on the CPU; subsurface_brdf previews it.
+    if (m.tag.x == MAT_SUBSURFACE) {
+        return vec3<f32>(0.0);
+    }
     let p = o + h.x * d;
     let ng = h.yzw;
     let wo = -d;

@@ -1,9 +1,11 @@
 // The path tracer on the GPU, mirroring crates/render/src/integrator.rs
 // for surface materials (materials.wgsl) on exact perturbation-function
 // geometry (geometry.wgsl):
-//   * one thread per pixel; a pass adds samples [start, start + count) of
-//     every pixel to the accumulation buffer, one by one in sample order,
-//     so the sum is the same however the samples are split into passes;
+//   * one thread per pixel; a dispatch adds sample `pass_info.x` of every
+//     pixel to the accumulation buffer (the host queues one dispatch per
+//     sample, in sample order, so the sum is the same however the samples
+//     are split into submissions; a loop over samples here lost some of
+//     them, docs/gpu.md);
 //   * sample s of a pixel takes cell (s + offset) mod (m n) of the m x n
 //     sub-pixel grid (offset random per pixel), jittered inside the cell:
 //     distinct cells for distinct samples, each sample uniform over the
@@ -245,28 +247,269 @@ struct Path {
     prev_pdf: f32, // < 0: camera ray or delta lobe
     eta_scale: f32,
     depth: u32,
+    // Subsurface media (random walk): the material the path is inside
+    // plus one (0: none), the colour channel it carries (3: all), the
+    // scattering events and boundary crossings so far.
+    medium: u32,
+    channel: u32,
+    events: u32,
+    // The environment along the current ray was already counted (the
+    // mirror reflection of a subsurface boundary).
+    env_counted: bool,
 }
 
 var<private> path: Path;
+
+// ---- Subsurface scattering (integrator.rs) ---------------------------------
+
+// Henyey-Greenstein cosine for u in [0, 1), as subsurface::phase.
+fn sample_hg_cos(g: f32, u: f32) -> f32 {
+    if (abs(g) < 1e-3) {
+        return 1.0 - 2.0 * u;
+    }
+    let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
+    return clamp((1.0 + g * g - s * s) / (2.0 * g), -1.0, 1.0);
+}
+
+fn sss_albedo(m: Material) -> vec3<f32> {
+    let st = m.b.rgb + m.c.rgb;
+    return select(vec3<f32>(0.0), m.b.rgb / st, st > vec3<f32>(0.0));
+}
+
+// R_d(r) per channel (dipoles at material_data[idx.x]: sigma_tr, z_r,
+// z_v, alpha' per channel), as subsurface::Dipole::r_d.
+fn sss_profile(m: Material, r: f32) -> vec3<f32> {
+    var out = vec3<f32>(0.0);
+    for (var c = 0u; c < 3u; c++) {
+        let at = m.idx.x + 4u * c;
+        let s_tr = material_data[at];
+        var sum = 0.0;
+        for (var k = 1u; k < 3u; k++) {
+            let z = material_data[at + k];
+            let d = sqrt(r * r + z * z);
+            sum += z * (s_tr * d + 1.0) * exp(-s_tr * d) / (d * d * d);
+        }
+        out[c] = material_data[at + 3u] / (4.0 * PI) * sum;
+    }
+    return out;
+}
+
+// Density of the radial sampler of channel c at radius r.
+fn sss_radial_pdf(m: Material, c: u32, r: f32) -> f32 {
+    let r_max = m.a.z;
+    if (!(r > 0.0 && r < r_max)) {
+        return 0.0;
+    }
+    let x = sqrt(r / r_max);
+    return table_pdf(m.idx[1u + c], x) / (2.0 * r_max * x);
+}
+
+fn sss_sw(m: Material, cos_i: f32) -> f32 {
+    return (1.0 - fresnel_dielectric(abs(cos_i), m.a.x)) * INV_PI / m.a.w;
+}
+
+// Russian roulette on beta with the refraction scale undone (survivors
+// reweighted); a zero vector ends the path.
+fn roulette(beta: vec3<f32>) -> vec3<f32> {
+    let q = max3(beta * path.eta_scale);
+    if (q < 1.0) {
+        if (rand() >= q) {
+            return vec3<f32>(0.0);
+        }
+        return beta / q;
+    }
+    return beta;
+}
+
+// Direct light scattered once inside the medium and leaving at p toward
+// wo: light sampling through `direct_light` with the single-scattering
+// lobe, plus one cosine-sampled direction toward the environment (MIS
+// against an environment map), as integrator.rs single_scattering_light.
+fn sss_single_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
+    var lobe = m;
+    lobe.tag.x = MAT_SSS_SINGLE_LOBE;
+    lobe.a = vec4<f32>(0.0, 0.0, 0.0, m.a.x);
+    lobe.b = vec4<f32>(sss_albedo(m), m.a.y);
+    var l = direct_light(p, ng, fr, lobe, wo_l);
+    let local = cosine_hemisphere(rand2());
+    if (local.z > 0.0) {
+        let wi = to_world(fr, local);
+        if (!occluded(offset_origin(p, ng, wi), wi, 3.0e38)) {
+            var w = 1.0;
+            if (params.counts.w == ENV_MAP) {
+                w = power_heuristic(local.z * INV_PI, env_pdf(wi));
+            }
+            l += material_f(lobe, wo_l, local) * env_eval(wi) * (PI * w);
+        }
+    }
+    return l;
+}
+
+// Light refracted into a dipole medium at p re-emerges at an entry point
+// x_i sampled around it (integrator.rs bssrdf_entry): a channel, a
+// projection axis (the normal 1/2, each tangent 1/4), a radius from the
+// channel's table, a probe ray along the axis through object oi of which
+// one of the k hits is kept (reservoir sampling), the pdf summing every
+// axis and channel. Then light through the boundary at x_i (S_w) and a
+// cosine-sampled continuation. (The choice of transmission, probability
+// 1 - F(cos_o), cancels the factor 1 - F(cos_o) of S.)
+fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
+    let fr = frame_from_normal(n);
+    let c = min(u32(rand() * 3.0), 2u);
+    let ua = rand();
+    var axis = fr.n;
+    var a1 = fr.s;
+    var a2 = fr.t;
+    if (ua >= 0.75) {
+        axis = fr.t;
+        a1 = fr.n;
+        a2 = fr.s;
+    } else if (ua >= 0.5) {
+        axis = fr.s;
+        a1 = fr.t;
+        a2 = fr.n;
+    }
+    let r_max = m.a.z;
+    let x = table_sample(m.idx[1u + c], rand());
+    let r = r_max * x * x;
+    if (!(r < r_max)) {
+        return false;
+    }
+    let phi = 2.0 * PI * rand();
+    let hh = sqrt(r_max * r_max - r * r);
+    let start = p + r * (cos(phi) * a1 + sin(phi) * a2) + hh * axis;
+    let dir = -axis;
+    var k = 0u;
+    var chosen = vec4<f32>(MISS, 0.0, 0.0, 0.0);
+    var t0 = 0.0;
+    for (var i = 0u; i < 64u; i++) {
+        let x = object_first_hit(oi, start, dir, t0, 2.0 * hh);
+        if (x.x < 0.0) {
+            break;
+        }
+        k += 1u;
+        if (rand() * f32(k) < 1.0) {
+            chosen = x;
+        }
+        let q = abs(start + x.x * dir);
+        t0 = x.x + SPAWN_OFFSET * (1.0 + max(q.x, max(q.y, q.z)));
+    }
+    if (k == 0u) {
+        return false;
+    }
+    let xp = start + chosen.x * dir;
+    let xn = chosen.yzw;
+    let dv = xp - p;
+    var pdf = 0.0;
+    for (var j = 0u; j < 3u; j++) {
+        var ax = fr.n;
+        var p_axis = 0.5;
+        if (j == 1u) {
+            ax = fr.s;
+            p_axis = 0.25;
+        } else if (j == 2u) {
+            ax = fr.t;
+            p_axis = 0.25;
+        }
+        let along = dot(dv, ax);
+        let r_proj = sqrt(max(dot(dv, dv) - along * along, 0.0));
+        if (r_proj <= 0.0 || r_proj >= r_max) {
+            continue;
+        }
+        let cos_a = abs(dot(ax, xn));
+        for (var ch = 0u; ch < 3u; ch++) {
+            pdf += p_axis / 3.0 * sss_radial_pdf(m, ch, r_proj) / (2.0 * PI * r_proj) * cos_a;
+        }
+    }
+    pdf /= f32(k);
+    if (!(pdf > 0.0) || !finite(pdf)) {
+        return false;
+    }
+    let w = sss_profile(m, length(dv)) / pdf;
+    if (!finite3(w)) {
+        return false;
+    }
+    var beta = path.beta * w;
+    let fri = frame_from_normal(xn);
+    var entry = m;
+    entry.tag.x = MAT_SSS_ENTRY_LOBE;
+    path.l += beta * direct_light(xp, xn, fri, entry, vec3<f32>(0.0, 0.0, 1.0));
+    let local = cosine_hemisphere(rand2());
+    if (local.z <= 0.0) {
+        return false;
+    }
+    let wl = to_world(fri, local);
+    beta *= sss_sw(m, local.z) * PI;
+    path.prev_pdf = local.z * INV_PI;
+    path.env_counted = false;
+    path.o = offset_origin(xp, xn, wl);
+    path.d = wl;
+    path.depth += 1u;
+    if (path.depth >= 3u) {
+        beta = roulette(beta);
+    }
+    path.beta = beta;
+    return max3(beta) > 0.0;
+}
+
+// A scattering event at p inside the medium (random walk): albedo of the
+// path's channel, roulette, a Henyey-Greenstein direction about d.
+fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
+    path.events += 1u;
+    if (path.events > MAX_MEDIUM_EVENTS) {
+        return false;
+    }
+    let mm = materials[path.medium - 1u];
+    let beta = roulette(path.beta * (mm.b.rgb[path.channel] / st));
+    if (!(max3(beta) > 0.0)) {
+        return false;
+    }
+    path.beta = beta;
+    let cos_t = sample_hg_cos(mm.a.y, rand());
+    let sin_t = sqrt(max(1.0 - cos_t * cos_t, 0.0));
+    let phi = 2.0 * PI * rand();
+    let f = frame_from_normal(d);
+    path.o = p;
+    path.d = normalize(to_world(f, vec3<f32>(sin_t * cos(phi), sin_t * sin(phi), cos_t)));
+    path.prev_pdf = -1.0;
+    path.env_counted = false;
+    return true;
+}
 
 // One bounce of the path: false when it ends. (The loop lives in
 // `radiance`, the body here: one large loop body miscompiled on lavapipe.)
 fn bounce() -> bool {
     let o = path.o;
     let d = path.d;
-    let h = scene_hit(o, d, 3.0e38);
+    // Free flight inside a medium limits the search for the surface.
+    var t_max = 3.0e38;
+    var st = 0.0;
+    if (path.medium != 0u) {
+        let mm = materials[path.medium - 1u];
+        st = (mm.b.rgb + mm.c.rgb)[path.channel];
+        if (st > 0.0) {
+            t_max = -log(1.0 - rand()) / st;
+        }
+    }
+    let h = scene_hit(o, d, t_max);
+    if (h.x < 0.0 && t_max < 3.0e38) {
+        return medium_scatter(o + t_max * d, d, st);
+    }
     if (h.x < 0.0) {
         var w = 1.0;
-        if (path.prev_pdf > 0.0 && params.counts.w == ENV_MAP) {
+        if (path.env_counted) {
+            w = 0.0;
+        } else if (path.prev_pdf > 0.0 && params.counts.w == ENV_MAP) {
             w = power_heuristic(path.prev_pdf, env_pdf(d));
         }
         path.l += path.beta * env_eval(d) * w;
         return false;
     }
-    if (path.depth >= params.counts.z) {
+    if (path.depth >= params.counts.z && path.medium == 0u) {
         return false;
     }
-    let obj = objects[hit_object];
+    let oi = hit_object;
+    let obj = objects[oi];
     let m = materials[obj.range.z];
     let p = o + h.x * d;
     let ng = h.yzw;
@@ -286,37 +529,84 @@ fn bounce() -> bool {
     if (wo_l.z == 0.0) {
         return false;
     }
-    path.l += path.beta * direct_light(p, ng, fr, m, wo_l);
+    let is_medium = m.tag.x == MAT_SUBSURFACE;
+    var mirror_env = false;
+    if (is_medium) {
+        // The boundary's lobes are specular: no light sampling for them.
+        // Single scattering of the dipole mode at x_o, for direct light.
+        if (m.tag.w == 0u && m.b.w > 0.0 && dot(wo, ng) > 0.0) {
+            path.l += path.beta * sss_single_light(p, ng, fr, m, wo_l);
+        }
+        // The environment mirrored by the boundary, seen from outside,
+        // with its Fresnel weight on every path; a sampled reflection then
+        // only carries what the mirror ray meets in the scene.
+        let cos_o = dot(wo, ns);
+        if (cos_o > 0.0) {
+            let r = 2.0 * cos_o * ns - wo;
+            if (!occluded(offset_origin(p, ng, r), r, 3.0e38)) {
+                path.l += path.beta * env_eval(r) * fresnel_dielectric(cos_o, m.a.x);
+            }
+            mirror_env = true;
+        }
+    } else {
+        path.l += path.beta * direct_light(p, ng, fr, m, wo_l);
+    }
+    path.env_counted = false;
     let uc = rand();
     let s = material_sample(m, wo_l, uc, rand2());
     if (!s.ok || !(s.pdf > 0.0) || !finite(s.pdf) || !finite3(s.f) || s.wi.z == 0.0) {
         return false;
     }
+    let transmitted = (s.flags & FLAG_TRANSMISSION) != 0u;
+    if (mirror_env && (s.flags & FLAG_REFLECTION) != 0u) {
+        path.env_counted = true;
+    }
+    if (is_medium && m.tag.w == 0u && transmitted) {
+        return sss_dipole_bounce(oi, p, ng, m);
+    }
     let wi = to_world(fr, s.wi);
     var beta = path.beta * s.f * (abs(s.wi.z) / s.pdf);
     path.eta_scale *= s.eta * s.eta;
+    // Crossing a medium's boundary enters or leaves it; the first entry
+    // picks the colour channel the path carries from then on.
+    if (is_medium && transmitted) {
+        if (path.medium != 0u) {
+            path.medium = 0u;
+        } else {
+            if (path.channel > 2u) {
+                let c = min(u32(rand() * 3.0), 2u);
+                path.channel = c;
+                var one = vec3<f32>(0.0);
+                one[c] = 3.0 * beta[c];
+                beta = one;
+            }
+            path.medium = obj.range.z + 1u;
+        }
+    }
     path.prev_pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
     path.o = offset_origin(p, ng, wi);
     path.d = wi;
-    path.depth += 1u;
-    if (path.depth >= 3u) {
-        let q = max3(beta * path.eta_scale);
-        if (q < 1.0) {
-            if (rand() >= q) {
-                return false;
-            }
-            beta = beta / q;
+    if (path.medium != 0u || (is_medium && transmitted)) {
+        path.events += 1u;
+        if (path.events > MAX_MEDIUM_EVENTS) {
+            return false;
         }
+    } else {
+        path.depth += 1u;
+    }
+    if (path.depth >= 3u) {
+        beta = roulette(beta);
     }
     path.beta = beta;
     return max3(beta) > 0.0;
 }
 
 fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
-    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u);
-    // Every bounce either ends the path or raises its depth, which ends
-    // it at max_depth: the bound only guards against the unforeseen.
-    for (var i = 0u; i <= params.counts.z + 1u; i++) {
+    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false);
+    // Every bounce either ends the path or raises its depth (ending it at
+    // max_depth) or its medium events (ending it at MAX_MEDIUM_EVENTS):
+    // the bound only guards against the unforeseen.
+    for (var i = 0u; i <= params.counts.z + MAX_MEDIUM_EVENTS + 2u; i++) {
         if (!bounce()) {
             break;
         }
@@ -338,22 +628,20 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let seed = params.pass_info.z;
     let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
     var acc = accum[pixel];
-    for (var k = 0u; k < params.pass_info.y; k++) {
-        let s = params.pass_info.x + k;
-        rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
-        let c = (s + offset) % cells;
-        let j = rand2();
-        let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
-        let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
-        let sx = 2.0 * fx / f32(width) - 1.0;
-        let sy = 1.0 - 2.0 * fy / f32(height);
-        let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
-        let v = radiance(params.origin.xyz, dir);
-        if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
-            acc = vec4<f32>(acc.rgb + v, acc.w);
-        } else {
-            acc.w += 1.0;
-        }
+    let s = params.pass_info.x;
+    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
+    let c = (s + offset) % cells;
+    let j = rand2();
+    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
+    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
+    let sx = 2.0 * fx / f32(width) - 1.0;
+    let sy = 1.0 - 2.0 * fy / f32(height);
+    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
+    let v = radiance(params.origin.xyz, dir);
+    if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
+        acc = vec4<f32>(acc.rgb + v, acc.w);
+    } else {
+        acc.w += 1.0;
     }
     accum[pixel] = acc;
 }
