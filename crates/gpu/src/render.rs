@@ -449,46 +449,17 @@ impl GpuFrame {
             .aov
             .as_ref()
             .ok_or_else(|| GpuError::Setup("the frame was prepared without AOVs".into()))?;
-        // One dispatch per sample (see `aov_main`), their parameters
-        // copied into the uniform inside the command stream.
+        // Cleared first (submissions on one queue run in order), then one
+        // dispatch per sample (see `aov_main`).
         let count = self.samples.max(1);
-        let size = std::mem::size_of::<GpuParams>() as u64;
-        let blocks: Vec<GpuParams> = (0..count)
-            .map(|s| {
-                let mut p = self.params;
-                p.pass_info[0] = s;
-                p.pass_info[1] = 1;
-                p
-            })
-            .collect();
-        let staging = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("aov parameters"),
-                contents: bytemuck::cast_slice(&blocks),
-                usage: wgpu::BufferUsages::COPY_SRC,
-            });
         let mut enc = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("aov pass"),
+                label: Some("aov clear"),
             });
         enc.clear_buffer(buf, 0, None);
-        for s in 0..count as u64 {
-            enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("aov sample"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(gpu.aov_pipeline());
-            pass.set_bind_group(0, &self.bind, &[]);
-            pass.dispatch_workgroups(
-                self.params.film[0].div_ceil(TILE),
-                self.params.film[1].div_ceil(TILE),
-                1,
-            );
-        }
         gpu.queue.submit(Some(enc.finish()));
+        self.dispatch_samples(gpu, gpu.aov_pipeline(), 0, count, 1);
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();
