@@ -104,7 +104,8 @@ impl Material {
     /// The material placed at world point `p`: spatially varying models
     /// (`wave`) query their own neighbourhood, with the pixel footprint
     /// `footprint` (scene units, camera rays only) and a random number
-    /// from `xi` (drawn only by them); every other model is borrowed as is.
+    /// from `xi` (drawn only by them; a mix places its `wave` components
+    /// with one draw); every other model is borrowed as is.
     pub fn at_point(
         &self,
         p: DVec3,
@@ -113,7 +114,37 @@ impl Material {
     ) -> Cow<'_, Material> {
         match self {
             Material::Wave(w) => Cow::Owned(Material::Wave(w.at_point(p, footprint, xi()))),
+            // A mix places its spatially varying components (one draw of
+            // `xi` shared by them), and is borrowed when it has none.
+            Material::Mix(_) if self.varies_in_space() => {
+                Cow::Owned(self.placed(p, footprint, xi()))
+            }
             _ => Cow::Borrowed(self),
+        }
+    }
+
+    /// [`Material::at_point`] with the random number drawn.
+    fn placed(&self, p: DVec3, footprint: Option<f64>, xi: f64) -> Material {
+        match self {
+            Material::Wave(w) => Material::Wave(w.at_point(p, footprint, xi)),
+            Material::Mix(m) => Material::Mix(crate::Mix {
+                components: m
+                    .components
+                    .iter()
+                    .map(|(c, w)| (c.placed(p, footprint, xi), *w))
+                    .collect(),
+            }),
+            _ => self.clone(),
+        }
+    }
+
+    /// Whether [`Material::at_point`] changes this material (a `wave`, or
+    /// a mix holding one).
+    pub fn varies_in_space(&self) -> bool {
+        match self {
+            Material::Wave(_) => true,
+            Material::Mix(m) => m.components.iter().any(|(c, _)| c.varies_in_space()),
+            _ => false,
         }
     }
 

@@ -523,3 +523,60 @@ fn white_smooth_plastic_albedo_matches_closed_form() {
         assert!((fo + diffuse - 1.0).abs() < 2e-3, "{a}: {}", fo + diffuse);
     }
 }
+
+/// A `wave` inside a mix is placed with the mix: the placed mix is the
+/// weighted sum of the placed components (one comb offset shared), so a
+/// mix never reads a heightfield at its origin by default.
+#[test]
+fn mixes_place_their_wave_components() {
+    use isolux_materials::wave::{Mapping, Wave, WaveFresnel};
+    use isolux_materials::{Diffuse, Material, Mix};
+    use isolux_wave::generate::{generate, Kind};
+    let field = generate(
+        &Kind::Noise {
+            rms_um: 0.1,
+            corr_um: 1.0,
+        },
+        32,
+        32,
+        0.5,
+        3,
+    )
+    .unwrap();
+    let mut w = Wave::new(
+        std::sync::Arc::new(isolux_wave::GaborSurface::new(field)),
+        isolux_wave::Model::Ghs,
+        WaveFresnel::None,
+    );
+    w.coherence_um = 3.0;
+    w.mapping = Mapping::Planar(2);
+    let wave = Material::Wave(w);
+    let grey = Material::Diffuse(Diffuse {
+        reflectance: isolux_core::Rgb::splat(0.5),
+    });
+    let mix = Material::Mix(Mix {
+        components: vec![(wave.clone(), 0.25), (grey.clone(), 0.75)],
+    });
+    assert!(mix.varies_in_space() && wave.varies_in_space() && !grey.varies_in_space());
+    let wo = DVec3::new(0.3, 0.1, 0.9).normalize();
+    let wi = DVec3::new(-0.28, -0.12, 0.9).normalize();
+    let mut differs = false;
+    for (k, p) in [
+        DVec3::new(0.0123, 0.0071, 0.0),
+        DVec3::new(0.0031, 0.0202, 0.0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let xi = 0.2 + 0.3 * k as f64;
+        let placed = mix.at_point(p, Some(0.004), || xi);
+        let alone = wave.at_point(p, Some(0.004), || xi);
+        let (a, g) = (alone.f(wo, wi), grey.f(wo, wi));
+        let got = placed.f(wo, wi);
+        for (x, y, z) in [(got.r, a.r, g.r), (got.g, a.g, g.g), (got.b, a.b, g.b)] {
+            assert!((x - (0.25 * y + 0.75 * z)).abs() < 1e-12, "{got:?} {a:?}");
+        }
+        differs |= (a.r - wave.f(wo, wi).r).abs() > 1e-6;
+    }
+    assert!(differs, "placing changed nothing");
+}
