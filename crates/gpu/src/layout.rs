@@ -245,8 +245,10 @@ pub mod tag {
     /// Internal: the entry side's angular factor `S_w` of the dipole
     /// BSSRDF at the entry point (`a.x` ior, `a.w` `1 - F_dr,ext`).
     pub const SSS_ENTRY_LOBE: u32 = 18;
+    /// Wave-optics diffraction from a heightfield (`wave.wgsl`).
+    pub const WAVE: u32 = 19;
     /// Every tag with its WGSL name, for the prelude.
-    pub const ALL: [(&str, u32); 19] = [
+    pub const ALL: [(&str, u32); 20] = [
         ("MAT_DIFFUSE", DIFFUSE),
         ("MAT_PHONG", PHONG),
         ("MAT_BLINN_PHONG", BLINN_PHONG),
@@ -266,6 +268,7 @@ pub mod tag {
         ("MAT_SUBSURFACE", SUBSURFACE),
         ("MAT_SSS_SINGLE_LOBE", SSS_SINGLE_LOBE),
         ("MAT_SSS_ENTRY_LOBE", SSS_ENTRY_LOBE),
+        ("MAT_WAVE", WAVE),
     ];
 }
 
@@ -379,10 +382,16 @@ pub fn supported(m: &Material) -> bool {
     match m {
         // A medium inside a mix is not one the integrator can enter (the
         // CPU treats it as its boundary alone): refused rather than guessed.
+        // A `wave` inside a mix is refused too: the GPU places (maps to
+        // its heightfield) only the material an object names.
         Material::Mix(_) => flatten_mix(m, 1.0, 1.0).is_some_and(|c| {
             c.len() <= MAX_MIX_COMPONENTS
-                && c.iter().all(|(m, ..)| supported(m) && m.medium().is_none())
+                && c.iter().all(|(m, ..)| {
+                    supported(m) && m.medium().is_none() && !matches!(m, Material::Wave(_))
+                })
         }),
+        // Without copying its kernels.
+        Material::Wave(_) => true,
         _ => GpuMaterials::default().leaf(m).is_some(),
     }
 }
@@ -414,6 +423,9 @@ pub struct GpuMaterials {
     pub materials: Vec<GpuMaterial>,
     /// Tables (`f32`), addressed by `GpuMaterial::idx[0]`.
     pub data: Vec<f32>,
+    /// Kernel and leaf-box offsets of the wave surfaces already copied,
+    /// by address: materials sharing a heightfield share its copy.
+    surfaces: Vec<(usize, u32, u32)>,
 }
 
 impl GpuMaterials {
@@ -437,6 +449,7 @@ impl GpuMaterials {
     /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
     /// | merl | | | | | |
     /// | subsurface | ior, g, r_max, `1 - F_dr,ext` | sigma_s, single scattering (0/1) | sigma_a | | |
+    /// | wave | texel_um, coherence_um, um_per_unit, wavelengths | mapping centre, mapping code | columns, rows, leaf columns, leaf rows | tangent (placed) | centre x, y (um), sigma (um), comb offset (placed) |
     ///
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
@@ -451,11 +464,20 @@ impl GpuMaterials {
     /// in `tag.w` (0 dipole, 1 random walk), its per-channel dipoles at
     /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b) and the radial
     /// sampling tables of the channels at `idx[1..4]` (each `[n, cdf,
-    /// pdf]`), all in scene units.
+    /// pdf]`), all in scene units. A `wave` material keeps `model |
+    /// obliquity << 1` in `tag.w` and its Fresnel kind in `tag.y` (ONE,
+    /// DIELECTRIC or CONDUCTOR: a measured metal); its kernels `[h, gx,
+    /// gy]` per texel (row-major) at `idx[0]`, the leaf slope boxes at
+    /// `idx[1]` (4 floats each), at `idx[2]` `[eps, ior, metal rows, the
+    /// 81 normalized sRGB nodes of the CIE table (3 floats each), the metal's
+    /// rows (lambda um, n, k)]`, and `idx[3]` 1 when culling by the leaves.
+    /// The mapping code is the planar axis (0, 1, 2), 3 spherical or 4
+    /// cylindrical; `d` and `e` are filled per shading point by
+    /// `wave_place` (`wave.wgsl`), as `Wave::at_point` does on the CPU.
     pub fn new(materials: &[Material]) -> Result<Self, usize> {
         let mut out = GpuMaterials {
             materials: vec![GpuMaterial::default(); materials.len()],
-            data: Vec::new(),
+            ..Default::default()
         };
         for (i, m) in materials.iter().enumerate() {
             if !supported(m) {
@@ -663,9 +685,71 @@ impl GpuMaterials {
                     g.idx[1 + c] = self.table(m.radial_table(c));
                 }
             }
+            Material::Wave(w) => self.wave(w, &mut g),
             _ => return None,
         }
         Some(g)
+    }
+
+    fn wave(&mut self, w: &isolux_materials::Wave, g: &mut GpuMaterial) {
+        use isolux_materials::wave::{Mapping, WaveFresnel};
+        let s = &w.surface;
+        g.tag[0] = tag::WAVE;
+        g.tag[3] = (w.model == isolux_wave::Model::Ohs) as u32
+            | ((w.settings.obliquity == isolux_wave::Obliquity::Seed) as u32) << 1;
+        g.a = [
+            s.texel_um as f32,
+            w.coherence_um as f32,
+            w.um_per_unit as f32,
+            w.wavelengths as f32,
+        ];
+        g.b = match w.mapping {
+            Mapping::Planar(a) => [0.0, 0.0, 0.0, a as f32],
+            Mapping::Spherical(c) => [c.x as f32, c.y as f32, c.z as f32, 3.0],
+            Mapping::Cylindrical(c) => [c.x as f32, c.y as f32, c.z as f32, 4.0],
+        };
+        let (nx, ny, boxes) = s.leaf_boxes();
+        g.c = [s.width as f32, s.height as f32, nx as f32, ny as f32];
+        let key = std::sync::Arc::as_ptr(s) as usize;
+        let (kernels, leaves) = match self.surfaces.iter().find(|e| e.0 == key) {
+            Some(&(_, k, l)) => (k, l),
+            None => {
+                let (h, gx, gy) = s.kernels();
+                let k = self.data.len() as u32;
+                self.data.reserve(3 * h.len() + 4 * boxes.len());
+                for i in 0..h.len() {
+                    self.data.extend([h[i], gx[i], gy[i]]);
+                }
+                let l = self.data.len() as u32;
+                self.data.extend(boxes.iter().flatten());
+                self.surfaces.push((key, k, l));
+                (k, l)
+            }
+        };
+        let header = self.data.len() as u32;
+        let (ior, rows): (f64, &[(f64, f64, f64)]) = match w.fresnel {
+            WaveFresnel::None => {
+                g.tag[1] = fresnel_kind::ONE;
+                (1.0, &[])
+            }
+            WaveFresnel::Dielectric(eta) => {
+                g.tag[1] = fresnel_kind::DIELECTRIC;
+                (eta, &[])
+            }
+            WaveFresnel::Metal(m) => {
+                g.tag[1] = fresnel_kind::CONDUCTOR;
+                (1.0, m.table())
+            }
+        };
+        self.data
+            .extend([w.settings.eps as f32, ior as f32, rows.len() as f32]);
+        for c in isolux_wave::spectral::normalized_srgb_nodes() {
+            self.data.extend(c.map(|v| v as f32));
+        }
+        for r in rows {
+            self.data.extend([r.0 as f32, r.1 as f32, r.2 as f32]);
+        }
+        g.idx = [kernels, leaves, header, w.settings.hierarchy as u32];
     }
 }
 
@@ -706,7 +790,7 @@ pub struct GpuParams {
 }
 
 /// A material conformance query: `f`, `pdf` at `(wo, wi)` and a sample for
-/// `u = [uc, u0, u1]`, local frame. WGSL: `struct Query` in
+/// `u = [uc, u0, u1]`, local frame, the material placed at `point`. WGSL: `struct Query` in
 /// `material_eval.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -719,6 +803,9 @@ pub struct GpuQuery {
     pub u: [f32; 4],
     /// `[material index, 0, 0, 0]`.
     pub index: [u32; 4],
+    /// Where the material is placed (`wave`): `[x, y, z, pixel footprint
+    /// (scene units; <= 0: none)]`, with `u[3]` the comb offset.
+    pub point: [f32; 4],
 }
 
 /// The answer to a [`GpuQuery`]: `f = [rgb, pdf]`, `s_wi = [wi, pdf]`
@@ -800,6 +887,43 @@ mod tests {
     }
 
     #[test]
+    fn wave_surfaces_are_copied_once_and_refused_inside_mixes() {
+        use isolux_materials::metals::Metal;
+        use isolux_materials::wave::{Wave, WaveFresnel};
+        let heights: Vec<f32> = (0..40 * 24).map(|i| (i % 7) as f32 * 0.01).collect();
+        let field = isolux_wave::Heightfield::new(40, 24, 0.5, heights).unwrap();
+        let surface = std::sync::Arc::new(isolux_wave::GaborSurface::new(field));
+        let silver = Wave::new(
+            surface.clone(),
+            isolux_wave::Model::Ghs,
+            WaveFresnel::Metal(Metal::by_name("Ag").unwrap()),
+        );
+        let plain = Wave::new(surface, isolux_wave::Model::Ohs, WaveFresnel::None);
+        let (a, b) = (Material::Wave(silver), Material::Wave(plain));
+        assert!(supported(&a));
+        assert!(!supported(&mix(vec![(a.clone(), 1.0), (grey(0.5), 1.0)])));
+        let g = GpuMaterials::new(&[a, b]).unwrap();
+        let (m0, m1) = (g.materials[0], g.materials[1]);
+        assert_eq!(
+            (m0.tag[0], m0.tag[1], m0.tag[3]),
+            (tag::WAVE, fresnel_kind::CONDUCTOR, 0)
+        );
+        assert_eq!((m1.tag[1], m1.tag[3]), (fresnel_kind::ONE, 1));
+        // One copy of the kernels (3 floats per texel) and of the leaf
+        // boxes (3 x 2 leaves of 16 texels, 4 floats each).
+        assert_eq!((m0.idx[0], m0.idx[1]), (m1.idx[0], m1.idx[1]));
+        assert_eq!(m0.idx[1], 3 * 40 * 24);
+        assert_eq!(m0.idx[2], m0.idx[1] + 4 * 3 * 2);
+        assert_eq!(m0.c, [40.0, 24.0, 3.0, 2.0]);
+        // Header: eps, ior, metal rows, 81 colour nodes, then the rows.
+        let h = m0.idx[2] as usize;
+        let rows = g.data[h + 2] as usize;
+        assert!(rows > 2);
+        assert_eq!(m1.idx[2] as usize, h + 3 + 243 + 3 * rows);
+        assert_eq!(g.data.len(), m1.idx[2] as usize + 3 + 243);
+    }
+
+    #[test]
     fn sizes_match_the_wgsl_declarations() {
         // Quadric: 3 vec4 = 48 bytes; Perturbation: Quadric + vec4 = 64;
         // Object: Quadric + 3 vec4 = 96; Ray: 2 vec4 = 32; hit: vec4 = 16.
@@ -812,7 +936,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
         assert_eq!(std::mem::size_of::<GpuLight>(), 32);
         assert_eq!(std::mem::size_of::<GpuParams>(), 144);
-        assert_eq!(std::mem::size_of::<GpuQuery>(), 64);
+        assert_eq!(std::mem::size_of::<GpuQuery>(), 80);
         assert_eq!(std::mem::size_of::<GpuAnswer>(), 48);
         // And naga agrees (layouts computed from the shader sources).
         let mut seen = std::collections::BTreeSet::new();

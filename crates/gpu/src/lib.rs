@@ -12,6 +12,8 @@
 //!   (SPEC §1) in f32 with a per-segment reparameterization;
 //! - `materials.wgsl`: the material library's `f`, `pdf` and `sample`
 //!   (the models [`layout::GpuMaterials::new`] accepts);
+//! - `wave.wgsl`: the `wave` material (diffraction from a heightfield,
+//!   placed per shading point);
 //! - `intersect.wgsl`, `material_eval.wgsl`: conformance entry points
 //!   ([`Gpu::intersect`], [`Gpu::eval_materials`]) compared with the CPU
 //!   in `tests/`;
@@ -83,6 +85,18 @@ pub fn prelude() -> String {
         "const MAX_MEDIUM_EVENTS: u32 = {}u;\n",
         isolux_render::integrator::MAX_MEDIUM_EVENTS
     );
+    s += &format!(
+        "const WAVE_LEAF: i32 = {};\n\
+         const WAVE_MAX_COMB: u32 = {}u;\n\
+         const WAVE_WIDE_LOBE: f32 = {:?};\n\
+         const WAVE_KMIN: f32 = {:?};\n\
+         const WAVE_KMAX: f32 = {:?};\n",
+        isolux_wave::gabor::LEAF,
+        isolux_materials::wave::MAX_WAVELENGTHS,
+        isolux_wave::gabor::WIDE_LOBE as f32,
+        (1.0 / isolux_wave::spectral::LAMBDA_MAX_UM) as f32,
+        (1.0 / isolux_wave::spectral::LAMBDA_MIN_UM) as f32,
+    );
     for (name, v) in layout::tag::ALL
         .iter()
         .chain(&layout::fresnel_kind::ALL)
@@ -147,7 +161,10 @@ pub fn intersect_source_with(precision: Precision) -> String {
 
 /// The material conformance kernel with its prelude.
 pub fn material_eval_source() -> String {
-    prelude() + include_str!("shaders/materials.wgsl") + include_str!("shaders/material_eval.wgsl")
+    prelude()
+        + include_str!("shaders/materials.wgsl")
+        + include_str!("shaders/wave.wgsl")
+        + include_str!("shaders/material_eval.wgsl")
 }
 
 /// The path tracer with its prelude (f32 intersection).
@@ -160,6 +177,7 @@ pub fn render_source_with(precision: Precision) -> String {
     prelude()
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
+        + include_str!("shaders/wave.wgsl")
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }

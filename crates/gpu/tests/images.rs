@@ -167,6 +167,33 @@ fn translucent_scenes_match_the_cpu_within_noise() {
     }
 }
 
+/// Wave optics (`examples/scenes/wave-*.toml`): a silver grating's
+/// diffraction orders under a point light, and brushed aluminium on a
+/// perturbed sphere under a light and a sky (spherical mapping, coherence
+/// areas narrowed to the pixel footprint on camera rays), GPU against CPU
+/// within noise. Both render the spectral hero combs of their own random
+/// offsets, so the colour noise is part of the measured noise.
+#[test]
+fn wave_scenes_match_the_cpu_within_noise() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    for (name, w, h, spp) in [
+        ("wave-grating.toml", 96, 72, 16),
+        ("wave-brushed.toml", 96, 72, 8),
+    ] {
+        let mut scene = example(name);
+        assert!(isolux_gpu::unsupported_material(&scene).is_none());
+        scene.film.width = w;
+        scene.film.height = h;
+        scene.film.spp = spp;
+        let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, name);
+        assert!(mc > 0.0);
+        assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    }
+}
+
 /// A non-absorbing random-walk medium behind a glass boundary, a sphere
 /// under a white sky: every photon that enters leaves again, so each
 /// channel's expected radiance is exactly 1 (closed form; the path carries

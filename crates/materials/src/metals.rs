@@ -243,6 +243,12 @@ impl Metal {
         (last.1, last.2)
     }
 
+    /// The measured rows `(wavelength um, n, k)`, ascending, which
+    /// [`Metal::nk`] interpolates (the GPU's copy).
+    pub fn table(&self) -> &'static [(f64, f64, f64)] {
+        self.table
+    }
+
     /// `(eta, k)` at the RGB wavelengths.
     pub fn rgb(&self) -> ([f64; 3], [f64; 3]) {
         let v = RGB_WAVELENGTHS_NM.map(|l| self.nk(l));

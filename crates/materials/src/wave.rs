@@ -75,6 +75,9 @@ use isolux_core::{DVec3, Rgb};
 use isolux_wave::{Comb, Footprint, GaborSurface, Model, Settings};
 use std::sync::Arc;
 
+/// The most hero wavelengths per query (`wavelengths`).
+pub const MAX_WAVELENGTHS: usize = 16;
+
 /// Fresnel reflectance per wavelength.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum WaveFresnel {

@@ -805,7 +805,7 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
         m.um_per_unit = v.positive()?;
     }
     if let Some(v) = t.get("wavelengths") {
-        m.wavelengths = v.uint(1, 16)? as usize;
+        m.wavelengths = v.uint(1, isolux_materials::wave::MAX_WAVELENGTHS as u64)? as usize;
     }
     if let Some(v) = t.get("obliquity") {
         m.settings.obliquity =

@@ -174,13 +174,13 @@ impl Default for Settings {
 
 /// Probability of the wide (single-kernel) sampling lobe; the narrow
 /// (coherence-window) lobe takes the rest.
-const WIDE_LOBE: f64 = 0.25;
+pub const WIDE_LOBE: f64 = 0.25;
 
 /// Kernels per chunk (and accumulator lanes) of the spectral loop.
 const COMB_CHUNK: usize = 32;
 
 /// Texels per side of a quadtree leaf.
-const LEAF: usize = 16;
+pub const LEAF: usize = 16;
 
 /// One level of the quadtree: slope boxes `[gx_min, gx_max, gy_min,
 /// gy_max]` of `LEAF 2^level`-texel blocks.
@@ -311,6 +311,20 @@ impl GaborSurface {
         let r = r.rem_euclid(self.height as i64) as usize;
         let i = r * self.width + c;
         (self.h[i], self.gx[i], self.gy[i])
+    }
+
+    /// Heights (um) and slopes `x`, `y` of every kernel, row-major (the
+    /// GPU's copy is made from these).
+    pub fn kernels(&self) -> (&[f32], &[f32], &[f32]) {
+        (&self.h, &self.gx, &self.gy)
+    }
+
+    /// The quadtree's leaf level: columns and rows of [`LEAF`]-texel
+    /// blocks and each block's slope box `[gx_min, gx_max, gy_min,
+    /// gy_max]`, row-major.
+    pub fn leaf_boxes(&self) -> (usize, usize, &[[f32; 4]]) {
+        let l = &self.levels[0];
+        (l.nx, l.ny, &l.boxes)
     }
 
     /// Bytes held by the kernels and the tree.

@@ -60,6 +60,20 @@ pub fn srgb_of_wavelength(lambda_nm: f64) -> [f64; 3] {
     [0, 1, 2].map(|r| m[r][0] * x[0] + m[r][1] * x[1] + m[r][2] * x[2])
 }
 
+/// [`srgb_of_wavelength`] divided by the band integral per channel, at
+/// the nodes of the CIE table (380, 385, ..., 780 nm): interpolated
+/// linearly, as [`cmf`] is, these give the hero comb's colour weights
+/// (`Comb::shifted`) without the Jacobian. The GPU's copy.
+pub fn normalized_srgb_nodes() -> Vec<[f64; 3]> {
+    let norm = band_integral();
+    (0..=80)
+        .map(|i| {
+            let c = srgb_of_wavelength(380.0 + 5.0 * i as f64);
+            [0, 1, 2].map(|k| c[k] / norm[k])
+        })
+        .collect()
+}
+
 /// `integral srgb(lambda) dlambda` over the band, per channel (nm units),
 /// computed once (every hero comb of every shading point needs it).
 fn band_integral() -> [f64; 3] {

@@ -1,8 +1,9 @@
 // Entry point of the material conformance kernel: for each query, the
 // material's f and pdf at (wo, wi) and its sample for (uc, u), all in the
-// local frame (materials.wgsl does the work).
+// local frame, the material placed at `point` (materials.wgsl and
+// wave.wgsl do the work).
 
-struct Query { wo: vec4<f32>, wi: vec4<f32>, u: vec4<f32>, index: vec4<u32> }
+struct Query { wo: vec4<f32>, wi: vec4<f32>, u: vec4<f32>, index: vec4<u32>, point: vec4<f32> }
 struct Answer { f: vec4<f32>, s_wi: vec4<f32>, s_f: vec4<f32> }
 
 @group(0) @binding(0) var<storage, read> materials: array<Material>;
@@ -18,7 +19,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let q = queries[i];
-    let m = materials[q.index.x];
+    let m = place_material(materials[q.index.x], q.point.xyz, q.point.w, q.u.w);
     let wo = q.wo.xyz;
     let wi = q.wi.xyz;
     let f = material_f(m, wo, wi);

@@ -22,6 +22,7 @@
 //                a.z r_max, a.w 1 - F_dr,ext; b.rgb sigma_s, b.w single
 //                scattering on; c.rgb sigma_a; tag.w 1 for random walk;
 //                idx.x dipoles, idx.yzw radial tables (render.wgsl)
+//   WAVE         wave.wgsl (placed per shading point by place_material)
 
 struct Material { tag: vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e: vec4<f32>, idx: vec4<u32> }
 
@@ -994,7 +995,7 @@ fn base_flags(m: Material) -> u32 {
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD, MAT_COOK_TORRANCE, MAT_GAUSSIAN, MAT_HEIDRICH_SEIDEL: {
             return FLAG_REFLECTION | FLAG_DIFFUSE | FLAG_GLOSSY;
         }
-        case MAT_GGX, MAT_BECKMANN, MAT_FACTORED, MAT_MERL: {
+        case MAT_GGX, MAT_BECKMANN, MAT_FACTORED, MAT_MERL, MAT_WAVE: {
             return FLAG_REFLECTION | FLAG_GLOSSY;
         }
         case MAT_CONDUCTOR: {
@@ -1064,6 +1065,9 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
         case MAT_MERL: {
             return merl_f(m, wo, wi);
         }
+        case MAT_WAVE: {
+            return wave_f(m, wo, wi);
+        }
         default: {
             return vec3<f32>(0.0);
         }
@@ -1123,6 +1127,9 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
                 return 0.0;
             }
             return cosine_pdf(wi.z);
+        }
+        case MAT_WAVE: {
+            return wave_pdf(m, wo, wi);
         }
         default: {
             return 0.0;
@@ -1278,6 +1285,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
                 return no_sample();
             }
             return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
+        }
+        case MAT_WAVE: {
+            return wave_sample(m, wo, uc, u);
         }
         default: {
             return no_sample();

@@ -79,13 +79,16 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
         return env_eval(d);
     }
     let obj = objects[hit_object];
-    let m = materials[obj.range.z];
+    var m = materials[obj.range.z];
     // No real-time model for a medium (its light comes from elsewhere on
     // the surface), black as on the CPU; subsurface_brdf previews it.
     if (m.tag.x == MAT_SUBSURFACE) {
         return vec3<f32>(0.0);
     }
     let p = o + h.x * d;
+    if (m.tag.x == MAT_WAVE) {
+        m = place_material(m, p, pixel_footprint(h.x), rand());
+    }
     let ng = h.yzw;
     let wo = -d;
     let flags = material_flags(m);

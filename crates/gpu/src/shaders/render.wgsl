@@ -510,8 +510,15 @@ fn bounce() -> bool {
     }
     let oi = hit_object;
     let obj = objects[oi];
-    let m = materials[obj.range.z];
     let p = o + h.x * d;
+    // Spatially varying materials (wave) are placed at the hit, camera
+    // rays with the pixel footprint (the angle of one pixel times the
+    // distance), as on the CPU; the comb offset is drawn only for them.
+    var m = materials[obj.range.z];
+    if (m.tag.x == MAT_WAVE) {
+        let fp = select(-1.0, pixel_footprint(h.x), path.depth == 0u);
+        m = place_material(m, p, fp, rand());
+    }
     let ng = h.yzw;
     let wo = -d;
     let flags = material_flags(m);
@@ -599,6 +606,11 @@ fn bounce() -> bool {
     }
     path.beta = beta;
     return max3(beta) > 0.0;
+}
+
+// The width of one pixel at distance t along a camera ray (scene units).
+fn pixel_footprint(t: f32) -> f32 {
+    return t * 2.0 * length(params.up.xyz) / f32(params.film.y);
 }
 
 fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
