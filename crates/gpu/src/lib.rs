@@ -174,10 +174,21 @@ pub fn render_source() -> String {
 
 /// The path tracer and real-time kernels, intersecting in `precision`.
 pub fn render_source_with(precision: Precision) -> String {
+    render_source_variant(precision, true)
+}
+
+/// [`render_source_with`], with the `wave` material's code only when
+/// `wave` is set (else `wave_stub.wgsl`: scenes without it compile a much
+/// smaller kernel).
+pub fn render_source_variant(precision: Precision, wave: bool) -> String {
     prelude()
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
-        + include_str!("shaders/wave.wgsl")
+        + if wave {
+            include_str!("shaders/wave.wgsl")
+        } else {
+            include_str!("shaders/wave_stub.wgsl")
+        }
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -213,11 +224,12 @@ pub struct Gpu {
     queue: wgpu::Queue,
     intersect: OnceLock<wgpu::ComputePipeline>,
     material_eval: OnceLock<wgpu::ComputePipeline>,
-    render: OnceLock<wgpu::ComputePipeline>,
-    realtime: OnceLock<wgpu::ComputePipeline>,
-    aov: OnceLock<wgpu::ComputePipeline>,
+    render: [OnceLock<wgpu::ComputePipeline>; 2],
+    realtime: [OnceLock<wgpu::ComputePipeline>; 2],
+    aov: [OnceLock<wgpu::ComputePipeline>; 2],
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
-    render_module: OnceLock<wgpu::ShaderModule>,
+    /// Without and with the `wave` code ([`render_source_variant`]).
+    render_module: [OnceLock<wgpu::ShaderModule>; 2],
     precision: Precision,
     f64_supported: bool,
     /// Adapter name and back end, for reports.
@@ -275,11 +287,11 @@ impl Gpu {
             queue,
             intersect: OnceLock::new(),
             material_eval: OnceLock::new(),
-            render: OnceLock::new(),
-            realtime: OnceLock::new(),
-            aov: OnceLock::new(),
+            render: Default::default(),
+            realtime: Default::default(),
+            aov: Default::default(),
             render_layout: OnceLock::new(),
-            render_module: OnceLock::new(),
+            render_module: Default::default(),
             precision: Precision::F32,
             f64_supported,
             adapter: format!("{} ({:?})", info.name, info.backend),
@@ -309,10 +321,10 @@ impl Gpu {
         if precision != self.precision {
             self.precision = precision;
             self.intersect = OnceLock::new();
-            self.render = OnceLock::new();
-            self.realtime = OnceLock::new();
-            self.aov = OnceLock::new();
-            self.render_module = OnceLock::new();
+            self.render = Default::default();
+            self.realtime = Default::default();
+            self.aov = Default::default();
+            self.render_module = Default::default();
         }
         Ok(())
     }
@@ -410,32 +422,36 @@ impl Gpu {
     }
 
     /// The path tracer (`realtime` false, entry `main`) or the real-time
-    /// mode (entry `realtime`) of `render.wgsl`.
-    fn render_pipeline(&self, realtime: bool) -> &wgpu::ComputePipeline {
+    /// mode (entry `realtime`) of `render.wgsl`, with the `wave` code when
+    /// `wave` is set.
+    fn render_pipeline(&self, realtime: bool, wave: bool) -> &wgpu::ComputePipeline {
         let (cell, entry) = if realtime {
-            (&self.realtime, "realtime")
+            (&self.realtime[wave as usize], "realtime")
         } else {
-            (&self.render, "main")
+            (&self.render[wave as usize], "main")
         };
-        self.render_entry(cell, entry)
+        self.render_entry(cell, entry, wave)
     }
 
     /// The AOV kernel (`aov_main` of `render.wgsl`).
-    fn aov_pipeline(&self) -> &wgpu::ComputePipeline {
-        self.render_entry(&self.aov, "aov_main")
+    fn aov_pipeline(&self, wave: bool) -> &wgpu::ComputePipeline {
+        self.render_entry(&self.aov[wave as usize], "aov_main", wave)
     }
 
     fn render_entry<'a>(
         &'a self,
         cell: &'a OnceLock<wgpu::ComputePipeline>,
         entry: &'static str,
+        wave: bool,
     ) -> &'a wgpu::ComputePipeline {
         cell.get_or_init(|| {
-            let module = self.render_module.get_or_init(|| {
+            let module = self.render_module[wave as usize].get_or_init(|| {
                 self.device
                     .create_shader_module(wgpu::ShaderModuleDescriptor {
                         label: Some("render"),
-                        source: wgpu::ShaderSource::Wgsl(render_source_with(self.precision).into()),
+                        source: wgpu::ShaderSource::Wgsl(
+                            render_source_variant(self.precision, wave).into(),
+                        ),
                     })
             });
             self.device
@@ -681,6 +697,7 @@ mod tests {
             super::intersect_source(),
             super::material_eval_source(),
             super::render_source(),
+            super::render_source_variant(super::Precision::F32, false),
         ] {
             let module = naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));

@@ -46,6 +46,9 @@ pub struct GpuFrame {
     /// The real-time mode (each [`GpuFrame::run`] renders a whole frame)
     /// rather than the progressive path tracer.
     realtime: bool,
+    /// A `wave` material is in the scene: the kernels with its code
+    /// ([`crate::render_source_variant`]).
+    wave: bool,
     bind: wgpu::BindGroup,
     accum: wgpu::Buffer,
     params_buf: wgpu::Buffer,
@@ -309,8 +312,13 @@ impl Gpu {
             aov.as_ref().unwrap_or(&aov_stub),
             &albedos,
         ]);
+        let wave = materials
+            .materials
+            .iter()
+            .any(|m| m.tag[0] == layout::tag::WAVE);
         Ok(GpuFrame {
             realtime,
+            wave,
             bind,
             accum,
             params_buf,
@@ -375,7 +383,13 @@ impl GpuFrame {
         // looping over several samples of its pixel lost many of them on
         // long paths (the loop defect of docs/gpu.md: a random-walk medium
         // at 16 samples per dispatch came out 38% dark).
-        self.dispatch_samples(gpu, gpu.render_pipeline(false), self.samples, count, 1);
+        self.dispatch_samples(
+            gpu,
+            gpu.render_pipeline(false, self.wave),
+            self.samples,
+            count,
+            1,
+        );
         self.samples += count;
     }
 
@@ -436,7 +450,7 @@ impl GpuFrame {
     /// buffer inside the command stream, so no submission waits on a
     /// `write_buffer` (on an H100 four submissions cost about 2 ms).
     fn realtime_frame(&mut self, gpu: &Gpu, count: u32) {
-        self.dispatch_samples(gpu, gpu.render_pipeline(true), 0, count, count);
+        self.dispatch_samples(gpu, gpu.render_pipeline(true, self.wave), 0, count, count);
         self.params.pass_info[0] = 0;
         self.params.pass_info[1] = count;
         self.samples = count;
@@ -459,7 +473,7 @@ impl GpuFrame {
             });
         enc.clear_buffer(buf, 0, None);
         gpu.queue.submit(Some(enc.finish()));
-        self.dispatch_samples(gpu, gpu.aov_pipeline(), 0, count, 1);
+        self.dispatch_samples(gpu, gpu.aov_pipeline(self.wave), 0, count, 1);
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();

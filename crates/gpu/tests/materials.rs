@@ -539,8 +539,11 @@ fn wave_matches_the_cpu() {
             if let (Some(s), true) = (s, g_some) {
                 both += 1;
                 let gw = DVec3::new(a.s_wi[0] as f64, a.s_wi[1] as f64, a.s_wi[2] as f64);
-                let good =
-                    (gw - s.wi).length() < 2e-3 && near(a.s_wi[3] as f64, s.pdf, p_scale, 2e-2);
+                let good = (gw - s.wi).length() < 2e-3
+                    && near(a.s_wi[3] as f64, s.pdf, p_scale, 2e-2)
+                    && near(a.s_f[0] as f64, s.f.r, f_scale, 2e-2)
+                    && near(a.s_f[1] as f64, s.f.g, f_scale, 2e-2)
+                    && near(a.s_f[2] as f64, s.f.b, f_scale, 2e-2);
                 s_ok += good as usize;
             }
         }

@@ -1065,9 +1065,6 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
         case MAT_MERL: {
             return merl_f(m, wo, wi);
         }
-        case MAT_WAVE: {
-            return wave_f(m, wo, wi);
-        }
         default: {
             return vec3<f32>(0.0);
         }
@@ -1127,9 +1124,6 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
                 return 0.0;
             }
             return cosine_pdf(wi.z);
-        }
-        case MAT_WAVE: {
-            return wave_pdf(m, wo, wi);
         }
         default: {
             return 0.0;
@@ -1286,9 +1280,6 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
             return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
         }
-        case MAT_WAVE: {
-            return wave_sample(m, wo, uc, u);
-        }
         default: {
             return no_sample();
         }
@@ -1322,11 +1313,20 @@ fn material_flags(m: Material) -> u32 {
     return f;
 }
 
-// f(wo, wi) without the cosine, local frame.
+// f(wo, wi) without the cosine, local frame. `wave` is dispatched here,
+// at the top level only (never inside a mix, and not among the internal
+// lobes): its code, inlined at every call site, is large.
 fn material_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if (m.tag.x == MAT_WAVE) {
+        return wave_f(m, wo, wi);
+    }
     if (m.tag.x != MAT_MIX) {
         return base_f(m, wo, wi);
     }
+    return mix_f(m, wo, wi);
+}
+
+fn mix_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     var f = vec3<f32>(0.0);
     for (var k = 0u; k < m.idx.z; k++) {
         f += mix_w(m, k) * base_f(materials[m.idx.y + k], wo, wi);
@@ -1335,9 +1335,16 @@ fn material_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
 }
 
 fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (m.tag.x == MAT_WAVE) {
+        return wave_pdf(m, wo, wi);
+    }
     if (m.tag.x != MAT_MIX) {
         return base_pdf(m, wo, wi);
     }
+    return mix_pdf(m, wo, wi);
+}
+
+fn mix_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     var p = 0.0;
     for (var k = 0u; k < m.idx.z; k++) {
         p += mix_p(m, k) * base_pdf(materials[m.idx.y + k], wo, wi);
@@ -1347,6 +1354,9 @@ fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 
 // One component chosen by uc (rescaled for it), as the CPU's Mix::sample.
 fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+    if (m.tag.x == MAT_WAVE) {
+        return wave_sample(m, wo, uc, u);
+    }
     if (m.tag.x != MAT_MIX) {
         return base_sample(m, wo, uc, u);
     }
@@ -1367,5 +1377,5 @@ fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSam
     if (!s.ok) {
         return no_sample();
     }
-    return BsdfSample(s.wi, material_f(m, wo, s.wi), material_pdf(m, wo, s.wi), s.flags, 1.0, true);
+    return BsdfSample(s.wi, mix_f(m, wo, s.wi), mix_pdf(m, wo, s.wi), s.flags, 1.0, true);
 }

@@ -131,16 +131,15 @@ fn wave_cis_cycles(c: f32) -> vec2<f32> {
     return vec2<f32>(cos(a), -sin(a));
 }
 
-var<private> wave_acc: array<vec2<f32>, WAVE_MAX_COMB>;
-
-// f / F per wavelength of the comb (k0, dk, n) into wave_acc[j].x
-// (GaborSurface::eval): the kernels inside the window's disk whose
-// amplitude w_k exp(-B_k k0^2) reaches eps; a leaf's run of kernels is
-// skipped when the bound over its slope box says none can.
-fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, dk: f32, n: u32) {
-    for (var t = 0u; t < WAVE_MAX_COMB; t++) {
-        wave_acc[t] = vec2<f32>(0.0);
-    }
+// f / F at wavenumber k (1/um) of a comb starting at k0 (GaborSurface::eval
+// at one of its wavelengths): the kernels inside the window's disk whose
+// amplitude w_k exp(-B_k k0^2) reaches eps (one set for the whole comb,
+// as on the CPU); a leaf's run of kernels is skipped when the bound over
+// its slope box says none can. One wavelength per pass, with no array:
+// the CPU's recurrence across the comb kept the comb in an indexed array,
+// and Mesa 22's lavapipe lost loop iterations in a second inlined copy of
+// that code (docs/gpu.md, the loop defect).
+fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, k: f32) -> f32 {
     let l = m.a.x;
     let sigma = m.e.z;
     let eps = material_data[m.idx.z];
@@ -149,9 +148,8 @@ fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, dk: f32, n:
     let win = wave_window(m);
     let inv2s2 = 1.0 / (2.0 * sigma * sigma);
     let a0 = 2.0 * PI * PI * (0.25 * l * l);
-    let g1 = k0 * k0;
-    let g2 = 2.0 * k0 * dk + dk * dk;
-    let g3 = 2.0 * dk * dk;
+    let g0 = k0 * k0;
+    let gk = k * k - g0;
     let ln_eps = log(eps);
     let w = i32(m.c.x);
     let hgt = i32(m.c.y);
@@ -159,6 +157,7 @@ fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, dk: f32, n:
     let cull = m.idx.w == 1u;
     let gstar = -psi / c3;
     let r2 = win.radius * win.radius;
+    var acc = vec2<f32>(0.0);
     for (var j = win.j0; j <= win.j1; j++) {
         let y = (f32(j - win.j0) + 0.5 - win.o.y) * l;
         let h2 = r2 - y * y;
@@ -190,32 +189,23 @@ fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, dk: f32, n:
                     clamp(gstar.y, material_data[b + 2u], material_data[b + 3u]),
                 );
                 let dd = psi + c3 * g;
-                let log_bound = -(dx * dx + y * y) * inv2s2 - a0 * dot(dd, dd) * g1;
+                let log_bound = -(dx * dx + y * y) * inv2s2 - a0 * dot(dd, dd) * g0;
                 skip = log_bound < ln_eps - 1e-3;
             }
             if (!skip) {
-                for (var k = i; k <= end; k++) {
-                    let at = row + 3u * u32(c + (k - i));
+                for (var kk = i; kk <= end; kk++) {
+                    let at = row + 3u * u32(c + (kk - i));
                     let h = material_data[at];
-                    let gk = vec2<f32>(material_data[at + 1u], material_data[at + 2u]);
-                    let x = (f32(k - win.i0) + 0.5 - win.o.x) * l;
-                    let dd = psi + c3 * gk;
+                    let gr = vec2<f32>(material_data[at + 1u], material_data[at + 2u]);
+                    let x = (f32(kk - win.i0) + 0.5 - win.o.x) * l;
+                    let dd = psi + c3 * gr;
                     let bk = a0 * dot(dd, dd);
-                    var e = exp(-x * x * inv2s2) * wy * exp(-bk * g1);
-                    if (!(e >= eps)) {
-                        continue;
-                    }
-                    var ratio = exp(-bk * g2);
-                    let q = exp(-bk * g3);
-                    // Theta_k / (2 pi) = c3 h + (c_k - x_c).psi, in cycles per 1/um.
-                    let cyc = c3 * h + x * psi.x + yc;
-                    var z = wave_cis_cycles(cyc * k0);
-                    let step = wave_cis_cycles(cyc * dk);
-                    for (var t = 0u; t < n; t++) {
-                        wave_acc[t] += e * z;
-                        z = vec2<f32>(z.x * step.x - z.y * step.y, z.x * step.y + z.y * step.x);
-                        e *= ratio;
-                        ratio *= q;
+                    let e = exp(-x * x * inv2s2) * wy * exp(-bk * g0);
+                    if (e >= eps) {
+                        // Theta_k / (2 pi) = c3 h + (c_k - x_c).psi, in
+                        // cycles per 1/um.
+                        let cyc = c3 * h + x * psi.x + yc;
+                        acc += e * exp(-bk * gk) * wave_cis_cycles(cyc * k);
                     }
                 }
             }
@@ -224,12 +214,7 @@ fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, dk: f32, n:
     }
     let l2 = l * l;
     let o = select(1.0, wo.z / wi.z, (m.tag.w & 2u) != 0u);
-    let scale = o * l2 * l2 / (PI * sigma * sigma);
-    for (var t = 0u; t < n; t++) {
-        let k = k0 + f32(t) * dk;
-        let a = wave_acc[t];
-        wave_acc[t] = vec2<f32>(k * k * scale * dot(a, a), 0.0);
-    }
+    return k * k * o * l2 * l2 / (PI * sigma * sigma) * dot(acc, acc);
 }
 
 // The normalized sRGB weight of wavelength lambda_nm (spectral.rs: the
@@ -286,13 +271,13 @@ fn wave_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
     let comb = wave_comb(m);
     let n = u32(comb.z);
-    wave_spectrum(m, wi, wo, comb.x, comb.y, n);
     let cos_h = abs(dot(wi, try_normalize(wi + wo)));
     var rgb = vec3<f32>(0.0);
     for (var t = 0u; t < n; t++) {
-        let lambda_nm = 1000.0 / (comb.x + f32(t) * comb.y);
+        let k = comb.x + f32(t) * comb.y;
+        let lambda_nm = 1000.0 / k;
         let jac = lambda_nm * lambda_nm / 1000.0 * comb.y;
-        let v = wave_acc[t].x * wave_fresnel(m, lambda_nm, cos_h);
+        let v = wave_spectrum(m, wi, wo, comb.x, k) * wave_fresnel(m, lambda_nm, cos_h);
         rgb += v * jac * wave_srgb(m, lambda_nm);
     }
     return max(rgb, vec3<f32>(0.0));
@@ -361,7 +346,11 @@ fn wave_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
     if (!(r2 < 1.0)) {
         return no_sample();
     }
-    return reflected(m, wo, vec3<f32>(xy, sqrt(1.0 - r2)), FLAG_GLOSSY);
+    let wi = vec3<f32>(xy, sqrt(1.0 - r2));
+    // pdf before f: this order avoids Mesa 22's loop miscompile
+    // (docs/gpu.md), which hit a pdf evaluated after f here.
+    let pdf = wave_pdf(m, wo, wi);
+    return BsdfSample(wi, wave_f(m, wo, wi), pdf, FLAG_REFLECTION | FLAG_GLOSSY, 1.0, true);
 }
 
 // The solid-angle density of wave_sample (GaborSurface::pdf): the lobe
