@@ -473,7 +473,7 @@ impl GpuMaterials {
     /// rows (lambda um, n, k)]`, and `idx[3]` 1 when culling by the leaves.
     /// The mapping code is the planar axis (0, 1, 2), 3 spherical or 4
     /// cylindrical; `d` and `e` are filled per shading point by
-    /// `wave_place` (`wave.wgsl`), as `Wave::at_point` does on the CPU.
+    /// `place_material` (`wave.wgsl`), as `Wave::at_point` does on the CPU.
     pub fn new(materials: &[Material]) -> Result<Self, usize> {
         let mut out = GpuMaterials {
             materials: vec![GpuMaterial::default(); materials.len()],

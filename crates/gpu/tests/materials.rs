@@ -522,14 +522,17 @@ fn wave_matches_the_cpu() {
         assert!(f_scale > 0.0 && p_scale > 0.0, "{name}: a blank material");
         let near =
             |g: f64, c: f64, scale: f64, rel: f64| (g - c).abs() <= rel * c.abs().max(1e-2 * scale);
+        let near_rgb = |g: [f32; 4], c: Rgb, rel: f64| {
+            near(g[0] as f64, c.r, f_scale, rel)
+                && near(g[1] as f64, c.g, f_scale, rel)
+                && near(g[2] as f64, c.b, f_scale, rel)
+        };
         let (mut f_ok, mut pdf_ok, mut same, mut both, mut s_ok) = (0, 0, 0, 0, 0);
         for (i, k) in range.enumerate() {
             let (wo, _, u) = inputs[k];
             let a = answers[k];
             let (f, pdf) = cpu[i];
-            f_ok += (near(a.f[0] as f64, f.r, f_scale, 1e-2)
-                && near(a.f[1] as f64, f.g, f_scale, 1e-2)
-                && near(a.f[2] as f64, f.b, f_scale, 1e-2)) as usize;
+            f_ok += near_rgb(a.f, f, 1e-2) as usize;
             pdf_ok += near(a.f[3] as f64, pdf, p_scale, 1e-2) as usize;
             let s = placed[k]
                 .sample(wo, u[0], [u[1], u[2]])
@@ -541,9 +544,7 @@ fn wave_matches_the_cpu() {
                 let gw = DVec3::new(a.s_wi[0] as f64, a.s_wi[1] as f64, a.s_wi[2] as f64);
                 let good = (gw - s.wi).length() < 2e-3
                     && near(a.s_wi[3] as f64, s.pdf, p_scale, 2e-2)
-                    && near(a.s_f[0] as f64, s.f.r, f_scale, 2e-2)
-                    && near(a.s_f[1] as f64, s.f.g, f_scale, 2e-2)
-                    && near(a.s_f[2] as f64, s.f.b, f_scale, 2e-2);
+                    && near_rgb(a.s_f, s.f, 2e-2);
                 s_ok += good as usize;
             }
         }

@@ -112,18 +112,15 @@ impl Material {
         footprint: Option<f64>,
         xi: impl FnOnce() -> f64,
     ) -> Cow<'_, Material> {
-        match self {
-            Material::Wave(w) => Cow::Owned(Material::Wave(w.at_point(p, footprint, xi()))),
-            // A mix places its spatially varying components (one draw of
-            // `xi` shared by them), and is borrowed when it has none.
-            Material::Mix(_) if self.varies_in_space() => {
-                Cow::Owned(self.placed(p, footprint, xi()))
-            }
-            _ => Cow::Borrowed(self),
+        if self.varies_in_space() {
+            Cow::Owned(self.placed(p, footprint, xi()))
+        } else {
+            Cow::Borrowed(self)
         }
     }
 
-    /// [`Material::at_point`] with the random number drawn.
+    /// [`Material::at_point`] with the random number drawn (one draw
+    /// shared by a mix's components).
     fn placed(&self, p: DVec3, footprint: Option<f64>, xi: f64) -> Material {
         match self {
             Material::Wave(w) => Material::Wave(w.at_point(p, footprint, xi)),
