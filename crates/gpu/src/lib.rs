@@ -216,6 +216,27 @@ pub enum GpuError {
     /// Invalid camera or film.
     #[error("{0}")]
     Setup(String),
+    /// Scene data larger than the adapter can bind in one storage buffer.
+    #[error("{what} takes {}, more than this adapter binds in one storage buffer ({}){hint}", size(*.bytes), size(*.limit))]
+    TooLarge {
+        /// What overflows, in the user's terms.
+        what: String,
+        /// Its size in bytes.
+        bytes: u64,
+        /// The adapter's limit in bytes.
+        limit: u64,
+        /// A cause to look at, or empty.
+        hint: String,
+    },
+}
+
+/// A byte count for messages: KiB below 1 MiB, else MiB (one decimal).
+fn size(bytes: u64) -> String {
+    if bytes < 1 << 20 {
+        format!("{:.1} KiB", bytes as f64 / 1024.0)
+    } else {
+        format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
+    }
 }
 
 /// An open device with the compiled kernels.
@@ -480,6 +501,12 @@ impl Gpu {
             layout: &self.render_layout().0,
             entries: &entries,
         })
+    }
+
+    /// The largest storage buffer this device binds (and creates).
+    fn binding_limit(&self) -> u64 {
+        let l = self.device.limits();
+        (l.max_storage_buffer_binding_size as u64).min(l.max_buffer_size)
     }
 
     fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {

@@ -25,6 +25,46 @@ pub fn unsupported_material(scene: &Scene) -> Option<(String, String)> {
     })
 }
 
+/// Checks that the material data of `used` (sampling tables, measured
+/// BRDFs, factored textures, wave heightfields), laid out as `materials`,
+/// fits in one storage buffer of at most `limit` bytes; if not, the error
+/// names the material whose own data is largest, the usual cause being a
+/// large heightfield (12 bytes per texel on the GPU: height and slopes).
+pub fn material_data_fits(
+    materials: &GpuMaterials,
+    used: &[isolux_materials::Material],
+    names: &[String],
+    limit: u64,
+) -> Result<(), GpuError> {
+    let bytes = std::mem::size_of_val(&materials.data[..]) as u64;
+    if bytes <= limit {
+        return Ok(());
+    }
+    // Only on failure: each material's data on its own.
+    let own = |m: &isolux_materials::Material| {
+        GpuMaterials::new(std::slice::from_ref(m))
+            .map_or(0, |g| std::mem::size_of_val(&g.data[..]) as u64)
+    };
+    let largest = used
+        .iter()
+        .zip(names)
+        .map(|(m, n)| (own(m), n))
+        .max_by_key(|&(b, _)| b);
+    let hint = match largest {
+        Some((b, name)) if b > 0 => format!(
+            "; the largest is material \"{name}\" ({}): give it a smaller heightfield or table",
+            crate::size(b)
+        ),
+        _ => String::new(),
+    };
+    Err(GpuError::TooLarge {
+        what: "the scene's material data".into(),
+        bytes,
+        limit,
+        hint,
+    })
+}
+
 /// Replaces every material of `scene` that is not on the GPU by a grey
 /// (0.5) diffuse, for comparisons and benchmarks that must run anyway;
 /// returns the replaced materials' names.
@@ -272,6 +312,35 @@ impl Gpu {
             env_size,
         };
 
+        let limit = self.binding_limit();
+        material_data_fits(&materials, &used, &scene.material_names, limit)?;
+        let npix = film.width as u64 * film.height as u64;
+        for (what, bytes) in [
+            (
+                "the environment map".to_string(),
+                std::mem::size_of_val(&texels[..]) as u64,
+            ),
+            (
+                format!(
+                    "the {} x {} film's accumulation buffer",
+                    film.width, film.height
+                ),
+                npix * if with_aov { 32 } else { 16 },
+            ),
+            (
+                "the geometry's perturbations".to_string(),
+                std::mem::size_of_val(&geo.perturbations[..]) as u64,
+            ),
+        ] {
+            if bytes > limit {
+                return Err(GpuError::TooLarge {
+                    what,
+                    bytes,
+                    limit,
+                    hint: String::new(),
+                });
+            }
+        }
         let objects = self.storage("objects", bytemuck::cast_slice(&geo.objects));
         let perts = self.storage("perturbations", bytemuck::cast_slice(&geo.perturbations));
         let mats = self.storage("materials", bytemuck::cast_slice(&materials.materials));
@@ -279,7 +348,6 @@ impl Gpu {
         let lights = self.storage("lights", bytemuck::cast_slice(&lights));
         let texels = self.storage("env texels", bytemuck::cast_slice(&texels));
         let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf));
-        let npix = film.width as u64 * film.height as u64;
         let accum = self.output("accumulation", npix * 16);
         let params_buf = self.uniform("params", &params);
         let levels = self.storage("env levels", bytemuck::cast_slice(&levels));
@@ -587,5 +655,39 @@ mod tests {
                 assert!((p - want).abs() < 1e-6, "{x} {y} {p} {want}");
             }
         }
+    }
+
+    #[test]
+    fn oversized_material_data_is_refused_naming_the_largest() {
+        use isolux_materials::wave::{Wave, WaveFresnel};
+        use isolux_materials::{Diffuse, Material};
+        let heights: Vec<f32> = (0..64 * 48).map(|i| (i % 5) as f32 * 0.01).collect();
+        let field = isolux_wave::Heightfield::new(64, 48, 0.5, heights).unwrap();
+        let surface = std::sync::Arc::new(isolux_wave::GaborSurface::new(field));
+        let used = vec![
+            Material::Diffuse(Diffuse {
+                reflectance: Rgb::splat(0.5),
+            }),
+            Material::Wave(Wave::new(
+                surface,
+                isolux_wave::Model::Ghs,
+                WaveFresnel::None,
+            )),
+        ];
+        let names = vec!["paint".to_string(), "film".to_string()];
+        let g = GpuMaterials::new(&used).unwrap();
+        let bytes = 4 * g.data.len() as u64;
+        // 12 bytes per texel at least.
+        assert!(bytes >= 12 * 64 * 48);
+        assert!(material_data_fits(&g, &used, &names, bytes).is_ok());
+        let e = material_data_fits(&g, &used, &names, bytes - 4).unwrap_err();
+        let text = e.to_string();
+        assert!(matches!(e, GpuError::TooLarge { .. }), "{text}");
+        assert!(text.contains("material \"film\""), "{text}");
+        assert!(
+            text.starts_with("the scene's material data takes ")
+                && text.contains(" KiB, more than"),
+            "{text}"
+        );
     }
 }

@@ -65,6 +65,15 @@ impl Camera {
             height: height as f64,
         })
     }
+
+    /// Width of one pixel's footprint at distance `t` along a camera ray,
+    /// for an image `height` pixels tall: the vertical field of view
+    /// divided among the rows, times the distance (`2 t tan(fov_y / 2) /
+    /// height`). Spatially varying materials (wave optics) narrow their
+    /// query to it; the GPU's `pixel_footprint` mirrors it.
+    pub fn pixel_footprint(&self, t: f64, height: u32) -> f64 {
+        t * 2.0 * (0.5 * self.fov_y.to_radians()).tan() / height.max(1) as f64
+    }
 }
 
 impl CameraRig {
@@ -118,5 +127,22 @@ mod tests {
         // Top edge is at +fov/2.
         let top = cam.ray(100.0, 0.0);
         assert!((top.dir.y.atan2(-top.dir.z).to_degrees() - 20.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn pixel_footprint_is_the_spacing_of_neighbouring_rays() {
+        // Near the image centre, two rays one row apart, followed to
+        // distance t, are one footprint apart.
+        let camera = Camera::default();
+        let cam = camera.rig(200, 100).unwrap();
+        let t = 3.0;
+        let a = cam.ray(100.0, 49.5).at(t);
+        let b = cam.ray(100.0, 50.5).at(t);
+        let fp = camera.pixel_footprint(t, 100);
+        assert!(
+            ((a - b).length() - fp).abs() < 1e-4 * fp,
+            "{} vs {fp}",
+            (a - b).length()
+        );
     }
 }

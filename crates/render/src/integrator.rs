@@ -340,10 +340,8 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
         // Spatially varying materials (wave optics) are placed at the hit:
         // camera rays narrow their query to the pixel footprint, the
         // angle of one pixel times the distance.
-        let footprint = (depth == 0).then(|| {
-            hit.t * 2.0 * (0.5 * scene.camera.fov_y.to_radians()).tan()
-                / scene.film.height.max(1) as f64
-        });
+        let footprint =
+            (depth == 0).then(|| scene.camera.pixel_footprint(hit.t, scene.film.height));
         let placed = scene.materials[scene.object_material[obj]]
             .at_point(hit.p, footprint, || rng.next_f64());
         let material: &isolux_materials::Material = &placed;

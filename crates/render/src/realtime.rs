@@ -227,8 +227,7 @@ pub fn realtime_radiance(
     let Some((obj, hit)) = scene.geometry.intersect(&ray, 0.0, f64::INFINITY) else {
         return (scene.environment.eval(ray.dir), None);
     };
-    let footprint = hit.t * 2.0 * (0.5 * scene.camera.fov_y.to_radians()).tan()
-        / scene.film.height.max(1) as f64;
+    let footprint = scene.camera.pixel_footprint(hit.t, scene.film.height);
     let placed =
         scene.materials[scene.object_material[obj]]
             .at_point(hit.p, Some(footprint), || rng.next_f64());
