@@ -9,12 +9,16 @@
 //! resolves depth only to 1/512 of the box. fidget's shape is `-F'` (it is
 //! negative inside).
 //!
-//! Run: `cargo run --release -p isolux-fidget-bench [-- SIZE]`.
+//! Isolux casts its rays in tiles of 8 x 8, each culled once through its
+//! beam (`Object::cull`), as fidget prunes per tile; `--per-ray` walks the
+//! BVH for every ray instead.
+//!
+//! Run: `cargo run --release -p isolux-fidget-bench [-- SIZE] [--per-ray]`.
 
 use fidget::context::Tree;
 use fidget::jit::JitShape;
 use fidget::render::{RenderHints, ThreadPool, VoxelRenderConfig, VoxelSize};
-use isolux_geometry::samples::{bumpy_sphere, cast_rows, fibonacci_sphere, BUMP_FACTOR};
+use isolux_geometry::samples::{bumpy_sphere, cast_rows, fibonacci_sphere, BUMP_FACTOR, TILE};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -45,10 +49,13 @@ fn best(repeat: usize, mut f: impl FnMut() -> usize) -> (f64, usize) {
 
 fn main() {
     let size: u32 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
+        .skip(1)
+        .find_map(|s| s.parse().ok())
         .unwrap_or(1024);
     let repeat = 3;
+    // Isolux casts in tiles of TILE x TILE rays culled together (as fidget
+    // prunes per tile); `--per-ray` walks the BVH for every ray instead.
+    let coherent = !std::env::args().any(|a| a == "--per-ray");
     let threads = rayon::current_num_threads();
     let single = ThreadPool::Custom(
         rayon::ThreadPoolBuilder::new()
@@ -63,11 +70,11 @@ fn main() {
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for bumps in [0usize, 16, 64, 256] {
         let obj = bumpy_sphere(bumps);
-        let (i1, ih) = best(repeat, || cast_rows(&obj, size, 0..size));
+        let (i1, ih) = best(repeat, || cast_rows(&obj, size, 0..size, coherent));
         let (in_, _) = best(repeat, || {
-            (0..size)
+            (0..size.div_ceil(TILE))
                 .into_par_iter()
-                .map(|y| cast_rows(&obj, size, y..y + 1))
+                .map(|b| cast_rows(&obj, size, b * TILE..((b + 1) * TILE).min(size), coherent))
                 .sum()
         });
 

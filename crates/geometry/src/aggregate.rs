@@ -1,5 +1,6 @@
 //! The set of objects of a scene, with a BVH over their boxes.
 
+use crate::beam::Beam;
 use crate::bvh::Bvh;
 use crate::object::{Hit, Object};
 use isolux_core::Ray;
@@ -12,6 +13,28 @@ pub struct Aggregate {
     bvh: Bvh,
     bounded: Vec<u32>,
     unbounded: Vec<u32>,
+}
+
+/// The objects and perturbations a beam of rays may meet, from
+/// [`Aggregate::cull`].
+#[derive(Clone, Debug, Default)]
+pub struct Culled {
+    /// `(object, first item, end item)` per object the beam may meet.
+    objects: Vec<(u32, u32, u32)>,
+    /// Perturbation lists of those objects, concatenated.
+    items: Vec<u32>,
+}
+
+impl Culled {
+    /// How many objects the beam may meet.
+    pub fn object_count(&self) -> usize {
+        self.objects.len()
+    }
+
+    /// How many perturbations (over all objects) the beam may meet.
+    pub fn perturbation_count(&self) -> usize {
+        self.items.len()
+    }
 }
 
 impl Aggregate {
@@ -59,6 +82,43 @@ impl Aggregate {
             }
             true
         });
+        best
+    }
+
+    /// Fills `out` with the objects, and their perturbations, that some
+    /// ray of `beam` may meet (see [`crate::beam`]); `out` is cleared
+    /// first, so one [`Culled`] serves tile after tile without allocating.
+    pub fn cull(&self, beam: &Beam, out: &mut Culled) {
+        out.objects.clear();
+        out.items.clear();
+        for (i, o) in self.objects.iter().enumerate() {
+            if beam.meets_box(&o.bbox()) {
+                let first = out.items.len() as u32;
+                o.cull(beam, &mut out.items);
+                out.objects.push((i as u32, first, out.items.len() as u32));
+            }
+        }
+    }
+
+    /// [`Aggregate::intersect`] for a ray inside the beam that `culled`
+    /// was filled for: the same closest hit, tested against the culled
+    /// objects and perturbations only.
+    pub fn intersect_culled(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        culled: &Culled,
+    ) -> Option<(usize, Hit)> {
+        let mut best: Option<(usize, Hit)> = None;
+        let mut t1 = t_max;
+        for &(i, a, b) in &culled.objects {
+            let items = &culled.items[a as usize..b as usize];
+            if let Some(h) = self.objects[i as usize].intersect_culled(ray, t_min, t1, items) {
+                t1 = h.t;
+                best = Some((i as usize, h));
+            }
+        }
         best
     }
 

@@ -15,12 +15,14 @@
 #![warn(missing_docs)]
 
 pub mod aggregate;
+pub mod beam;
 pub mod bvh;
 pub mod object;
 pub mod poly;
 pub mod quadric;
 pub mod samples;
 
-pub use aggregate::Aggregate;
+pub use aggregate::{Aggregate, Culled};
+pub use beam::Beam;
 pub use object::{GeometryError, Hit, Object, Perturbation};
 pub use quadric::Quadric;

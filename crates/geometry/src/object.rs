@@ -33,6 +33,7 @@
 //! `bounds` clips the *surface* (open surfaces such as a paraboloid cut by a
 //! box show their inside through the cut); it does not add caps.
 
+use crate::beam::Beam;
 use crate::bvh::Bvh;
 use crate::poly::{quadratic_crossings, Poly};
 use crate::quadric::Quadric;
@@ -82,8 +83,18 @@ pub struct Object {
     bounded: Vec<u32>,
     /// Perturbations with unbounded support.
     unbounded: Vec<u32>,
+    /// Bounding sphere of each BVH item's support (for [`Object::cull`]).
+    spheres: Vec<(DVec3, f64)>,
     bvh: Bvh,
     bbox: Aabb,
+}
+
+/// Which bounded perturbations a ray considers: all (through the BVH) or
+/// a list culled for its beam.
+#[derive(Clone, Copy, Debug)]
+enum Items<'a> {
+    All,
+    Only(&'a [u32]),
 }
 
 /// A perturbation the current ray crosses.
@@ -111,6 +122,7 @@ impl Object {
         }
         let mut bbox = base.positive_bounds().unwrap_or(Aabb::EVERYTHING);
         let mut support = Vec::new();
+        let mut spheres = Vec::new();
         let mut bounded = Vec::new();
         let mut unbounded = Vec::new();
         for (i, p) in perturbations.iter().enumerate() {
@@ -124,6 +136,8 @@ impl Object {
                         bbox = bbox.union(&b);
                     }
                     support.push(b);
+                    let sphere = p.quadric.positive_bounding_sphere();
+                    spheres.push(sphere.unwrap_or((b.center(), 0.5 * (b.max - b.min).length())));
                     bounded.push(i as u32);
                 }
                 None => {
@@ -151,6 +165,7 @@ impl Object {
             perturbations,
             bounded,
             unbounded,
+            spheres,
             bvh,
             bbox,
         })
@@ -209,7 +224,46 @@ impl Object {
     /// before `L`); only when `[t0, L]` holds no hit (a dent at the base
     /// surface, say) is the rest of the ray gathered and searched.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+        self.intersect_in(ray, t_min, t_max, Items::All)
+    }
+
+    /// Appends to `out` the perturbations whose support may meet a ray of
+    /// `beam` (those with unbounded support are always considered and not
+    /// listed), for [`Object::intersect_culled`].
+    pub fn cull(&self, beam: &Beam, out: &mut Vec<u32>) {
+        out.extend((0..self.spheres.len() as u32).filter(|&k| {
+            let (c, r) = self.spheres[k as usize];
+            beam.meets_sphere(c, r)
+        }));
+    }
+
+    /// [`Object::intersect`] for a ray inside a beam, considering only the
+    /// perturbations that [`Object::cull`] listed for that beam: the same
+    /// hit, without the BVH walk.
+    pub fn intersect_culled(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        culled: &[u32],
+    ) -> Option<Hit> {
+        self.intersect_in(ray, t_min, t_max, Items::Only(culled))
+    }
+
+    fn intersect_in(&self, ray: &Ray, t_min: f64, t_max: f64, items: Items) -> Option<Hit> {
         let (t0, t1) = self.bbox.clip(ray, t_min, t_max)?;
+        let none = match items {
+            Items::All => self.spheres.is_empty(),
+            Items::Only(list) => list.is_empty(),
+        };
+        if none && self.unbounded.is_empty() {
+            // No perturbation can be met: the base quadric alone, in
+            // closed form (a plain quadric, or a tile of rays between bumps).
+            let t = quadratic_crossings(self.base.along(ray))
+                .into_iter()
+                .find(|&r| r >= t0 && r <= t1)?;
+            return Some(self.hit_at(ray, t, &[]));
+        }
         // The base quadric's crossings, once per ray: they place the split
         // and answer every segment without active perturbations.
         let base_roots = quadratic_crossings(self.base.along(ray));
@@ -223,7 +277,17 @@ impl Object {
             if hi <= lo && !(lo == t0 && hi == t1) {
                 continue;
             }
-            self.gather(ray, t0, lo, hi, &mut cands);
+            self.gather(ray, t0, lo, hi, items, &mut cands);
+            if cands.is_empty() {
+                // No perturbation on [lo, hi]: the base quadric alone.
+                if let Some(t) = base_roots.iter().copied().find(|&r| r >= lo && r <= hi) {
+                    return Some(self.hit_at(ray, t, &cands));
+                }
+                if split >= t1 {
+                    break;
+                }
+                continue;
+            }
             let mut breaks: SmallVec<[f64; 32]> = SmallVec::new();
             for c in &cands {
                 for x in [c.lo, c.hi] {
@@ -260,13 +324,20 @@ impl Object {
 
     /// Adds the perturbations active somewhere on `[lo, hi]` and not yet
     /// gathered (those active before `lo` already are, when `lo > t0`).
-    fn gather(&self, ray: &Ray, t0: f64, lo: f64, hi: f64, cands: &mut SmallVec<[Candidate; 16]>) {
+    fn gather(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        lo: f64,
+        hi: f64,
+        items: Items,
+        cands: &mut SmallVec<[Candidate; 16]>,
+    ) {
         let fresh = lo <= t0;
-        let mut tt = hi;
         // Bounded supports are ellipsoids: `q(t)` has a negative leading
         // coefficient, so the perturbation is active exactly between the
         // two roots of `q` (none: never active).
-        self.bvh.traverse(ray, lo, &mut tt, |item, _| {
+        let mut visit = |item: u32| {
             let i = self.bounded[item as usize];
             let q = self.perturbations[i as usize].quadric.along(ray);
             let r = quadratic_crossings(q);
@@ -283,7 +354,18 @@ impl Object {
                 });
             }
             true
-        });
+        };
+        match items {
+            Items::All => {
+                let mut tt = hi;
+                self.bvh.traverse(ray, lo, &mut tt, |item, _| visit(item));
+            }
+            Items::Only(list) => {
+                for &item in list {
+                    visit(item);
+                }
+            }
+        }
         if fresh {
             // Unbounded supports: active where `q > 0`, tested per segment.
             for &i in &self.unbounded {

@@ -240,6 +240,34 @@ impl Quadric {
         let pad = half * 1e-9 + DVec3::splat(1e-12 * (1.0 + centre.abs().max_element()));
         Some(Aabb::new(centre - half - pad, centre + half + pad))
     }
+
+    /// A sphere `(centre, radius)` containing the positive set when it is
+    /// bounded and not empty (an ellipsoid), `None` otherwise.
+    ///
+    /// The centre is the ellipsoid's, `m = -M^-1 b`; the radius is
+    /// `sqrt(k lambda)` with `k = Q(m)` and `lambda` a Gershgorin bound on
+    /// the largest eigenvalue of `(-M)^-1` (exact for axis-aligned
+    /// ellipsoids and spheres), or the half-diagonal of
+    /// [`Quadric::positive_bounds`] when that is smaller. Padded like the box,
+    /// so that culling by it never loses a boundary root.
+    pub fn positive_bounding_sphere(&self) -> Option<(DVec3, f64)> {
+        let b = self.positive_bounds()?;
+        if b.is_empty() {
+            return None;
+        }
+        let inv = (-self.m).inverse();
+        let centre = inv * self.b;
+        let k = self.eval(centre).max(0.0);
+        let row = |i: usize| {
+            let r = inv.row(i);
+            r[i] + (0..3).filter(|&j| j != i).map(|j| r[j].abs()).sum::<f64>()
+        };
+        let lambda = row(0).max(row(1)).max(row(2));
+        let diagonal = 0.5 * (b.max - b.min).length();
+        let radius = (k * lambda).sqrt().min(diagonal);
+        let pad = radius * 1e-9 + 1e-12 * (1.0 + centre.abs().max_element());
+        Some((centre, radius + pad))
+    }
 }
 
 #[cfg(test)]
@@ -249,6 +277,42 @@ mod tests {
 
     fn close(a: f64, b: f64) -> bool {
         (a - b).abs() < 1e-9 * (1.0 + a.abs().max(b.abs()))
+    }
+
+    #[test]
+    fn bounding_spheres_contain_the_positive_set() {
+        // Points on the boundary Q = 0 (found by bisection along random
+        // directions from the centre) lie inside the sphere, and for a
+        // sphere the bound is exact.
+        let q = Quadric::sphere(DVec3::new(0.3, -0.2, 1.0), 0.7);
+        let (c, r) = q.positive_bounding_sphere().unwrap();
+        assert!((c - DVec3::new(0.3, -0.2, 1.0)).length() < 1e-12 && (r - 0.7).abs() < 1e-8);
+        let rot = DMat3::from_rotation_y(0.7) * DMat3::from_rotation_x(-0.4);
+        let e = Quadric::ellipsoid(DVec3::new(1.0, 2.0, -1.0), DVec3::new(0.5, 1.5, 0.2), rot);
+        let (c, r) = e.positive_bounding_sphere().unwrap();
+        assert!(r >= 1.5 && r < 1.6 * 3f64.sqrt(), "{r}");
+        let mut rng = isolux_core::Pcg32::new(3, 1);
+        for _ in 0..2000 {
+            let d = isolux_core::sampling::uniform_sphere(rng.next_2d());
+            let (mut lo, mut hi) = (0.0, 10.0);
+            for _ in 0..80 {
+                let m = 0.5 * (lo + hi);
+                if e.eval(c + m * d) >= 0.0 {
+                    lo = m
+                } else {
+                    hi = m
+                }
+            }
+            assert!(lo <= r, "{lo} > {r}");
+        }
+        // Unbounded or empty positive sets have none.
+        assert!(Quadric::cylinder(DVec3::ZERO, DVec3::Y, 1.0)
+            .positive_bounding_sphere()
+            .is_none());
+        assert!(Quadric::sphere(DVec3::ZERO, 1.0)
+            .scaled(-1.0)
+            .positive_bounding_sphere()
+            .is_none());
     }
 
     #[test]

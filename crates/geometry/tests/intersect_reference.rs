@@ -11,7 +11,7 @@
 //!   differences of the reference `F'`.
 
 use isolux_core::{sampling, Aabb, DMat3, DVec3, Pcg32, Ray};
-use isolux_geometry::{Object, Perturbation, Quadric};
+use isolux_geometry::{Aggregate, Beam, Culled, Object, Perturbation, Quadric};
 use rayon::prelude::*;
 
 /// Reference quadric value from raw coefficients.
@@ -301,6 +301,81 @@ fn hundred_thousand_random_rays_match_brute_force() {
     let t = run(1000, 100, 2000, 20261122);
     assert!(t.rays >= 100_000);
     check(&t);
+}
+
+/// Coherent culling (`Aggregate::cull` + `intersect_culled`) finds, for
+/// every ray inside its tile's beam, the hit that the per-ray BVH walk
+/// finds (itself checked against the brute force above): the same object,
+/// `t` to 1e-9 relative (candidates may be summed in another order), and
+/// some tiles must actually cull something.
+#[test]
+fn tile_culled_rays_find_the_per_ray_hit() {
+    let mut rng = Pcg32::new(99, 4);
+    let (mut rays, mut hits, mut culled_away) = (0, 0, 0);
+    let mut culled = Culled::default();
+    for scene in 0..60 {
+        let objects: Vec<Object> = (0..1 + rng.next_below(3))
+            .map(|_| random_object(&mut rng).0)
+            .collect();
+        let total: usize = objects.iter().map(|o| o.perturbations().len()).sum();
+        let agg = Aggregate::new(objects);
+        for _ in 0..40 {
+            // A tile: a pinhole cone (even scenes) or parallel rays (odd).
+            let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 1.5;
+            let eye =
+                target + sampling::uniform_sphere(rng.next_2d()) * (2.0 + 3.0 * rng.next_f64());
+            let axis = (target - eye).normalize();
+            let (u, v) = axis.any_orthonormal_pair();
+            let w = 0.02 + 0.3 * rng.next_f64();
+            let grid = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
+            let pinhole = scene % 2 == 0;
+            let ray_at = |a: f64, b: f64| {
+                if pinhole {
+                    Ray::new(eye, (axis + w * (a * u + b * v)).normalize())
+                } else {
+                    Ray::new(eye + 2.0 * w * (a * u + b * v), axis)
+                }
+            };
+            let beam = if pinhole {
+                Beam::cone(eye, &grid.map(|(a, b)| ray_at(a, b).dir))
+            } else {
+                Beam::cylinder(axis, &grid.map(|(a, b)| ray_at(a, b).origin))
+            }
+            .expect("a narrow tile has a beam");
+            agg.cull(&beam, &mut culled);
+            culled_away += total - culled.perturbation_count().min(total);
+            for _ in 0..25 {
+                let ray = ray_at(2.0 * rng.next_f64() - 1.0, 2.0 * rng.next_f64() - 1.0);
+                let want = agg.intersect(&ray, 0.0, f64::INFINITY);
+                let got = agg.intersect_culled(&ray, 0.0, f64::INFINITY, &culled);
+                rays += 1;
+                match (want, got) {
+                    (None, None) => {}
+                    (Some((i, a)), Some((j, b))) => {
+                        hits += 1;
+                        assert_eq!(i, j, "{ray:?}");
+                        assert!(
+                            (a.t - b.t).abs() <= 1e-9 * a.t.abs().max(1.0),
+                            "{ray:?} {} {}",
+                            a.t,
+                            b.t
+                        );
+                        assert!((a.n - b.n).length() < 1e-6, "{ray:?}");
+                    }
+                    (a, b) => panic!(
+                        "{ray:?}: per ray {:?}, culled {:?}",
+                        a.map(|h| h.1.t),
+                        b.map(|h| h.1.t)
+                    ),
+                }
+            }
+        }
+    }
+    assert!(hits > rays / 4, "{hits} of {rays}");
+    assert!(
+        culled_away > 1000,
+        "culling removed only {culled_away} perturbations"
+    );
 }
 
 #[test]

@@ -3,7 +3,7 @@
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
 use isolux_geometry::{
-    samples::{bumpy_sphere, cast_rows},
+    samples::{bumpy_sphere, cast_rows, TILE},
     Object,
 };
 use rayon::prelude::*;
@@ -56,11 +56,12 @@ pub struct BenchArgs {
     pub f64: bool,
 }
 
-/// Primary rays of [`cast_rows`] over the whole image, rows in parallel.
-pub fn cast_primary(obj: &Object, size: u32) -> usize {
-    (0..size)
+/// Primary rays of [`cast_rows`] over the whole image, bands of
+/// [`TILE`] rows in parallel; `coherent` culls per tile.
+pub fn cast_primary(obj: &Object, size: u32, coherent: bool) -> usize {
+    (0..size.div_ceil(TILE))
         .into_par_iter()
-        .map(|y| cast_rows(obj, size, y..y + 1))
+        .map(|b| cast_rows(obj, size, b * TILE..((b + 1) * TILE).min(size), coherent))
         .sum()
 }
 
@@ -91,20 +92,33 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 "primary rays, {}x{} orthographic, sphere r = 0.6 with bumps r = 0.2 (best of {})",
                 a.size, a.size, a.repeat
             );
-            println!("| bumps | hits | 1 thread (ms) | {threads} threads (ms) | Mrays/s ({threads} threads) |");
-            println!("|---:|---:|---:|---:|---:|");
+            println!(
+                "per ray: a BVH walk per ray; tiles: one culling per {TILE} x {TILE} rays (times in ms)"
+            );
+            println!("| bumps | hits | per ray, 1 thread | tiles, 1 thread | per ray, {threads} threads | tiles, {threads} threads | Mrays/s (tiles, {threads} threads) |");
+            println!("|---:|---:|---:|---:|---:|---:|---:|");
             let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
             for &n in &a.bumps {
                 let obj = bumpy_sphere(n);
-                let (t1, hits) =
-                    best_of(a.repeat, || single.install(|| cast_primary(&obj, a.size)));
-                let (tn, _) = best_of(a.repeat, || cast_primary(&obj, a.size));
+                let one = |coherent| {
+                    best_of(a.repeat, || {
+                        single.install(|| cast_primary(&obj, a.size, coherent))
+                    })
+                };
+                let all = |coherent| best_of(a.repeat, || cast_primary(&obj, a.size, coherent));
+                let ((r1, hits), (c1, hits_c)) = (one(false), one(true));
+                let ((rn, _), (cn, _)) = (all(false), all(true));
+                if hits != hits_c {
+                    bail!("{n} bumps: per-ray casting hit {hits} pixels, tiles {hits_c}");
+                }
                 let rays = (a.size as f64).powi(2);
                 println!(
-                    "| {n} | {hits} | {:.1} | {:.1} | {:.2} |",
-                    t1 * 1e3,
-                    tn * 1e3,
-                    rays / tn / 1e6
+                    "| {n} | {hits} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} |",
+                    r1 * 1e3,
+                    c1 * 1e3,
+                    rn * 1e3,
+                    cn * 1e3,
+                    rays / cn / 1e6
                 );
             }
         }

@@ -35,7 +35,7 @@
 
 use crate::Scene;
 use isolux_core::{sampling::power_heuristic, DVec3, Frame, Pcg32, Ray, Rgb, PI};
-use isolux_geometry::Hit;
+use isolux_geometry::{Culled, Hit};
 use isolux_materials::subsurface::phase::sample_hg_cos;
 use isolux_materials::subsurface_material::SubsurfaceMode;
 use isolux_materials::{Bsdf, BxdfFlags, BxdfModel, Subsurface};
@@ -275,7 +275,21 @@ pub fn offset_origin(p: DVec3, n: DVec3, w: DVec3) -> DVec3 {
 }
 
 /// Radiance arriving along `ray` (from the camera), and the first hit.
-pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<FirstHit>) {
+pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<FirstHit>) {
+    radiance_culled(scene, ray, None, rng)
+}
+
+/// [`radiance`] for a camera ray inside the beam that `primary` was culled
+/// for ([`isolux_geometry::Aggregate::cull`]): its first intersection
+/// tests only the culled objects and perturbations (the same hit, found
+/// faster); the rest of the path is unchanged.
+pub fn radiance_culled(
+    scene: &Scene,
+    mut ray: Ray,
+    primary: Option<&Culled>,
+    rng: &mut Pcg32,
+) -> (Rgb, Option<FirstHit>) {
+    let mut primary = primary;
     let mut l = Rgb::BLACK;
     let mut beta = Rgb::WHITE;
     // Pdf of the BSDF sample that produced `ray` (None: camera or delta).
@@ -301,7 +315,10 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<Fi
                 t_max = -(1.0 - rng.next_f64()).ln() / st;
             }
         }
-        let found = scene.geometry.intersect(&ray, 0.0, t_max);
+        let found = match primary.take() {
+            Some(culled) => scene.geometry.intersect_culled(&ray, 0.0, t_max, culled),
+            None => scene.geometry.intersect(&ray, 0.0, t_max),
+        };
         if let (None, Some(m), Some(c)) = (found, &inside, path_channel) {
             if t_max.is_finite() {
                 // Scattering event inside the medium.

@@ -41,6 +41,7 @@ use crate::environment::{dir_to_uv, EnvMap};
 use crate::integrator::{offset_origin, FirstHit};
 use crate::{Environment, Scene};
 use isolux_core::{DVec3, Pcg32, Ray, Rgb, PI};
+use isolux_geometry::Culled;
 use isolux_materials::{Bsdf, BxdfModel};
 
 /// Fewest samples per pixel of the real-time mode (the seed's 2 x 2 grid).
@@ -216,15 +217,25 @@ pub fn unsupported_realtime(scene: &Scene) -> Option<(String, String)> {
 }
 
 /// Radiance along a camera `ray` in the real-time mode, with `n` samples
-/// per pixel (see the module documentation), and the first hit.
+/// per pixel (see the module documentation), and the first hit. With
+/// `primary`, the ray lies in the beam it was culled for
+/// ([`isolux_geometry::Aggregate::cull`]) and the camera ray tests only
+/// the culled objects and perturbations.
 pub fn realtime_radiance(
     scene: &Scene,
     env: &RealtimeEnv,
     ray: Ray,
+    primary: Option<&Culled>,
     n: u32,
     rng: &mut Pcg32,
 ) -> (Rgb, Option<FirstHit>) {
-    let Some((obj, hit)) = scene.geometry.intersect(&ray, 0.0, f64::INFINITY) else {
+    let found = match primary {
+        Some(culled) => scene
+            .geometry
+            .intersect_culled(&ray, 0.0, f64::INFINITY, culled),
+        None => scene.geometry.intersect(&ray, 0.0, f64::INFINITY),
+    };
+    let Some((obj, hit)) = found else {
         return (scene.environment.eval(ray.dir), None);
     };
     let footprint = scene.camera.pixel_footprint(hit.t, scene.film.height);

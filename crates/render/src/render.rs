@@ -17,10 +17,11 @@
 //! prevent) is dropped and counted in [`RenderStats::rejected_samples`];
 //! no NaN or Inf reaches the image.
 
-use crate::integrator::radiance;
+use crate::integrator::radiance_culled;
 use crate::realtime::{realtime_radiance, RealtimeEnv};
 use crate::Scene;
 use isolux_core::{rng::mix64, Aovs, DVec3, Image, Pcg32, Rgb};
+use isolux_geometry::{Beam, Culled};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -102,6 +103,16 @@ pub fn render(
             let mut aov = options.aov.then(Aovs::default);
             let mut rejected = 0;
             let mut cells: Vec<u32> = Vec::with_capacity((m * n) as usize);
+            // Coherent culling: the tile's camera rays lie in the cone of
+            // its four corner rays; one list of the objects and
+            // perturbations that cone meets serves all their first hits.
+            let corners = [(x0, y0), (x0 + w, y0), (x0, y0 + h), (x0 + w, y0 + h)]
+                .map(|(x, y)| rig.ray(x as f64, y as f64).dir);
+            let mut culled = Culled::default();
+            let primary = Beam::cone(rig.basis()[0], &corners).map(|beam| {
+                scene.geometry.cull(&beam, &mut culled);
+                &culled
+            });
             for y in y0..y0 + h {
                 for x in x0..x0 + w {
                     let pixel = y as u64 * film.width as u64 + x as u64;
@@ -120,8 +131,8 @@ pub fn render(
                         let fy = y as f64 + ((c / m) as f64 + jy) / n as f64;
                         let ray = rig.ray(fx, fy);
                         let (l, first) = match &rt_env {
-                            Some(env) => realtime_radiance(scene, env, ray, spp, &mut rng),
-                            None => radiance(scene, ray, &mut rng),
+                            Some(env) => realtime_radiance(scene, env, ray, primary, spp, &mut rng),
+                            None => radiance_culled(scene, ray, primary, &mut rng),
                         };
                         if l.is_finite() && l.r >= 0.0 && l.g >= 0.0 && l.b >= 0.0 {
                             sum += l;
