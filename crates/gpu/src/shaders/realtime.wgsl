@@ -128,11 +128,24 @@ fn realtime(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = gid.y * width + gid.x;
+    let gm = params.film.z;
+    let gn = params.film.w;
+    let cells = gm * gn;
+    let seed = params.pass_info.z;
+    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
+    let s = params.pass_info.x;
     var acc = vec4<f32>(0.0);
-    if (params.pass_info.x > 0u) {
+    if (s > 0u) {
         acc = accum[pixel];
     }
-    let dir = camera_dir(gid.xy);
+    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
+    let c = (s + offset) % cells;
+    let j = rand2();
+    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
+    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
+    let sx = 2.0 * fx / f32(width) - 1.0;
+    let sy = 1.0 - 2.0 * fy / f32(height);
+    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
     let v = realtime_shade(params.origin.xyz, dir);
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
         acc = vec4<f32>(acc.rgb + v, acc.w);

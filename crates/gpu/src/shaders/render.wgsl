@@ -626,31 +626,6 @@ fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     return path.l;
 }
 
-// The unit direction of the camera ray of sample `pass_info.x` of pixel
-// `xy`: on the stratified sub-pixel grid of `film.z x film.w` cells, the
-// cell `(sample + offset) mod cells` with an offset random per pixel,
-// jittered inside the cell. Seeds the sample's random stream first (the
-// jitter is its first draw), so every entry point draws the same rays.
-fn camera_dir(xy: vec2<u32>) -> vec3<f32> {
-    let width = params.film.x;
-    let height = params.film.y;
-    let pixel = xy.y * width + xy.x;
-    let gm = params.film.z;
-    let gn = params.film.w;
-    let cells = gm * gn;
-    let seed = params.pass_info.z;
-    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
-    let s = params.pass_info.x;
-    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
-    let c = (s + offset) % cells;
-    let j = rand2();
-    let fx = f32(xy.x) + (f32(c % gm) + j.x) / f32(gm);
-    let fy = f32(xy.y) + (f32(c / gm) + j.y) / f32(gn);
-    let sx = 2.0 * fx / f32(width) - 1.0;
-    let sy = 1.0 - 2.0 * fy / f32(height);
-    return normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
-}
-
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let width = params.film.x;
@@ -659,8 +634,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = gid.y * width + gid.x;
+    let gm = params.film.z;
+    let gn = params.film.w;
+    let cells = gm * gn;
+    let seed = params.pass_info.z;
+    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
     var acc = accum[pixel];
-    let dir = camera_dir(gid.xy);
+    let s = params.pass_info.x;
+    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
+    let c = (s + offset) % cells;
+    let j = rand2();
+    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
+    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
+    let sx = 2.0 * fx / f32(width) - 1.0;
+    let sy = 1.0 - 2.0 * fy / f32(height);
+    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
     let v = radiance(params.origin.xyz, dir);
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
         acc = vec4<f32>(acc.rgb + v, acc.w);
@@ -683,7 +671,20 @@ fn aov_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = gid.y * width + gid.x;
-    let dir = camera_dir(gid.xy);
+    let gm = params.film.z;
+    let gn = params.film.w;
+    let cells = gm * gn;
+    let seed = params.pass_info.z;
+    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
+    let s = params.pass_info.x;
+    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
+    let c = (s + offset) % cells;
+    let j = rand2();
+    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
+    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
+    let sx = 2.0 * fx / f32(width) - 1.0;
+    let sy = 1.0 - 2.0 * fy / f32(height);
+    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
     let h = scene_hit(params.origin.xyz, dir, 3.0e38);
     if (h.x >= 0.0) {
         let a = albedos[objects[hit_object].range.z].rgb;
