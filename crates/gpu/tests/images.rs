@@ -21,18 +21,11 @@
 
 mod common;
 
-use isolux_core::{Image, Rgb};
+use isolux_core::Image;
 use isolux_gpu::Gpu;
 use isolux_materials::Material;
 use isolux_render::{render, RenderOptions, Scene};
 use std::path::Path;
-
-fn example(name: &str) -> Scene {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples/scenes")
-        .join(name);
-    isolux_scene::load(&p).unwrap()
-}
 
 fn gpu_image(gpu: &Gpu, scene: &Scene) -> Image {
     let (img, stats) = gpu.render(scene, &|_, _| {}).unwrap();
@@ -45,6 +38,12 @@ fn cpu_image(scene: &Scene) -> Image {
     render(scene, &RenderOptions::default(), &|_, _| {})
         .unwrap()
         .0
+}
+
+/// The path tracer's image of `scene` on the GPU against the CPU's
+/// ([`common::compare_with_cpu`]).
+fn compare(gpu: &Gpu, scene: &mut Scene, label: &str) -> (f64, f64, f64, f64) {
+    common::compare_with_cpu(scene, |s| gpu_image(gpu, s), cpu_image, label)
 }
 
 /// `(worst |pixel - 1|, fraction of pixels within 2e-3, mean, max)`.
@@ -62,7 +61,7 @@ fn furnace_stats(img: &Image, what: &str) -> (f32, f64, f64, f32) {
 }
 
 fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image)> {
-    let mut scene = example("furnace.toml");
+    let mut scene = common::example("furnace.toml");
     scene.film.width = 64;
     scene.film.height = 48;
     scene.film.spp = 4;
@@ -101,46 +100,6 @@ fn white_furnaces_render_one_everywhere() {
     }
 }
 
-/// Mean of each 8 x 8 block (luminance).
-fn blocks(img: &Image) -> Vec<f64> {
-    let (w, h) = (img.width as usize, img.height as usize);
-    let mut out = Vec::new();
-    for by in 0..h / 8 {
-        for bx in 0..w / 8 {
-            let mut s = 0.0;
-            for y in by * 8..by * 8 + 8 {
-                for x in bx * 8..bx * 8 + 8 {
-                    let p = img.rgb[y * w + x];
-                    s += Rgb::new(p[0] as f64, p[1] as f64, p[2] as f64).luminance();
-                }
-            }
-            out.push(s / 64.0);
-        }
-    }
-    out
-}
-
-fn mean_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
-}
-
-/// `(block |GPU - CPU|, block |CPU - CPU'|, mean GPU, mean CPU)` of
-/// `scene` rendered on both back ends, the CPU twice with different seeds.
-fn compare_with_cpu(gpu: &Gpu, scene: &mut Scene, what: &str) -> (f64, f64, f64, f64) {
-    let g = blocks(&gpu_image(gpu, scene));
-    let c1 = blocks(&cpu_image(scene));
-    scene.integrator.seed += 1;
-    let c2 = blocks(&cpu_image(scene));
-    let noise = mean_abs_diff(&c1, &c2);
-    let diff = mean_abs_diff(&g, &c1);
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let (mg, mc) = (mean(&g), mean(&c1));
-    eprintln!(
-        "{what}: block |GPU - CPU| {diff:.5}, |CPU - CPU'| {noise:.5}; means GPU {mg:.5} CPU {mc:.5}"
-    );
-    (diff, noise, mg, mc)
-}
-
 /// Subsurface scattering (`examples/scenes/translucent*.toml`): the
 /// dipole BSSRDF with single scattering under point lights and a dim sky,
 /// and the volumetric random walk under an environment map, GPU against
@@ -156,12 +115,12 @@ fn translucent_scenes_match_the_cpu_within_noise() {
         ("translucent.toml", 16),
         ("translucent-random-walk.toml", 16),
     ] {
-        let mut scene = example(name);
+        let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());
         scene.film.width = 128;
         scene.film.height = 72;
         scene.film.spp = spp;
-        let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, name);
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
         assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
     }
@@ -186,12 +145,12 @@ fn wave_scenes_match_the_cpu_within_noise() {
         ("wave-grating.toml", 96, 72, 16),
         ("wave-brushed.toml", 96, 72, 8),
     ] {
-        let mut scene = example(name);
+        let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());
         scene.film.width = w;
         scene.film.height = h;
         scene.film.spp = spp;
-        let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, name);
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
         assert!(mc > 0.0);
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
         assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
@@ -284,11 +243,11 @@ fn translucent_random_walk_converges_to_the_cpu() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let mut scene = example("translucent-random-walk.toml");
+    let mut scene = common::example("translucent-random-walk.toml");
     scene.film.width = 64;
     scene.film.height = 40;
     scene.film.spp = 256;
-    let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, "random walk, 256 spp");
+    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "random walk, 256 spp");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.01 * mc, "{mg} vs {mc}");
 }
@@ -298,24 +257,14 @@ fn gallery_matches_the_cpu_within_noise() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let mut scene = example("gallery.toml");
+    let mut scene = common::example("gallery.toml");
     // Every material of the gallery runs on the GPU: none may be replaced.
     let replaced = isolux_gpu::replace_unsupported(&mut scene);
     assert!(replaced.is_empty(), "not on the GPU: {replaced:?}");
     scene.film.width = 160;
     scene.film.height = 96;
     scene.film.spp = 16;
-    let g = blocks(&gpu_image(&gpu, &scene));
-    let c1 = blocks(&cpu_image(&scene));
-    scene.integrator.seed += 1;
-    let c2 = blocks(&cpu_image(&scene));
-    let noise = mean_abs_diff(&c1, &c2);
-    let diff = mean_abs_diff(&g, &c1);
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let (mg, mc) = (mean(&g), mean(&c1));
-    eprintln!(
-        "block |GPU - CPU| {diff:.4}, |CPU - CPU'| {noise:.4}; means GPU {mg:.4} CPU {mc:.4}"
-    );
+    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "gallery");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.02 * mc, "{mg} vs {mc}");
 }

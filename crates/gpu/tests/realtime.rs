@@ -15,7 +15,7 @@
 
 mod common;
 
-use isolux_core::{Image, Rgb};
+use isolux_core::Image;
 use isolux_gpu::Gpu;
 use isolux_render::{render, RenderOptions, Scene};
 use std::path::Path;
@@ -35,54 +35,10 @@ fn cpu_image(scene: &Scene) -> Image {
     render(scene, &opts, &|_, _| {}).unwrap().0
 }
 
-fn blocks(img: &Image) -> Vec<f64> {
-    let (w, h) = (img.width as usize, img.height as usize);
-    let mut out = Vec::new();
-    for by in 0..h / 8 {
-        for bx in 0..w / 8 {
-            let mut s = 0.0;
-            for y in by * 8..by * 8 + 8 {
-                for x in bx * 8..bx * 8 + 8 {
-                    let p = img.rgb[y * w + x];
-                    s += Rgb::new(p[0] as f64, p[1] as f64, p[2] as f64).luminance();
-                }
-            }
-            out.push(s / 64.0);
-        }
-    }
-    out
-}
-
-fn mean_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
-}
-
-/// The example scene `name` from `examples/scenes/`.
-fn example(name: &str) -> Scene {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes");
-    isolux_scene::load(&dir.join(name)).unwrap()
-}
-
-/// `scene` on the GPU and the CPU (real-time mode), and the CPU again
-/// with the next seed: the mean absolute difference of 8 x 8 block means
-/// GPU against CPU, the CPU's own seed-to-seed one (the noise), and the
-/// GPU's and CPU's image means. Prints them under `label`.
-fn compare_with_cpu(gpu: &Gpu, scene: &mut Scene, label: &str) -> (f64, f64, f64, f64) {
-    let g = blocks(&gpu_image(gpu, scene));
-    let c1 = blocks(&cpu_image(scene));
-    scene.integrator.seed += 1;
-    let c2 = blocks(&cpu_image(scene));
-    let noise = mean_abs_diff(&c1, &c2);
-    let diff = mean_abs_diff(&g, &c1);
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let (mg, mc) = (mean(&g), mean(&c1));
-    eprintln!(
-        "{label}: block |GPU - CPU| {diff:.4}, |CPU - CPU'| {noise:.4}; \
-         means GPU {mg:.4} CPU {mc:.4} CPU' {:.4}",
-        mean(&c2)
-    );
-    assert!(mc > 0.0 && noise > 0.0, "{label}: a blank image");
-    (diff, noise, mg, mc)
+/// The real-time image of `scene` on the GPU against the CPU's
+/// ([`common::compare_with_cpu`]).
+fn compare(gpu: &Gpu, scene: &mut Scene, label: &str) -> (f64, f64, f64, f64) {
+    common::compare_with_cpu(scene, |s| gpu_image(gpu, s), cpu_image, label)
 }
 
 #[test]
@@ -119,12 +75,12 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 2.0 }
         }
     }
 
-    let mut scene = example("gallery.toml");
+    let mut scene = common::example("gallery.toml");
     assert!(isolux_gpu::replace_unsupported(&mut scene).is_empty());
     scene.film.width = 160;
     scene.film.height = 96;
     scene.film.spp = 16;
-    let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, "real-time");
+    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "real-time");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     // The sky's sun glints in the mirrors make whole-image means jumpy
     // (measured: GPU 2.1% below the CPU, two CPU seeds 0.6% apart, 3-7%
@@ -145,12 +101,12 @@ fn realtime_wave_scenes_match_the_cpu_within_noise() {
         return;
     };
     for name in ["wave-grating.toml", "wave-brushed.toml"] {
-        let mut scene = example(name);
+        let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());
         scene.film.width = 96;
         scene.film.height = 72;
         scene.film.spp = 16;
-        let (diff, noise, mg, mc) = compare_with_cpu(&gpu, &mut scene, name);
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
         assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
     }

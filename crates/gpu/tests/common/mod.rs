@@ -18,3 +18,73 @@ pub fn open(what: &str) -> Option<Gpu> {
         Err(e) => panic!("{e}"),
     }
 }
+
+// The helpers below serve the whole-image tests (`images.rs`, `realtime.rs`);
+// the other test crates that include this module do not use them.
+
+/// The example scene `name` from `examples/scenes/`.
+#[allow(dead_code)]
+pub fn example(name: &str) -> isolux_render::Scene {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/scenes")
+        .join(name);
+    isolux_scene::load(&p).unwrap()
+}
+
+/// Mean luminance of each 8 x 8 block of `img`.
+#[allow(dead_code)]
+pub fn blocks(img: &isolux_core::Image) -> Vec<f64> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let mut out = Vec::new();
+    for by in 0..h / 8 {
+        for bx in 0..w / 8 {
+            let mut s = 0.0;
+            for y in by * 8..by * 8 + 8 {
+                for x in bx * 8..bx * 8 + 8 {
+                    let p = img.rgb[y * w + x];
+                    s += isolux_core::Rgb::new(p[0] as f64, p[1] as f64, p[2] as f64).luminance();
+                }
+            }
+            out.push(s / 64.0);
+        }
+    }
+    out
+}
+
+/// Mean absolute difference of two equally long lists.
+#[allow(dead_code)]
+pub fn mean_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
+}
+
+/// The GPU's image of `scene` against the CPU's, both from the same
+/// renderer (path tracer or real-time mode, passed in): renders `scene`
+/// with `gpu`, then with `cpu`, then with `cpu` again under the next seed.
+/// Returns `(block |GPU - CPU|, block |CPU - CPU'|, mean GPU, mean CPU)`:
+/// the mean absolute difference of 8 x 8 block means, GPU against CPU and
+/// the CPU's own seed-to-seed one (the noise), and the two image means.
+/// Prints them under `label`; a blank image fails.
+#[allow(dead_code)]
+pub fn compare_with_cpu(
+    scene: &mut isolux_render::Scene,
+    gpu: impl Fn(&isolux_render::Scene) -> isolux_core::Image,
+    cpu: impl Fn(&isolux_render::Scene) -> isolux_core::Image,
+    label: &str,
+) -> (f64, f64, f64, f64) {
+    let g = blocks(&gpu(scene));
+    let c1 = blocks(&cpu(scene));
+    scene.integrator.seed += 1;
+    let c2 = blocks(&cpu(scene));
+    let noise = mean_abs_diff(&c1, &c2);
+    let diff = mean_abs_diff(&g, &c1);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (mg, mc) = (mean(&g), mean(&c1));
+    eprintln!(
+        "{label}: block |GPU - CPU| {diff:.5}, |CPU - CPU'| {noise:.5}; \
+         means GPU {mg:.5} CPU {mc:.5} CPU' {:.5}",
+        mean(&c2)
+    );
+    assert!(mc > 0.0 && noise > 0.0, "{label}: a blank image");
+    (diff, noise, mg, mc)
+}
