@@ -22,8 +22,10 @@
 //!    the roots of their `Q_i(t)` inside the interval: the breakpoints;
 //! 3. walks the segments between breakpoints in order: with no perturbation
 //!    active, the base quadric's crossings in closed form (stable quadratic);
-//!    otherwise the degree-6 polynomial in a local parameter with Bernstein
-//!    root isolation (see [`crate::poly`]).
+//!    otherwise, unless interval bounds of each term prove that `F'` keeps
+//!    one sign on the segment (most of a bump's support, away from the
+//!    surface), the degree-6 polynomial in a local parameter with
+//!    Bernstein root isolation (see [`crate::poly`]).
 //!
 //! `F'` is C² across breakpoints, so nothing special happens there. No
 //! marching, no sphere tracing: thin bumps and grazing rays are found as
@@ -35,7 +37,7 @@
 
 use crate::beam::Beam;
 use crate::bvh::Bvh;
-use crate::poly::{quadratic_crossings, Poly};
+use crate::poly::{quadratic_crossings, Poly, UnitRoot};
 use crate::quadric::Quadric;
 use isolux_core::{Aabb, DVec3, Ray};
 use smallvec::SmallVec;
@@ -85,6 +87,8 @@ pub struct Object {
     unbounded: Vec<u32>,
     /// Bounding sphere of each BVH item's support (for [`Object::cull`]).
     spheres: Vec<(DVec3, f64)>,
+    /// How each BVH item's quadric is restricted to a ray.
+    along: Vec<Along>,
     bvh: Bvh,
     bbox: Aabb,
 }
@@ -97,11 +101,59 @@ enum Items<'a> {
     Only(&'a [u32]),
 }
 
+/// How a bounded perturbation's `Q_i` is restricted to a ray: spheres, the
+/// common case, in 13 multiplications instead of the general quadric's 27.
+#[derive(Clone, Copy, Debug)]
+enum Along {
+    /// `Q(p) = c0 - k |p - centre|^2`, `k > 0`.
+    Sphere { centre: DVec3, k: f64, c0: f64 },
+    /// Any other ellipsoid: [`Quadric::along`].
+    General,
+}
+
+impl Along {
+    fn new(q: &Quadric) -> Self {
+        let m = q.m;
+        let k = -m.x_axis.x;
+        let off = [
+            m.x_axis.y, m.x_axis.z, m.y_axis.x, m.y_axis.z, m.z_axis.x, m.z_axis.y,
+        ];
+        if k > 0.0 && m.y_axis.y == -k && m.z_axis.z == -k && off.iter().all(|&x| x == 0.0) {
+            // p^T M p + 2 b.p + c = -k |p - b/k|^2 + c + |b|^2 / k.
+            Along::Sphere {
+                centre: q.b / k,
+                k,
+                c0: q.c + q.b.length_squared() / k,
+            }
+        } else {
+            Along::General
+        }
+    }
+
+    /// `Q(o + t d)` as `[c, b, a]` (ascending powers).
+    #[inline]
+    fn along(&self, q: &Quadric, ray: &Ray) -> [f64; 3] {
+        match *self {
+            Along::Sphere { centre, k, c0 } => {
+                let v = ray.origin - centre;
+                [
+                    c0 - k * v.length_squared(),
+                    -2.0 * k * ray.dir.dot(v),
+                    -k * ray.dir.length_squared(),
+                ]
+            }
+            Along::General => q.along(ray),
+        }
+    }
+}
+
 /// A perturbation the current ray crosses.
 #[derive(Clone, Copy, Debug)]
 struct Candidate {
     /// Perturbation index.
     index: u32,
+    /// Its form factor `f_i`.
+    factor: f64,
     /// `Q_i(t)` along the ray, ascending powers.
     q: [f64; 3],
     /// Active interval `(lo, hi)` for bounded supports; NaN for unbounded.
@@ -123,6 +175,7 @@ impl Object {
         let mut bbox = base.positive_bounds().unwrap_or(Aabb::EVERYTHING);
         let mut support = Vec::new();
         let mut spheres = Vec::new();
+        let mut along = Vec::new();
         let mut bounded = Vec::new();
         let mut unbounded = Vec::new();
         for (i, p) in perturbations.iter().enumerate() {
@@ -138,6 +191,7 @@ impl Object {
                     support.push(b);
                     let sphere = p.quadric.positive_bounding_sphere();
                     spheres.push(sphere.unwrap_or((b.center(), 0.5 * (b.max - b.min).length())));
+                    along.push(Along::new(&p.quadric));
                     bounded.push(i as u32);
                 }
                 None => {
@@ -166,6 +220,7 @@ impl Object {
             bounded,
             unbounded,
             spheres,
+            along,
             bvh,
             bbox,
         })
@@ -266,13 +321,19 @@ impl Object {
         }
         // The base quadric's crossings, once per ray: they place the split
         // and answer every segment without active perturbations.
-        let base_roots = quadratic_crossings(self.base.along(ray));
+        let base_q = self.base.along(ray);
+        let base_roots = quadratic_crossings(base_q);
         let split = base_roots
             .iter()
             .copied()
             .find(|&r| r > t0 && r < t1)
             .unwrap_or(t1);
         let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
+        // The sign of F' just before the current position (0: unknown). A
+        // crossing within rounding of a breakpoint can escape both
+        // neighbouring segments (each sees its end value on its own side
+        // of zero): a change of sign across the breakpoint is that crossing.
+        let mut before = 0.0;
         for (lo, hi) in [(t0, split), (split, t1)] {
             if hi <= lo && !(lo == t0 && hi == t1) {
                 continue;
@@ -283,6 +344,10 @@ impl Object {
                 if let Some(t) = base_roots.iter().copied().find(|&r| r >= lo && r <= hi) {
                     return Some(self.hit_at(ray, t, &cands));
                 }
+                if before * sign(poly2(base_q, lo)) < 0.0 {
+                    return Some(self.hit_at(ray, lo, &cands));
+                }
+                before = sign(poly2(base_q, hi));
                 if split >= t1 {
                     break;
                 }
@@ -310,8 +375,14 @@ impl Object {
                 if b <= a {
                     continue;
                 }
-                if let Some(t) = self.segment_root(ray, &base_roots, &cands, a, b) {
-                    return Some(self.hit_at(ray, t, &cands));
+                match self.segment_root(ray, base_q, &base_roots, &cands, a, b) {
+                    Segment::Crossing(t) => return Some(self.hit_at(ray, t, &cands)),
+                    Segment::Clear { start, end } => {
+                        if before * start < 0.0 {
+                            return Some(self.hit_at(ray, a, &cands));
+                        }
+                        before = end;
+                    }
                 }
                 a = b;
             }
@@ -339,19 +410,21 @@ impl Object {
         // two roots of `q` (none: never active).
         let mut visit = |item: u32| {
             let i = self.bounded[item as usize];
-            let q = self.perturbations[i as usize].quadric.along(ray);
-            let r = quadratic_crossings(q);
-            if r.len() == 2 && r[1] > lo && r[0] < hi {
-                // Already gathered in the first phase if active before lo.
-                if !fresh && r[1] > t0 && r[0] < lo {
-                    return true;
+            let q = self.along[item as usize].along(&self.perturbations[i as usize].quadric, ray);
+            if let Some((r0, r1)) = support_interval(q) {
+                if r1 > lo && r0 < hi {
+                    // Already gathered in the first phase if active before lo.
+                    if !fresh && r1 > t0 && r0 < lo {
+                        return true;
+                    }
+                    cands.push(Candidate {
+                        index: i,
+                        factor: self.perturbations[i as usize].factor,
+                        q,
+                        lo: r0,
+                        hi: r1,
+                    });
                 }
-                cands.push(Candidate {
-                    index: i,
-                    q,
-                    lo: r[0],
-                    hi: r[1],
-                });
             }
             true
         };
@@ -372,6 +445,7 @@ impl Object {
                 let q = self.perturbations[i as usize].quadric.along(ray);
                 cands.push(Candidate {
                     index: i,
+                    factor: self.perturbations[i as usize].factor,
                     q,
                     lo: f64::NAN,
                     hi: f64::NAN,
@@ -401,15 +475,16 @@ impl Object {
     }
 
     /// First crossing on the segment `[a, b]`, on which the set of active
-    /// perturbations is fixed.
+    /// perturbations is fixed; without one, the signs of `F'` at its ends.
     fn segment_root(
         &self,
         ray: &Ray,
+        base_q: [f64; 3],
         base_roots: &[f64],
         cands: &[Candidate],
         a: f64,
         b: f64,
-    ) -> Option<f64> {
+    ) -> Segment {
         let mid = 0.5 * (a + b);
         let active = |c: &Candidate| {
             if c.lo.is_nan() {
@@ -423,26 +498,140 @@ impl Object {
                 c.lo < mid && mid < c.hi
             }
         };
-        if !cands.iter().any(active) {
-            return base_roots.iter().copied().find(|&r| r >= a && r <= b);
+        match sign_is_fixed(base_q, cands.iter().filter(|c| active(c)), a, b) {
+            None => {
+                return match base_roots.iter().copied().find(|&r| r >= a && r <= b) {
+                    Some(t) => Segment::Crossing(t),
+                    None => Segment::Clear {
+                        start: sign(poly2(base_q, a)),
+                        end: sign(poly2(base_q, b)),
+                    },
+                }
+            }
+            Some(Some(s)) => return Segment::Clear { start: s, end: s },
+            Some(None) => debug_assert!(b.is_finite()),
         }
-        debug_assert!(b.is_finite());
         // Local reparameterization t = a + s (b - a), s in [0, 1]: the base
-        // quadric is re-evaluated at the segment origin (its value there is
-        // the dominant term); perturbations use the Taylor shift of their
+        // quadric's value is re-evaluated at the segment origin (the
+        // dominant term, which cancels near the surface); its slope and
+        // curvature, and the perturbations, use the Taylor shift of the
         // ray quadratic.
         let len = b - a;
-        let local = Ray::new(ray.at(a), len * ray.dir);
-        let mut poly = Poly::quadratic(self.base.along(&local));
-        for c in cands {
-            if active(c) {
-                let f = self.perturbations[c.index as usize].factor;
-                poly.add_cube(f, shift(c.q, a, len));
-            }
+        let mut q = shift(base_q, a, len);
+        q[0] = self.base.eval(ray.at(a));
+        let mut poly = Poly::quadratic(q);
+        for c in cands.iter().filter(|c| active(c)) {
+            poly.add_cube(c.factor, shift(c.q, a, len));
         }
-        let s = poly.first_root_unit()?;
-        Some(a + s * len)
+        match poly.first_crossing() {
+            UnitRoot::Root(s) => Segment::Crossing(a + s * len),
+            UnitRoot::Clear { start, end } => Segment::Clear { start, end },
+        }
     }
+}
+
+/// What [`Object::segment_root`] found on a segment.
+enum Segment {
+    /// The first crossing.
+    Crossing(f64),
+    /// None: the signs (`1`, `-1`, `0` unknown) of `F'` just after the
+    /// segment's start and just before its end.
+    Clear { start: f64, end: f64 },
+}
+
+/// `1` or `-1` by the sign of `x`; `0` for zero and NaN.
+#[inline]
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// Whether `F'` keeps one sign on `[a, b]` by interval bounds, so that
+/// the segment holds no crossing and its degree-6 polynomial need not
+/// be built. Each term is bounded on its own: the base quadratic and
+/// every active `Q_i(t) >= 0` by their values at the ends and at the
+/// vertex when inside, `f_i Q_i^3` by the cube of those bounds. A
+/// margin of `1e-10` of the terms' magnitude covers rounding, so only a
+/// segment whose `F'` stays clear of zero is skipped (most of a
+/// bump's support away from the surface).
+///
+/// `None` when no perturbation is active on the segment (then `b` may be
+/// infinite): the base quadric alone answers. Otherwise `Some(sign)` when
+/// the sign is fixed (`1` inside, `-1` outside), `Some(None)` when not.
+fn sign_is_fixed<'a>(
+    base_q: [f64; 3],
+    active: impl Iterator<Item = &'a Candidate>,
+    a: f64,
+    b: f64,
+) -> Option<Option<f64>> {
+    let mut active = active.peekable();
+    active.peek()?;
+    let (fmin, fmax) = range2(base_q, a, b);
+    let (mut lo, mut hi) = (fmin, fmax);
+    let mut scale = fmin.abs() + fmax.abs() + base_q[0].abs();
+    for c in active {
+        let f = c.factor;
+        let (qmin, qmax) = range2(c.q, a, b);
+        // Active: Q >= 0 on the segment (up to rounding at its ends).
+        let (qmin, qmax) = (qmin.max(0.0), qmax.max(0.0));
+        let (rmin, rmax) = (f * qmin * qmin * qmin, f * qmax * qmax * qmax);
+        if f > 0.0 {
+            lo += rmin;
+            hi += rmax;
+        } else {
+            lo += rmax;
+            hi += rmin;
+        }
+        scale += rmin.abs() + rmax.abs();
+    }
+    let margin = 1e-10 * scale;
+    Some(if hi < -margin {
+        Some(-1.0)
+    } else if lo > margin {
+        Some(1.0)
+    } else {
+        None
+    })
+}
+
+/// The range `(min, max)` of the quadratic `q` (ascending powers) on
+/// `[a, b]`: its values at the ends, and at the vertex when the slope
+/// changes sign in between.
+#[inline]
+fn range2(q: [f64; 3], a: f64, b: f64) -> (f64, f64) {
+    let (va, vb) = (poly2(q, a), poly2(q, b));
+    let (mut lo, mut hi) = (va.min(vb), va.max(vb));
+    let (da, db) = (2.0 * q[2] * a + q[1], 2.0 * q[2] * b + q[1]);
+    if (da < 0.0) != (db < 0.0) && q[2] != 0.0 {
+        let v = q[0] - q[1] * q[1] / (4.0 * q[2]);
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    (lo, hi)
+}
+
+/// The interval where an ellipsoid support's `q(t)` (ascending powers,
+/// `q[2] < 0` for any ray direction) is positive: its two roots, by the
+/// stable formula without the general case's degeneracy tests.
+#[inline]
+fn support_interval(q: [f64; 3]) -> Option<(f64, f64)> {
+    let [c, b, a] = q;
+    if !(a < 0.0) {
+        return quadratic_crossings(q).pair();
+    }
+    let disc = b * b - 4.0 * a * c;
+    if !(disc > 0.0) {
+        return None;
+    }
+    // h != 0: b = 0 gives h = -sqrt(disc) / 2.
+    let h = -0.5 * (b + disc.sqrt().copysign(b));
+    let (r1, r2) = (h / a, c / h);
+    Some(if r1 < r2 { (r1, r2) } else { (r2, r1) })
 }
 
 /// `q(a + s len)` as a quadratic in `s`.
@@ -464,6 +653,7 @@ fn poly2(q: [f64; 3], t: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use isolux_core::DMat3;
 
     #[test]
     fn plain_sphere_hit() {
@@ -529,6 +719,109 @@ mod tests {
         let h = o.intersect(&r, 0.0, 10.0).unwrap();
         // -y + 0.25^3 = 0 at the axis.
         assert!((h.p.y - 0.015625).abs() < 1e-12, "{:?}", h.p);
+    }
+
+    #[test]
+    fn sphere_restriction_matches_the_general_quadric() {
+        let mut rng = isolux_core::Pcg32::new(21, 0);
+        let mut u = || 4.0 * rng.next_f64() - 2.0;
+        for _ in 0..1000 {
+            let q = Quadric::sphere(DVec3::new(u(), u(), u()), 0.1 + u().abs());
+            // Scaled, as the scene's `scale`d spheres and transforms make it.
+            let k = 0.5 + u().abs();
+            let q = Quadric {
+                m: q.m * k,
+                b: q.b * k,
+                c: q.c * k,
+            };
+            let along = Along::new(&q);
+            assert!(matches!(along, Along::Sphere { .. }));
+            let ray = Ray::new(DVec3::new(u(), u(), u()), DVec3::new(u(), u(), u()));
+            let (fast, general) = (along.along(&q, &ray), q.along(&ray));
+            let scale = general.iter().map(|c| c.abs()).fold(1.0, f64::max);
+            for (a, b) in fast.iter().zip(general) {
+                assert!((a - b).abs() <= 1e-13 * scale, "{fast:?} vs {general:?}");
+            }
+        }
+        let e = Quadric::ellipsoid(DVec3::ZERO, DVec3::new(1.0, 2.0, 3.0), DMat3::IDENTITY);
+        assert!(matches!(Along::new(&e), Along::General));
+    }
+
+    #[test]
+    fn support_interval_is_where_q_is_positive() {
+        let mut rng = isolux_core::Pcg32::new(22, 0);
+        let mut u = || 4.0 * rng.next_f64() - 2.0;
+        for _ in 0..10_000 {
+            let q = [u(), u(), -u().abs() - 1e-3];
+            match support_interval(q) {
+                Some((r0, r1)) => {
+                    assert!(r0 < r1);
+                    assert!(poly2(q, 0.5 * (r0 + r1)) > 0.0);
+                    let w = r1 - r0;
+                    assert!(poly2(q, r0 - 1e-6 * w) < 0.0 && poly2(q, r1 + 1e-6 * w) < 0.0);
+                    assert_eq!(Some((r0, r1)), quadratic_crossings(q).pair());
+                }
+                None => assert!(quadratic_crossings(q).pair().is_none()),
+            }
+        }
+    }
+
+    /// The interval bound never claims one sign on a segment where dense
+    /// sampling of the same `F'` finds both signs, and it does skip most
+    /// segments far from the surface.
+    #[test]
+    fn sign_bound_is_conservative() {
+        let mut rng = isolux_core::Pcg32::new(23, 0);
+        let mut u = || 2.0 * rng.next_f64() - 1.0;
+        let (mut skipped, mut segments) = (0, 0);
+        for _ in 0..4000 {
+            let base = [u(), u(), u()];
+            let cands: Vec<Candidate> = (0..1 + (u().abs() * 4.0) as usize)
+                .map(|i| Candidate {
+                    index: i as u32,
+                    factor: 10.0 * u(),
+                    // Concave, positive somewhere near [0, 1].
+                    q: [0.2 + 0.3 * u(), u(), -0.5 - u().abs()],
+                    lo: f64::NAN,
+                    hi: f64::NAN,
+                })
+                .collect();
+            let (a, b) = (0.5 * u(), 0.5 + 0.5 * u().abs());
+            // Active on the whole segment: Q > 0 at both ends (concave).
+            let active: Vec<&Candidate> = cands
+                .iter()
+                .filter(|c| poly2(c.q, a) > 0.0 && poly2(c.q, b) > 0.0)
+                .collect();
+            let f = |t: f64| {
+                poly2(base, t)
+                    + active
+                        .iter()
+                        .map(|c| c.factor * poly2(c.q, t).powi(3))
+                        .sum::<f64>()
+            };
+            let n = 2000;
+            let (mut neg, mut pos) = (false, false);
+            for i in 0..=n {
+                let v = f(a + (b - a) * i as f64 / n as f64);
+                neg |= v < 0.0;
+                pos |= v > 0.0;
+            }
+            match sign_is_fixed(base, active.iter().copied(), a, b) {
+                None => assert!(active.is_empty()),
+                Some(fixed) => {
+                    segments += 1;
+                    if let Some(sign) = fixed {
+                        skipped += 1;
+                        let wrong = if sign > 0.0 { neg } else { pos };
+                        assert!(!wrong, "{sign}: {base:?} {active:?} on [{a}, {b}]");
+                    }
+                }
+            }
+        }
+        assert!(
+            segments > 1000 && skipped > segments / 10,
+            "{skipped} of {segments}"
+        );
     }
 
     #[test]

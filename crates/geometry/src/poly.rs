@@ -8,8 +8,9 @@
 //! coefficients (a sign-change count of zero proves there is no root) with
 //! de Casteljau subdivision at the midpoint, left half first. An interval
 //! with a single sign change and opposite endpoint signs holds exactly one
-//! root, which safeguarded Newton iteration (bisection whenever a Newton
-//! step leaves the bracket) refines to full double precision.
+//! root, which safeguarded Newton iteration (started at the false-position
+//! point, bisection whenever a Newton step leaves the bracket) refines to
+//! full double precision.
 //!
 //! Only *crossings* count as hits: a root of even multiplicity (a ray that
 //! grazes the surface tangentially) does not enter the solid and is not
@@ -95,7 +96,34 @@ impl Poly {
 
     /// First crossing root in `[0, 1]`, if any.
     pub fn first_root_unit(&self) -> Option<f64> {
+        match self.first_crossing() {
+            UnitRoot::Root(s) => Some(s),
+            UnitRoot::Clear { .. } => None,
+        }
+    }
+
+    /// First crossing root in `[0, 1]`; without one, the signs of the
+    /// polynomial just after 0 and just before 1 (those of the first and
+    /// last non-zero Bernstein coefficients), for the caller to compare
+    /// with the neighbouring segments.
+    pub fn first_crossing(&self) -> UnitRoot {
         let b = self.bernstein();
+        let n = self.degree;
+        match self.isolate(b) {
+            Some(s) => UnitRoot::Root(s),
+            None => {
+                let nonzero = || b[..=n].iter().copied().filter(|&x| x != 0.0);
+                let sign = |x: Option<f64>| x.map_or(0.0, |x| if x > 0.0 { 1.0 } else { -1.0 });
+                UnitRoot::Clear {
+                    start: sign(nonzero().next()),
+                    end: sign(nonzero().next_back()),
+                }
+            }
+        }
+    }
+
+    /// First crossing in `[0, 1]` from the Bernstein coefficients `b`.
+    fn isolate(&self, b: [f64; MAX_DEGREE + 1]) -> Option<f64> {
         let n = self.degree;
         // Explicit stack of (coefficients, lo, hi, depth), left first.
         let mut stack: smallvec::SmallVec<[Interval; 24]> = smallvec::SmallVec::new();
@@ -114,11 +142,11 @@ impl Poly {
             let fa = b[0];
             let fb = b[n];
             if changes == 1 && fa * fb < 0.0 {
-                return Some(self.refine(lo, hi, fa));
+                return Some(self.refine(lo, hi, fa, fb));
             }
             if depth >= MAX_DEPTH {
                 if fa * fb <= 0.0 {
-                    return Some(self.refine(lo, hi, fa));
+                    return Some(self.refine(lo, hi, fa, fb));
                 }
                 // Even number of roots closer than the resolution: a tangency.
                 continue;
@@ -132,10 +160,20 @@ impl Poly {
     }
 
     /// Safeguarded Newton on a bracket `[lo, hi]` with `sign(f(lo)) = sign(fa)`
-    /// opposite to `sign(f(hi))`.
-    fn refine(&self, mut lo: f64, mut hi: f64, fa: f64) -> f64 {
+    /// opposite to `sign(f(hi)) = sign(fb)`.
+    ///
+    /// Starts at the false-position point of the end values (the segments
+    /// are short next to the polynomial's curvature, so it is close) and
+    /// bisects whenever a Newton step would leave the bracket. Newton
+    /// converges quadratically, so a step below `1e-9` leaves an error of
+    /// order `1e-18` times the curvature ratio `f'' / f'`: the iteration
+    /// stops after applying it, or when the bracket reaches rounding.
+    fn refine(&self, mut lo: f64, mut hi: f64, fa: f64, fb: f64) -> f64 {
         let neg_left = fa < 0.0;
-        let mut s = 0.5 * (lo + hi);
+        let mut s = lo + (hi - lo) * (fa / (fa - fb));
+        if !(s > lo && s < hi) {
+            s = 0.5 * (lo + hi);
+        }
         for _ in 0..100 {
             let (f, d) = self.eval_d(s);
             if f == 0.0 {
@@ -146,21 +184,37 @@ impl Poly {
             } else {
                 hi = s;
             }
-            let newton = s - f / d;
-            let next = if d != 0.0 && newton > lo && newton < hi {
-                newton
+            let step = f / d;
+            let newton = s - step;
+            if d != 0.0 && newton > lo && newton < hi {
+                if step.abs() <= 1e-9 * newton.abs().max(1e-300) {
+                    return newton;
+                }
+                s = newton;
             } else {
-                0.5 * (lo + hi)
-            };
-            if (next - s).abs() <= 1e-16 * next.abs().max(1e-300)
-                || hi - lo <= 2.0 * f64::EPSILON * hi.abs()
-            {
-                return next;
+                s = 0.5 * (lo + hi);
             }
-            s = next;
+            if hi - lo <= 2.0 * f64::EPSILON * hi.abs() {
+                return s;
+            }
         }
         s
     }
+}
+
+/// What [`Poly::first_crossing`] found on `[0, 1]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum UnitRoot {
+    /// The first crossing.
+    Root(f64),
+    /// None: the signs (`1`, `-1`, `0` for the zero polynomial) just after
+    /// 0 and just before 1.
+    Clear {
+        /// Sign just after 0.
+        start: f64,
+        /// Sign just before 1.
+        end: f64,
+    },
 }
 
 /// Bernstein coefficients on `[lo, hi]` and the subdivision depth.
@@ -233,19 +287,54 @@ fn de_casteljau_half(
     (left, right)
 }
 
+/// Up to two roots, ascending (the result of [`quadratic_crossings`]): a
+/// slice by `Deref`, without the heap or the capacity checks of a vector.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Crossings {
+    roots: [f64; 2],
+    len: usize,
+}
+
+impl Crossings {
+    /// Both roots `(r0, r1)`, `r0 <= r1`, when there are two.
+    #[inline]
+    pub fn pair(&self) -> Option<(f64, f64)> {
+        (self.len == 2).then_some((self.roots[0], self.roots[1]))
+    }
+}
+
+impl std::ops::Deref for Crossings {
+    type Target = [f64];
+    #[inline]
+    fn deref(&self) -> &[f64] {
+        &self.roots[..self.len]
+    }
+}
+
+impl IntoIterator for Crossings {
+    type Item = f64;
+    type IntoIter = std::iter::Take<std::array::IntoIter<f64, 2>>;
+    #[inline]
+    fn into_iter(self) -> Self::IntoIter {
+        self.roots.into_iter().take(self.len)
+    }
+}
+
 /// Roots of `c0 + c1 t + c2 t^2` where the sign changes, ascending, by the
 /// numerically stable formula (no cancellation). Double roots (tangency)
 /// and complex roots give none.
-pub fn quadratic_crossings(q: [f64; 3]) -> smallvec::SmallVec<[f64; 2]> {
+#[inline]
+pub fn quadratic_crossings(q: [f64; 3]) -> Crossings {
     let [c, b, a] = q;
-    let mut out = smallvec::SmallVec::new();
+    let mut out = Crossings::default();
     let scale = a.abs().max(b.abs()).max(c.abs());
     if scale == 0.0 {
         return out;
     }
     if a.abs() <= 1e-15 * scale {
         if b != 0.0 {
-            out.push(-c / b);
+            out.roots[0] = -c / b;
+            out.len = 1;
         }
         return out;
     }
@@ -255,17 +344,16 @@ pub fn quadratic_crossings(q: [f64; 3]) -> smallvec::SmallVec<[f64; 2]> {
     }
     let sq = disc.sqrt();
     let q = -0.5 * (b + sq.copysign(b));
-    let (mut r1, mut r2) = (q / a, c / q);
-    if q == 0.0 {
-        // b == 0 and c == 0 is excluded by disc > 0 with q == 0 only if b == 0 and sq == 0.
-        r1 = -sq / (2.0 * a);
-        r2 = -r1;
-    }
-    if r1 > r2 {
-        std::mem::swap(&mut r1, &mut r2);
-    }
-    out.push(r1);
-    out.push(r2);
+    let (r1, r2) = if q == 0.0 {
+        // Only when b == 0 and c == 0, which disc > 0 excludes; kept so
+        // that no division by zero can happen.
+        let r = sq / (2.0 * a);
+        (-r, r)
+    } else {
+        (q / a, c / q)
+    };
+    out.roots = [r1.min(r2), r1.max(r2)];
+    out.len = 2;
     out
 }
 

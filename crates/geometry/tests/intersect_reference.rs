@@ -494,3 +494,25 @@ fn thin_bump_of_height_1e7_is_found_exactly() {
         }
     }
 }
+
+/// A crossing within rounding of a breakpoint: here the base quadric's
+/// crossing, where a strong bump's support ends a hair later, so that the
+/// bump adds ~1e-16 there. Each of the two segments that meet there saw its
+/// end value on its own side of zero and reported nothing until the walk
+/// compared the signs across breakpoints (found by the million-ray test,
+/// object 315 of seed 7).
+#[test]
+fn crossing_within_rounding_of_a_breakpoint() {
+    let mut rng = Pcg32::new(7, 315);
+    let (obj, reference) = random_object(&mut rng);
+    let ray = Ray::new(
+        DVec3::new(-2.367742819099955, -1.892125441134239, 2.790498130559265),
+        DVec3::new(0.6114092122911864, 0.3668069342183115, -0.7011643517284905),
+    );
+    let ours = obj.intersect(&ray, 0.0, f64::INFINITY).map(|h| h.t);
+    let want = reference.first_crossing(&ray, 8000).unwrap();
+    assert!(
+        (ours.unwrap() - want).abs() < 1e-6,
+        "{ours:?} vs reference {want}"
+    );
+}
