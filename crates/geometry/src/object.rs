@@ -37,7 +37,7 @@
 
 use crate::beam::Beam;
 use crate::bvh::Bvh;
-use crate::poly::{quadratic_crossings, Poly, UnitRoot};
+use crate::poly::{quadratic_crossings, sign, two_roots, Poly, UnitRoot};
 use crate::quadric::Quadric;
 use isolux_core::{Aabb, DVec3, Ray};
 use smallvec::SmallVec;
@@ -539,18 +539,6 @@ enum Segment {
     Clear { start: f64, end: f64 },
 }
 
-/// `1` or `-1` by the sign of `x`; `0` for zero and NaN.
-#[inline]
-fn sign(x: f64) -> f64 {
-    if x > 0.0 {
-        1.0
-    } else if x < 0.0 {
-        -1.0
-    } else {
-        0.0
-    }
-}
-
 /// Whether `F'` keeps one sign on `[a, b]` by interval bounds, so that
 /// the segment holds no crossing and its degree-6 polynomial need not
 /// be built. Each term is bounded on its own: the base quadratic and
@@ -616,22 +604,15 @@ fn range2(q: [f64; 3], a: f64, b: f64) -> (f64, f64) {
 }
 
 /// The interval where an ellipsoid support's `q(t)` (ascending powers,
-/// `q[2] < 0` for any ray direction) is positive: its two roots, by the
-/// stable formula without the general case's degeneracy tests.
+/// `q[2] < 0` for any ray direction) is positive: its two roots, without
+/// the general case's degeneracy tests.
 #[inline]
 fn support_interval(q: [f64; 3]) -> Option<(f64, f64)> {
-    let [c, b, a] = q;
-    if !(a < 0.0) {
-        return quadratic_crossings(q).pair();
+    if q[2] < 0.0 {
+        two_roots(q)
+    } else {
+        quadratic_crossings(q).pair()
     }
-    let disc = b * b - 4.0 * a * c;
-    if !(disc > 0.0) {
-        return None;
-    }
-    // h != 0: b = 0 gives h = -sqrt(disc) / 2.
-    let h = -0.5 * (b + disc.sqrt().copysign(b));
-    let (r1, r2) = (h / a, c / h);
-    Some(if r1 < r2 { (r1, r2) } else { (r2, r1) })
 }
 
 /// `q(a + s len)` as a quadratic in `s`.

@@ -112,12 +112,11 @@ impl Poly {
         match self.isolate(b) {
             Some(s) => UnitRoot::Root(s),
             None => {
-                let nonzero = || b[..=n].iter().copied().filter(|&x| x != 0.0);
-                let sign = |x: Option<f64>| x.map_or(0.0, |x| if x > 0.0 { 1.0 } else { -1.0 });
-                UnitRoot::Clear {
-                    start: sign(nonzero().next()),
-                    end: sign(nonzero().next_back()),
-                }
+                let mut nonzero = b[..=n].iter().copied().filter(|&x| x != 0.0);
+                let start = sign(nonzero.next().unwrap_or(0.0));
+                // The last non-zero coefficient (the first when only one).
+                let end = nonzero.next_back().map_or(start, sign);
+                UnitRoot::Clear { start, end }
             }
         }
     }
@@ -338,23 +337,47 @@ pub fn quadratic_crossings(q: [f64; 3]) -> Crossings {
         }
         return out;
     }
+    if let Some((r0, r1)) = two_roots(q) {
+        out.roots = [r0, r1];
+        out.len = 2;
+    }
+    out
+}
+
+/// Both roots of `c0 + c1 t + c2 t^2`, ascending, when the discriminant is
+/// positive, by the stable formula `h = -(c1 + sign(c1) sqrt(disc)) / 2`,
+/// roots `h / c2` and `c0 / h`. Assumes `c2 != 0`; callers handle the
+/// degenerate cases ([`quadratic_crossings`]).
+#[inline]
+pub(crate) fn two_roots(q: [f64; 3]) -> Option<(f64, f64)> {
+    let [c, b, a] = q;
     let disc = b * b - 4.0 * a * c;
     if !(disc > 0.0) {
-        return out;
+        return None;
     }
     let sq = disc.sqrt();
-    let q = -0.5 * (b + sq.copysign(b));
-    let (r1, r2) = if q == 0.0 {
+    let h = -0.5 * (b + sq.copysign(b));
+    let (r1, r2) = if h == 0.0 {
         // Only when b == 0 and c == 0, which disc > 0 excludes; kept so
         // that no division by zero can happen.
         let r = sq / (2.0 * a);
         (-r, r)
     } else {
-        (q / a, c / q)
+        (h / a, c / h)
     };
-    out.roots = [r1.min(r2), r1.max(r2)];
-    out.len = 2;
-    out
+    Some((r1.min(r2), r1.max(r2)))
+}
+
+/// `1` or `-1` by the sign of `x`; `0` for zero and NaN.
+#[inline]
+pub(crate) fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]
