@@ -764,7 +764,8 @@ pub struct GpuLight {
     pub intensity: [f32; 4],
 }
 
-/// The render kernel's uniform block. WGSL: `struct Params` in
+/// The render kernel's parameter block (a read-only storage buffer, see
+/// `Gpu::params_buffer`). WGSL: `struct Params` in
 /// `render.wgsl` (field by field).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -394,8 +394,9 @@ impl Gpu {
         self.render_layout.get_or_init(|| {
             use wgpu::BufferBindingType as B;
             // objects, perturbations, materials, lights, env texels,
-            // env cdf, accum (rw), params (uniform), material data,
-            // env levels, BVH nodes, AOVs (rw), material albedos.
+            // env cdf, accum (rw), params (read-only storage, not
+            // uniform: see `params_buffer`), material data, env levels,
+            // BVH nodes, AOVs (rw), material albedos.
             let kinds = [
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -404,7 +405,7 @@ impl Gpu {
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
                 B::Storage { read_only: false },
-                B::Uniform,
+                B::Storage { read_only: true },
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -554,13 +555,23 @@ impl Gpu {
         })
     }
 
-    /// A uniform buffer holding `value` (writable later).
-    fn uniform<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+    /// A read-only storage buffer holding a kernel's parameters `value`
+    /// (writable later by copies).
+    ///
+    /// Not a uniform buffer, on purpose: Mesa's lavapipe (the CI's
+    /// driver) *inlines* uniform-buffer values that steer a branch or a
+    /// loop bound into the shader and compiles a new variant of the kernel
+    /// for every new set of values: every seed, image size, sample index
+    /// and object count meant another LLVM compile of the path tracer
+    /// (minutes each), under a disk-cache key no other run shared. Storage
+    /// loads are never inlined, so each kernel compiles once. See
+    /// docs/gpu.md, "Compile time on lavapipe".
+    fn params_buffer<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytemuck::bytes_of(value),
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             })
     }
 
@@ -654,7 +665,7 @@ impl Gpu {
             (queries.len() * std::mem::size_of::<GpuAnswer>()) as u64,
         );
         let counts = [queries.len() as u32, 0, 0, 0];
-        let uniform = self.uniform("counts", &counts);
+        let uniform = self.params_buffer("counts", &counts);
         let groups = (queries.len() as u32).div_ceil(WORKGROUP_SIZE);
         self.run_and_read(
             pipeline,
@@ -679,7 +690,7 @@ impl Gpu {
         let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&scene.nodes));
         let out = self.output("hits", (rays.len() * std::mem::size_of::<GpuHit>()) as u64);
         let counts = [rays.len() as u32, scene.objects.len() as u32, 0, 0];
-        let uniform = self.uniform("counts", &counts);
+        let uniform = self.params_buffer("counts", &counts);
         let groups = (rays.len() as u32).div_ceil(WORKGROUP_SIZE);
         self.run_and_read(
             pipeline,

@@ -349,7 +349,7 @@ impl Gpu {
         let texels = self.storage("env texels", bytemuck::cast_slice(&texels));
         let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf));
         let accum = self.output("accumulation", npix * 16);
-        let params_buf = self.uniform("params", &params);
+        let params_buf = self.params_buffer("params", &params);
         let levels = self.storage("env levels", bytemuck::cast_slice(&levels));
         let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&geo.nodes));
         // Albedo per scene material (the CPU's `albedo()`, the AOV's
@@ -463,7 +463,7 @@ impl GpuFrame {
 
     /// Queues `count` dispatches of `pipeline` in one submission, sample
     /// `first + s` in the `s`-th (`pass_info = [first + s, field]`); each
-    /// dispatch's parameters are copied into the uniform from a staging
+    /// dispatch's parameters are copied into the parameter buffer from a staging
     /// buffer inside the command stream, so no submission waits on a
     /// `write_buffer` (on an H100 four submissions cost about 2 ms).
     fn dispatch_samples(
@@ -514,7 +514,7 @@ impl GpuFrame {
 
     /// A real-time frame of `count` samples per pixel: one dispatch per
     /// sample (see `realtime.wgsl`), all in one submission. Each
-    /// dispatch's parameters are copied into the uniform from a staging
+    /// dispatch's parameters are copied into the parameter buffer from a staging
     /// buffer inside the command stream, so no submission waits on a
     /// `write_buffer` (on an H100 four submissions cost about 2 ms).
     fn realtime_frame(&mut self, gpu: &Gpu, count: u32) {

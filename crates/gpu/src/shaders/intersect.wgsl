@@ -5,7 +5,7 @@
 @group(0) @binding(1) var<storage, read> perturbations: array<Perturbation>;
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 @group(0) @binding(3) var<storage, read_write> hits: array<vec4<f32>>;
-@group(0) @binding(4) var<uniform> counts: vec4<u32>; // rays, objects
+@group(0) @binding(4) var<storage, read> counts: vec4<u32>; // rays, objects
 @group(0) @binding(5) var<storage, read> nodes: array<BvhNode>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)

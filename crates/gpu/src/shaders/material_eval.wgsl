@@ -9,7 +9,7 @@ struct Answer { f: vec4<f32>, s_wi: vec4<f32>, s_f: vec4<f32> }
 @group(0) @binding(0) var<storage, read> materials: array<Material>;
 @group(0) @binding(1) var<storage, read> queries: array<Query>;
 @group(0) @binding(2) var<storage, read_write> answers: array<Answer>;
-@group(0) @binding(3) var<uniform> counts: vec4<u32>; // queries
+@group(0) @binding(3) var<storage, read> counts: vec4<u32>; // queries
 @group(0) @binding(4) var<storage, read> material_data: array<f32>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)

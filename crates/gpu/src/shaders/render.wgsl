@@ -42,7 +42,7 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 @group(0) @binding(4) var<storage, read> env_texels: array<vec4<f32>>; // rgb, pdf_uv
 @group(0) @binding(5) var<storage, read> env_cdf: array<f32>;          // marginal, then rows
 @group(0) @binding(6) var<storage, read_write> accum: array<vec4<f32>>;
-@group(0) @binding(7) var<uniform> params: Params;
+@group(0) @binding(7) var<storage, read> params: Params; // storage, not uniform: lib.rs params_buffer
 @group(0) @binding(8) var<storage, read> material_data: array<f32>;
 @group(0) @binding(9) var<storage, read> env_levels: array<vec4<u32>>; // realtime.wgsl
 @group(0) @binding(10) var<storage, read> nodes: array<BvhNode>;
