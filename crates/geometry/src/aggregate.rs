@@ -91,13 +91,26 @@ impl Aggregate {
     pub fn cull(&self, beam: &Beam, out: &mut Culled) {
         out.objects.clear();
         out.items.clear();
-        for (i, o) in self.objects.iter().enumerate() {
+        let mut add = |i: u32| {
+            let o = &self.objects[i as usize];
             if beam.meets_box(&o.bbox()) {
                 let first = out.items.len() as u32;
                 o.cull(beam, &mut out.items);
-                out.objects.push((i as u32, first, out.items.len() as u32));
+                out.objects.push((i, first, out.items.len() as u32));
             }
+        };
+        for &i in &self.unbounded {
+            add(i);
         }
+        // The object BVH walked once for the whole beam: a scene of
+        // thousands of objects costs a tile its depth, not its length.
+        self.bvh.walk(
+            |b| beam.meets_box(b),
+            |item| add(self.bounded[item as usize]),
+        );
+        // Scene order, as a linear scan gives: ties in `t` between
+        // objects resolve as before.
+        out.objects.sort_unstable_by_key(|&(i, ..)| i);
     }
 
     /// [`Aggregate::intersect`] for a ray inside the beam that `culled`

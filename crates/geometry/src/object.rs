@@ -285,11 +285,22 @@ impl Object {
     /// Appends to `out` the perturbations whose support may meet a ray of
     /// `beam` (those with unbounded support are always considered and not
     /// listed), for [`Object::intersect_culled`].
+    /// The list is in perturbation order: the support BVH is walked once
+    /// for the whole beam (subtrees whose box the beam misses are
+    /// skipped), each reached perturbation tested by its bounding sphere,
+    /// and the result sorted, so that it equals a linear scan's.
     pub fn cull(&self, beam: &Beam, out: &mut Vec<u32>) {
-        out.extend((0..self.spheres.len() as u32).filter(|&k| {
-            let (c, r) = self.spheres[k as usize];
-            beam.meets_sphere(c, r)
-        }));
+        let start = out.len();
+        self.bvh.walk(
+            |b| beam.meets_box(b),
+            |k| {
+                let (c, r) = self.spheres[k as usize];
+                if beam.meets_sphere(c, r) {
+                    out.push(k);
+                }
+            },
+        );
+        out[start..].sort_unstable();
     }
 
     /// [`Object::intersect`] for a ray inside a beam, considering only the
