@@ -133,13 +133,31 @@ fn translucent_scenes_match_the_cpu_within_noise() {
 /// within noise. Both render the spectral hero combs of their own random
 /// offsets, so the colour noise is part of the measured noise.
 ///
-/// `#[ignore]`d in CI: the path tracer with the `wave` code takes minutes
-/// to compile on lavapipe (docs/gpu.md); run with `--ignored`.
+/// The image means are compared over several seeds, not one: the brushed
+/// metal's light comes in rare bright glints, so at 8 samples per pixel
+/// one image's mean moves by about 7% from seed to seed (measured on the
+/// CPU: 0.109 to 0.126). The means of `SEEDS` renders on each side must
+/// agree within three standard errors of their difference, estimated
+/// from the same renders' spread, or within 1%.
+///
+/// `#[ignore]`d in CI: the path tracer with the `wave` code adds minutes
+/// of kernel compile on lavapipe (docs/gpu.md); run with `--ignored`.
 #[test]
 #[ignore = "compiles the wave path tracer: minutes on lavapipe"]
 fn wave_scenes_match_the_cpu_within_noise() {
+    const SEEDS: u64 = 4;
     let Some(gpu) = common::open("GPU image tests") else {
         return;
+    };
+    let image_mean = |img: &Image| {
+        img.rgb.iter().flatten().map(|&c| c as f64).sum::<f64>() / (3 * img.rgb.len()) as f64
+    };
+    // Mean and standard error of the mean of per-seed image means.
+    let stats = |v: &[f64]| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        (m, (var / n).sqrt())
     };
     for (name, w, h, spp) in [
         ("wave-grating.toml", 96, 72, 16),
@@ -150,10 +168,24 @@ fn wave_scenes_match_the_cpu_within_noise() {
         scene.film.width = w;
         scene.film.height = h;
         scene.film.spp = spp;
-        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
-        assert!(mc > 0.0);
+        let (diff, noise, _, _) = compare(&gpu, &mut scene.clone(), name);
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
-        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+        let (mut g, mut c) = (Vec::new(), Vec::new());
+        for seed in 0..SEEDS {
+            scene.integrator.seed = 100 + seed;
+            g.push(image_mean(&gpu_image(&gpu, &scene)));
+            c.push(image_mean(&cpu_image(&scene)));
+        }
+        let ((mg, sg), (mc, sc)) = (stats(&g), stats(&c));
+        eprintln!(
+            "{name}: means over {SEEDS} seeds GPU {mg:.5} +- {sg:.5}, CPU {mc:.5} +- {sc:.5}"
+        );
+        assert!(mc > 0.0);
+        let tol = (3.0 * (sg * sg + sc * sc).sqrt()).max(0.01 * mc);
+        assert!(
+            (mg - mc).abs() <= tol,
+            "{name}: {mg} vs {mc} (tolerance {tol})"
+        );
     }
 }
 
