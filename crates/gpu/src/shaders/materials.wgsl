@@ -1280,6 +1280,11 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
             return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
         }
+        case MAT_SSS_ENTRY_LOBE: {
+            // The continuation from a dipole entry point (render.wgsl):
+            // cosine-weighted, weight S_w(cos) pi.
+            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+        }
         default: {
             return no_sample();
         }

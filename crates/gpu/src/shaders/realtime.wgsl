@@ -106,7 +106,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     if (wo_l.z == 0.0) {
         return vec3<f32>(0.0);
     }
-    var l = point_lights(p, ng, fr, m, wo_l);
+    var l = direct_light(p, ng, fr, m, wo_l, false); // point lights only
     let uc = rand();
     let s = material_sample(m, wo_l, uc, rand2());
     if (s.ok && s.pdf > 0.0 && finite(s.pdf) && finite3(s.f) && s.wi.z != 0.0) {

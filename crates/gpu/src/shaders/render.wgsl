@@ -190,49 +190,56 @@ fn env_sample(u: vec2<f32>) -> vec4<f32> {
 
 // ---- Integrator -----------------------------------------------------------
 
-// Point lights with shadow rays at p (geometric normal ng) for material m
-// in frame fr.
-fn point_lights(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
+// Next-event estimation at p (geometric normal ng) for material m in
+// frame fr: the point lights (shadow rays) and, for an environment map and
+// `with_env`, one light sample weighted by MIS (power heuristic) against
+// BSDF sampling (the real-time kernel takes its environment light from the
+// prefiltered map instead).
+// One loop over `lights + 1` samples with one `material_f` and one shadow
+// ray, called once per bounce: NIR inlines every call site of the exact
+// intersection and of the material library, and the kernel's compile time
+// on lavapipe grows with their count (docs/gpu.md).
+fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, with_env: bool) -> vec3<f32> {
     var l = vec3<f32>(0.0);
-    for (var i = 0u; i < params.counts.y; i++) {
-        let light = lights[i];
-        let origin = offset_origin(p, ng, light.position.xyz - p);
-        let d = light.position.xyz - origin;
-        let dist2 = dot(d, d);
-        if (!(dist2 > 0.0)) {
-            continue;
+    let n_lights = params.counts.y;
+    let n = n_lights + select(0u, 1u, with_env && params.counts.w == ENV_MAP);
+    for (var i = 0u; i < n; i++) {
+        var wi: vec3<f32>;
+        var origin: vec3<f32>;
+        var t_max = 3.0e38;
+        var rad: vec3<f32>;
+        var light_pdf = 0.0; // 0: a point light (delta), no MIS
+        if (i < n_lights) {
+            let light = lights[i];
+            origin = offset_origin(p, ng, light.position.xyz - p);
+            let d = light.position.xyz - origin;
+            let dist2 = dot(d, d);
+            if (!(dist2 > 0.0)) {
+                continue;
+            }
+            t_max = sqrt(dist2);
+            wi = d / t_max;
+            rad = light.intensity.rgb / dist2;
+        } else {
+            let s = env_sample(rand2());
+            if (!(s.w > 0.0)) {
+                continue;
+            }
+            wi = s.xyz;
+            origin = offset_origin(p, ng, wi);
+            rad = env_eval(wi);
+            light_pdf = s.w;
         }
-        let dist = sqrt(dist2);
-        let wi = d / dist;
         let wl = to_local(fr, wi);
         let fc = material_f(m, wo_l, wl) * abs(wl.z);
-        if (max3(fc) <= 0.0) {
+        if (max3(fc) <= 0.0 || max3(rad) <= 0.0) {
             continue;
         }
-        if (!occluded(origin, wi, dist)) {
-            l += fc * light.intensity.rgb / dist2;
+        if (light_pdf > 0.0) {
+            rad *= power_heuristic(light_pdf, material_pdf(m, wo_l, wl)) / light_pdf;
         }
-    }
-    return l;
-}
-
-// Next-event estimation at p (geometric normal ng) for material m in frame fr.
-fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
-    var l = point_lights(p, ng, fr, m, wo_l);
-    if (params.counts.w == ENV_MAP) {
-        let s = env_sample(rand2());
-        if (s.w > 0.0) {
-            let wi = s.xyz;
-            let wl = to_local(fr, wi);
-            let fc = material_f(m, wo_l, wl) * abs(wl.z);
-            let rad = env_eval(wi);
-            if (max3(fc) > 0.0 && max3(rad) > 0.0) {
-                let origin = offset_origin(p, ng, wi);
-                if (!occluded(origin, wi, 3.0e38)) {
-                    let w = power_heuristic(s.w, material_pdf(m, wo_l, wl));
-                    l += fc * rad * (w / s.w);
-                }
-            }
+        if (!occluded(origin, wi, t_max)) {
+            l += fc * rad;
         }
     }
     return l;
@@ -256,6 +263,12 @@ struct Path {
     // The environment along the current ray was already counted (the
     // mirror reflection of a subsurface boundary).
     env_counted: bool,
+    // The next vertex is the entry point x_i of a dipole medium chosen by
+    // `sss_dipole_bounce` (at `o`, normal `entry_n`, medium material
+    // `entry_m`): no ray to trace.
+    entry: bool,
+    entry_n: vec3<f32>,
+    entry_m: u32,
 }
 
 var<private> path: Path;
@@ -321,28 +334,34 @@ fn roulette(beta: vec3<f32>) -> vec3<f32> {
     return beta;
 }
 
-// Direct light scattered once inside the medium and leaving at p toward
-// wo: light sampling through `direct_light` with the single-scattering
-// lobe, plus one cosine-sampled direction toward the environment (MIS
-// against an environment map), as integrator.rs single_scattering_light.
-fn sss_single_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>) -> vec3<f32> {
+// The single-scattering lobe of dipole medium m at its exit point x_o
+// (integrator.rs single_scattering_light): its light samples go through
+// `direct_light` in `bounce`, plus `sss_single_env`.
+fn sss_single_lobe(m: Material) -> Material {
     var lobe = m;
     lobe.tag.x = MAT_SSS_SINGLE_LOBE;
     lobe.a = vec4<f32>(0.0, 0.0, 0.0, m.a.x);
     lobe.b = vec4<f32>(sss_albedo(m), m.a.y);
-    var l = direct_light(p, ng, fr, lobe, wo_l);
+    return lobe;
+}
+
+// One cosine-sampled direction toward the environment through the
+// single-scattering lobe (MIS against the light sample of an environment
+// map).
+fn sss_single_env(p: vec3<f32>, ng: vec3<f32>, fr: Frame, lobe: Material, wo_l: vec3<f32>) -> vec3<f32> {
     let local = cosine_hemisphere(rand2());
-    if (local.z > 0.0) {
-        let wi = to_world(fr, local);
-        if (!occluded(offset_origin(p, ng, wi), wi, 3.0e38)) {
-            var w = 1.0;
-            if (params.counts.w == ENV_MAP) {
-                w = power_heuristic(local.z * INV_PI, env_pdf(wi));
-            }
-            l += material_f(lobe, wo_l, local) * env_eval(wi) * (PI * w);
-        }
+    if (local.z <= 0.0) {
+        return vec3<f32>(0.0);
     }
-    return l;
+    let wi = to_world(fr, local);
+    if (occluded(offset_origin(p, ng, wi), wi, 3.0e38)) {
+        return vec3<f32>(0.0);
+    }
+    var w = 1.0;
+    if (params.counts.w == ENV_MAP) {
+        w = power_heuristic(local.z * INV_PI, env_pdf(wi));
+    }
+    return material_f(lobe, wo_l, local) * env_eval(wi) * (PI * w);
 }
 
 // Light refracted into a dipole medium at p re-emerges at an entry point
@@ -350,9 +369,11 @@ fn sss_single_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: v
 // projection axis (the normal 1/2, each tangent 1/4), a radius from the
 // channel's table, a probe ray along the axis through object oi of which
 // one of the k hits is kept (reservoir sampling), the pdf summing every
-// axis and channel. Then light through the boundary at x_i (S_w) and a
-// cosine-sampled continuation. (The choice of transmission, probability
-// 1 - F(cos_o), cancels the factor 1 - F(cos_o) of S.)
+// axis and channel. x_i becomes the path's next vertex, with the entry
+// lobe S_w as its material: `bounce` gathers light through the boundary
+// there and samples a cosine-weighted continuation. (The choice of
+// transmission, probability 1 - F(cos_o), cancels the factor 1 - F(cos_o)
+// of S.)
 fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
     let fr = frame_from_normal(n);
     let c = min(u32(rand() * 3.0), 2u);
@@ -429,27 +450,12 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
     if (!finite3(w)) {
         return false;
     }
-    var beta = path.beta * w;
-    let fri = frame_from_normal(xn);
-    var entry = m;
-    entry.tag.x = MAT_SSS_ENTRY_LOBE;
-    path.l += beta * direct_light(xp, xn, fri, entry, vec3<f32>(0.0, 0.0, 1.0));
-    let local = cosine_hemisphere(rand2());
-    if (local.z <= 0.0) {
-        return false;
-    }
-    let wl = to_world(fri, local);
-    beta *= sss_sw(m, local.z) * PI;
-    path.prev_pdf = local.z * INV_PI;
-    path.env_counted = false;
-    path.o = offset_origin(xp, xn, wl);
-    path.d = wl;
-    path.depth += 1u;
-    if (path.depth >= 3u) {
-        beta = roulette(beta);
-    }
-    path.beta = beta;
-    return max3(beta) > 0.0;
+    path.beta *= w;
+    path.o = xp;
+    path.entry_n = xn;
+    path.entry_m = objects[oi].range.z;
+    path.entry = true;
+    return max3(path.beta) > 0.0;
 }
 
 // A scattering event at p inside the medium (random walk): albedo of the
@@ -478,49 +484,69 @@ fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
 
 // One bounce of the path: false when it ends. (The loop lives in
 // `radiance`, the body here: one large loop body miscompiled on lavapipe.)
+// Each bounce finds its vertex (a traced ray, or the entry point of a
+// dipole medium), gathers direct light there with one `direct_light` call
+// and samples the continuation with one `material_sample` call.
 fn bounce() -> bool {
-    let o = path.o;
-    let d = path.d;
-    // Free flight inside a medium limits the search for the surface.
-    var t_max = 3.0e38;
-    var st = 0.0;
-    if (path.medium != 0u) {
-        let mm = materials[path.medium - 1u];
-        st = (mm.b.rgb + mm.c.rgb)[path.channel];
-        if (st > 0.0) {
-            t_max = -log(1.0 - rand()) / st;
+    let entry = path.entry;
+    path.entry = false;
+    var p: vec3<f32>;
+    var ng: vec3<f32>;
+    var wo: vec3<f32>;
+    var m: Material;
+    var oi = 0u;
+    var mi = 0u;
+    if (entry) {
+        p = path.o;
+        ng = path.entry_n;
+        wo = ng;
+        m = materials[path.entry_m];
+        m.tag.x = MAT_SSS_ENTRY_LOBE;
+        m.tag.z = 0u;
+    } else {
+        let o = path.o;
+        let d = path.d;
+        // Free flight inside a medium limits the search for the surface.
+        var t_max = 3.0e38;
+        var st = 0.0;
+        if (path.medium != 0u) {
+            let mm = materials[path.medium - 1u];
+            st = (mm.b.rgb + mm.c.rgb)[path.channel];
+            if (st > 0.0) {
+                t_max = -log(1.0 - rand()) / st;
+            }
         }
-    }
-    let h = scene_hit(o, d, t_max);
-    if (h.x < 0.0 && t_max < 3.0e38) {
-        return medium_scatter(o + t_max * d, d, st);
-    }
-    if (h.x < 0.0) {
-        var w = 1.0;
-        if (path.env_counted) {
-            w = 0.0;
-        } else if (path.prev_pdf > 0.0 && params.counts.w == ENV_MAP) {
-            w = power_heuristic(path.prev_pdf, env_pdf(d));
+        let h = scene_hit(o, d, t_max);
+        if (h.x < 0.0 && t_max < 3.0e38) {
+            return medium_scatter(o + t_max * d, d, st);
         }
-        path.l += path.beta * env_eval(d) * w;
-        return false;
+        if (h.x < 0.0) {
+            var w = 1.0;
+            if (path.env_counted) {
+                w = 0.0;
+            } else if (path.prev_pdf > 0.0 && params.counts.w == ENV_MAP) {
+                w = power_heuristic(path.prev_pdf, env_pdf(d));
+            }
+            path.l += path.beta * env_eval(d) * w;
+            return false;
+        }
+        if (path.depth >= params.counts.z && path.medium == 0u) {
+            return false;
+        }
+        oi = hit_object;
+        mi = objects[oi].range.z;
+        p = o + h.x * d;
+        // Spatially varying materials (wave) are placed at the hit, camera
+        // rays with the pixel footprint (the angle of one pixel times the
+        // distance), as on the CPU; the comb offset is drawn only for them.
+        m = materials[mi];
+        if (m.tag.x == MAT_WAVE) {
+            let fp = select(-1.0, pixel_footprint(h.x), path.depth == 0u);
+            m = place_material(m, p, fp, rand());
+        }
+        ng = h.yzw;
+        wo = -d;
     }
-    if (path.depth >= params.counts.z && path.medium == 0u) {
-        return false;
-    }
-    let oi = hit_object;
-    let obj = objects[oi];
-    let p = o + h.x * d;
-    // Spatially varying materials (wave) are placed at the hit, camera
-    // rays with the pixel footprint (the angle of one pixel times the
-    // distance), as on the CPU; the comb offset is drawn only for them.
-    var m = materials[obj.range.z];
-    if (m.tag.x == MAT_WAVE) {
-        let fp = select(-1.0, pixel_footprint(h.x), path.depth == 0u);
-        m = place_material(m, p, fp, rand());
-    }
-    let ng = h.yzw;
-    let wo = -d;
     let flags = material_flags(m);
     var ns = ng;
     if (dot(wo, ng) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u) {
@@ -537,12 +563,21 @@ fn bounce() -> bool {
         return false;
     }
     let is_medium = m.tag.x == MAT_SUBSURFACE;
+    // Direct light: the material's own lobes, or for a dipole medium seen
+    // from outside its single scattering at x_o; a medium's boundary lobes
+    // are specular (no light sampling for them).
+    let single = is_medium && m.tag.w == 0u && m.b.w > 0.0 && dot(wo, ng) > 0.0;
+    var nee_m = m;
+    if (single) {
+        nee_m = sss_single_lobe(m);
+    }
+    if (!is_medium || single) {
+        path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, true);
+    }
     var mirror_env = false;
     if (is_medium) {
-        // The boundary's lobes are specular: no light sampling for them.
-        // Single scattering of the dipole mode at x_o, for direct light.
-        if (m.tag.w == 0u && m.b.w > 0.0 && dot(wo, ng) > 0.0) {
-            path.l += path.beta * sss_single_light(p, ng, fr, m, wo_l);
+        if (single) {
+            path.l += path.beta * sss_single_env(p, ng, fr, nee_m, wo_l);
         }
         // The environment mirrored by the boundary, seen from outside,
         // with its Fresnel weight on every path; a sampled reflection then
@@ -555,8 +590,6 @@ fn bounce() -> bool {
             }
             mirror_env = true;
         }
-    } else {
-        path.l += path.beta * direct_light(p, ng, fr, m, wo_l);
     }
     path.env_counted = false;
     let uc = rand();
@@ -587,7 +620,7 @@ fn bounce() -> bool {
                 one[c] = 3.0 * beta[c];
                 beta = one;
             }
-            path.medium = obj.range.z + 1u;
+            path.medium = mi + 1u;
         }
     }
     path.prev_pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
@@ -614,11 +647,12 @@ fn pixel_footprint(t: f32) -> f32 {
 }
 
 fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
-    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false);
+    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
     // Every bounce either ends the path or raises its depth (ending it at
-    // max_depth) or its medium events (ending it at MAX_MEDIUM_EVENTS):
-    // the bound only guards against the unforeseen.
-    for (var i = 0u; i <= params.counts.z + MAX_MEDIUM_EVENTS + 2u; i++) {
+    // max_depth) or its medium events (ending it at MAX_MEDIUM_EVENTS), or
+    // chooses a dipole entry point whose bounce raises the depth: the
+    // bound only guards against the unforeseen.
+    for (var i = 0u; i <= 2u * params.counts.z + MAX_MEDIUM_EVENTS + 2u; i++) {
         if (!bounce()) {
             break;
         }
