@@ -106,7 +106,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     if (wo_l.z == 0.0) {
         return vec3<f32>(0.0);
     }
-    var l = direct_light(p, ng, fr, m, wo_l, false); // point lights only
+    var l = direct_light(p, ng, fr, m, wo_l, GATHER_LIGHTS, vec4<f32>(0.0));
     let uc = rand();
     let s = material_sample(m, wo_l, uc, rand2());
     if (s.ok && s.pdf > 0.0 && finite(s.pdf) && finite3(s.f) && s.wi.z != 0.0) {
@@ -128,25 +128,11 @@ fn realtime(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = gid.y * width + gid.x;
-    let gm = params.film.z;
-    let gn = params.film.w;
-    let cells = gm * gn;
-    let seed = params.pass_info.z;
-    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
-    let s = params.pass_info.x;
     var acc = vec4<f32>(0.0);
-    if (s > 0u) {
+    if (params.pass_info.x > 0u) {
         acc = accum[pixel];
     }
-    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
-    let c = (s + offset) % cells;
-    let j = rand2();
-    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
-    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
-    let sx = 2.0 * fx / f32(width) - 1.0;
-    let sy = 1.0 - 2.0 * fy / f32(height);
-    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
-    let v = realtime_shade(params.origin.xyz, dir);
+    let v = realtime_shade(params.origin.xyz, camera_sample(gid));
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
         acc = vec4<f32>(acc.rgb + v, acc.w);
     } else {

@@ -190,25 +190,39 @@ fn env_sample(u: vec2<f32>) -> vec4<f32> {
 
 // ---- Integrator -----------------------------------------------------------
 
-// Next-event estimation at p (geometric normal ng) for material m in
-// frame fr: the point lights (shadow rays) and, for an environment map and
-// `with_env`, one light sample weighted by MIS (power heuristic) against
-// BSDF sampling (the real-time kernel takes its environment light from the
-// prefiltered map instead).
-// One loop over `lights + 1` samples with one `material_f` and one shadow
-// ray, called once per bounce: NIR inlines every call site of the exact
-// intersection and of the material library, and the kernel's compile time
-// on lavapipe grows with their count (docs/gpu.md).
-fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, with_env: bool) -> vec3<f32> {
+// What `direct_light` gathers (bits of its `what`).
+const GATHER_LIGHTS: u32 = 1u; // the point lights
+const GATHER_ENV: u32 = 2u;    // one sample of an environment map, MIS against the BSDF
+const GATHER_COSINE: u32 = 4u; // one cosine-sampled direction toward the environment, MIS against the map
+
+// Light gathered at p (geometric normal ng) by shadow rays, for material m
+// in frame fr (integrator.rs): next-event estimation to the point lights
+// and an environment map's light sample, a cosine-sampled direction toward
+// the environment (the single scattering of a dipole medium), and the
+// environment mirrored by a subsurface boundary (`mirror`: the world
+// direction and its Fresnel weight; none when the weight is 0). The
+// real-time kernel gathers the point lights only.
+//
+// One loop, one `material_f` and one shadow ray for all of them, called
+// once per bounce: NIR inlines every call site of the exact intersection
+// and of the material library, and the kernel's compile time on lavapipe
+// grows with their count (docs/gpu.md).
+fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>) -> vec3<f32> {
     var l = vec3<f32>(0.0);
-    let n_lights = params.counts.y;
-    let n = n_lights + select(0u, 1u, with_env && params.counts.w == ENV_MAP);
+    let env_map = params.counts.w == ENV_MAP;
+    let n_lights = select(0u, params.counts.y, (what & GATHER_LIGHTS) != 0u);
+    let n_env = select(0u, 1u, (what & GATHER_ENV) != 0u && env_map);
+    let n_cos = select(0u, 1u, (what & GATHER_COSINE) != 0u);
+    let n_mirror = select(0u, 1u, mirror.w > 0.0);
+    let n = n_lights + n_env + n_cos + n_mirror;
     for (var i = 0u; i < n; i++) {
         var wi: vec3<f32>;
         var origin: vec3<f32>;
         var t_max = 3.0e38;
         var rad: vec3<f32>;
-        var light_pdf = 0.0; // 0: a point light (delta), no MIS
+        var light_pdf = 0.0; // > 0: the map's sample, weighted by MIS here
+        var cos_factor = true; // false: rad already holds the cosine / pdf
+        var with_f = true;     // false: the mirror, weighted by Fresnel alone
         if (i < n_lights) {
             let light = lights[i];
             origin = offset_origin(p, ng, light.position.xyz - p);
@@ -220,7 +234,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             t_max = sqrt(dist2);
             wi = d / t_max;
             rad = light.intensity.rgb / dist2;
-        } else {
+        } else if (i < n_lights + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
                 continue;
@@ -229,14 +243,35 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             origin = offset_origin(p, ng, wi);
             rad = env_eval(wi);
             light_pdf = s.w;
+        } else if (i < n_lights + n_env + n_cos) {
+            let local = cosine_hemisphere(rand2());
+            if (local.z <= 0.0) {
+                continue;
+            }
+            wi = to_world(fr, local);
+            origin = offset_origin(p, ng, wi);
+            var w = 1.0;
+            if (env_map) {
+                w = power_heuristic(local.z * INV_PI, env_pdf(wi));
+            }
+            rad = env_eval(wi) * (PI * w);
+            cos_factor = false;
+        } else {
+            wi = mirror.xyz;
+            origin = offset_origin(p, ng, wi);
+            rad = env_eval(wi) * mirror.w;
+            with_f = false;
         }
-        let wl = to_local(fr, wi);
-        let fc = material_f(m, wo_l, wl) * abs(wl.z);
+        var fc = vec3<f32>(1.0);
+        if (with_f) {
+            let wl = to_local(fr, wi);
+            fc = material_f(m, wo_l, wl) * select(1.0, abs(wl.z), cos_factor);
+            if (light_pdf > 0.0) {
+                rad *= power_heuristic(light_pdf, material_pdf(m, wo_l, wl)) / light_pdf;
+            }
+        }
         if (max3(fc) <= 0.0 || max3(rad) <= 0.0) {
             continue;
-        }
-        if (light_pdf > 0.0) {
-            rad *= power_heuristic(light_pdf, material_pdf(m, wo_l, wl)) / light_pdf;
         }
         if (!occluded(origin, wi, t_max)) {
             l += fc * rad;
@@ -335,33 +370,15 @@ fn roulette(beta: vec3<f32>) -> vec3<f32> {
 }
 
 // The single-scattering lobe of dipole medium m at its exit point x_o
-// (integrator.rs single_scattering_light): its light samples go through
-// `direct_light` in `bounce`, plus `sss_single_env`.
+// (integrator.rs single_scattering_light): `bounce` gathers its light
+// samples and one cosine-sampled direction toward the environment through
+// it.
 fn sss_single_lobe(m: Material) -> Material {
     var lobe = m;
     lobe.tag.x = MAT_SSS_SINGLE_LOBE;
     lobe.a = vec4<f32>(0.0, 0.0, 0.0, m.a.x);
     lobe.b = vec4<f32>(sss_albedo(m), m.a.y);
     return lobe;
-}
-
-// One cosine-sampled direction toward the environment through the
-// single-scattering lobe (MIS against the light sample of an environment
-// map).
-fn sss_single_env(p: vec3<f32>, ng: vec3<f32>, fr: Frame, lobe: Material, wo_l: vec3<f32>) -> vec3<f32> {
-    let local = cosine_hemisphere(rand2());
-    if (local.z <= 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let wi = to_world(fr, local);
-    if (occluded(offset_origin(p, ng, wi), wi, 3.0e38)) {
-        return vec3<f32>(0.0);
-    }
-    var w = 1.0;
-    if (params.counts.w == ENV_MAP) {
-        w = power_heuristic(local.z * INV_PI, env_pdf(wi));
-    }
-    return material_f(lobe, wo_l, local) * env_eval(wi) * (PI * w);
 }
 
 // Light refracted into a dipole medium at p re-emerges at an entry point
@@ -568,28 +585,27 @@ fn bounce() -> bool {
     // are specular (no light sampling for them).
     let single = is_medium && m.tag.w == 0u && m.b.w > 0.0 && dot(wo, ng) > 0.0;
     var nee_m = m;
+    var what = GATHER_LIGHTS | GATHER_ENV;
     if (single) {
         nee_m = sss_single_lobe(m);
+        what |= GATHER_COSINE;
+    } else if (is_medium) {
+        what = 0u;
     }
-    if (!is_medium || single) {
-        path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, true);
-    }
+    // The environment mirrored by a subsurface boundary, seen from
+    // outside, with its Fresnel weight on every path; a sampled reflection
+    // then only carries what the mirror ray meets in the scene.
+    var mirror = vec4<f32>(0.0);
     var mirror_env = false;
     if (is_medium) {
-        if (single) {
-            path.l += path.beta * sss_single_env(p, ng, fr, nee_m, wo_l);
-        }
-        // The environment mirrored by the boundary, seen from outside,
-        // with its Fresnel weight on every path; a sampled reflection then
-        // only carries what the mirror ray meets in the scene.
         let cos_o = dot(wo, ns);
         if (cos_o > 0.0) {
-            let r = 2.0 * cos_o * ns - wo;
-            if (!occluded(offset_origin(p, ng, r), r, 3.0e38)) {
-                path.l += path.beta * env_eval(r) * fresnel_dielectric(cos_o, m.a.x);
-            }
+            mirror = vec4<f32>(2.0 * cos_o * ns - wo, fresnel_dielectric(cos_o, m.a.x));
             mirror_env = true;
         }
+    }
+    if (what != 0u || mirror.w > 0.0) {
+        path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror);
     }
     path.env_counted = false;
     let uc = rand();
@@ -660,20 +676,20 @@ fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     return path.l;
 }
 
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+// The camera ray of sample s = `pass_info.x` of pixel gid (one sample per
+// dispatch, in every entry point): seeds the random stream of (seed,
+// pixel, s) and returns the ray's direction from `params.origin`. Sample s
+// takes cell (s + offset) mod (m n) of the m x n sub-pixel grid (offset
+// random per pixel), jittered inside the cell.
+fn camera_sample(gid: vec3<u32>) -> vec3<f32> {
     let width = params.film.x;
     let height = params.film.y;
-    if (gid.x >= width || gid.y >= height) {
-        return;
-    }
     let pixel = gid.y * width + gid.x;
     let gm = params.film.z;
     let gn = params.film.w;
     let cells = gm * gn;
     let seed = params.pass_info.z;
     let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
-    var acc = accum[pixel];
     let s = params.pass_info.x;
     rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
     let c = (s + offset) % cells;
@@ -682,8 +698,19 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
     let sx = 2.0 * fx / f32(width) - 1.0;
     let sy = 1.0 - 2.0 * fy / f32(height);
-    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
-    let v = radiance(params.origin.xyz, dir);
+    return normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
+}
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = params.film.x;
+    let height = params.film.y;
+    if (gid.x >= width || gid.y >= height) {
+        return;
+    }
+    let pixel = gid.y * width + gid.x;
+    var acc = accum[pixel];
+    let v = radiance(params.origin.xyz, camera_sample(gid));
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
         acc = vec4<f32>(acc.rgb + v, acc.w);
     } else {
@@ -705,21 +732,7 @@ fn aov_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = gid.y * width + gid.x;
-    let gm = params.film.z;
-    let gn = params.film.w;
-    let cells = gm * gn;
-    let seed = params.pass_info.z;
-    let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
-    let s = params.pass_info.x;
-    rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
-    let c = (s + offset) % cells;
-    let j = rand2();
-    let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
-    let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
-    let sx = 2.0 * fx / f32(width) - 1.0;
-    let sy = 1.0 - 2.0 * fy / f32(height);
-    let dir = normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
-    let h = scene_hit(params.origin.xyz, dir, 3.0e38);
+    let h = scene_hit(params.origin.xyz, camera_sample(gid), 3.0e38);
     if (h.x >= 0.0) {
         let a = albedos[objects[hit_object].range.z].rgb;
         aov[2u * pixel] += vec4<f32>(a, h.x);
