@@ -381,6 +381,19 @@ fn sss_single_lobe(m: Material) -> Material {
     return lobe;
 }
 
+// Projection axis j of a dipole's entry-point sampling (probability 1/2
+// for the normal, j = 0, and 1/4 for each tangent) and the two axes of the
+// disk around it, as columns: (n; s, t), (s; t, n), (t; n, s).
+fn sss_axis(fr: Frame, j: u32) -> mat3x3<f32> {
+    if (j == 1u) {
+        return mat3x3<f32>(fr.s, fr.t, fr.n);
+    }
+    if (j == 2u) {
+        return mat3x3<f32>(fr.t, fr.n, fr.s);
+    }
+    return mat3x3<f32>(fr.n, fr.s, fr.t);
+}
+
 // Light refracted into a dipole medium at p re-emerges at an entry point
 // x_i sampled around it (integrator.rs bssrdf_entry): a channel, a
 // projection axis (the normal 1/2, each tangent 1/4), a radius from the
@@ -395,18 +408,10 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
     let fr = frame_from_normal(n);
     let c = min(u32(rand() * 3.0), 2u);
     let ua = rand();
-    var axis = fr.n;
-    var a1 = fr.s;
-    var a2 = fr.t;
-    if (ua >= 0.75) {
-        axis = fr.t;
-        a1 = fr.n;
-        a2 = fr.s;
-    } else if (ua >= 0.5) {
-        axis = fr.s;
-        a1 = fr.t;
-        a2 = fr.n;
-    }
+    let axes = sss_axis(fr, select(0u, select(1u, 2u, ua >= 0.75), ua >= 0.5));
+    let axis = axes[0];
+    let a1 = axes[1];
+    let a2 = axes[2];
     let r_max = m.a.z;
     let x = table_sample(m.idx[1u + c], rand());
     let r = r_max * x * x;
@@ -440,15 +445,8 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
     let dv = xp - p;
     var pdf = 0.0;
     for (var j = 0u; j < 3u; j++) {
-        var ax = fr.n;
-        var p_axis = 0.5;
-        if (j == 1u) {
-            ax = fr.s;
-            p_axis = 0.25;
-        } else if (j == 2u) {
-            ax = fr.t;
-            p_axis = 0.25;
-        }
+        let ax = sss_axis(fr, j)[0];
+        let p_axis = select(0.25, 0.5, j == 0u);
         let along = dot(dv, ax);
         let r_proj = sqrt(max(dot(dv, dv) - along * along, 0.0));
         if (r_proj <= 0.0 || r_proj >= r_max) {
