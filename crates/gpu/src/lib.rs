@@ -255,6 +255,10 @@ pub struct Gpu {
     f64_supported: bool,
     /// Adapter name and back end, for reports.
     pub adapter: String,
+    /// The driver's name and version as it reports them (for example
+    /// `Mesa 22.3.6 (LLVM 15.0.6)` for lavapipe), for reports and for
+    /// tests that know a driver's defects.
+    pub driver: String,
 }
 
 impl Gpu {
@@ -316,6 +320,9 @@ impl Gpu {
             precision: Precision::F32,
             f64_supported,
             adapter: format!("{} ({:?})", info.name, info.backend),
+            driver: format!("{} {}", info.driver, info.driver_info)
+                .trim()
+                .to_string(),
         })
     }
 

@@ -2,13 +2,17 @@
 //!
 //! - **White furnaces** (closed forms): a white diffuse object, however
 //!   perturbed, and a glass object (lossless dielectric) under uniform
-//!   radiance 1 render 1 in every pixel. **Known defect**: a few paths of
-//!   many bounces end early with nothing (the path loop exits although no
-//!   exit of the kernel is taken; seen on lavapipe and on an NVIDIA H100
-//!   alike, cause not found yet, docs/gpu.md). So the strict test (every
-//!   pixel within 2e-3) is `#[ignore]`d and tracks the defect, and the CI
-//!   test bounds it: image mean within 1% of 1, at least 97% of the pixels
-//!   within 2e-3, none above 1 + 2e-3 (the defect only loses energy).
+//!   radiance 1 render 1 in every pixel, within 2e-3. The glass furnace
+//!   runs with `max_depth = 100000`: light trapped by total internal
+//!   reflection in the bump circulates for thousands of bounces, and a
+//!   depth limit truncates it (the CPU loses 12 of 196,608 paths at the
+//!   scene's 256, 1 at 4096, none at 100,000; physics, not a defect).
+//!   **Known driver defect**: Mesa 22.3's lavapipe, the driver `.ci/run`
+//!   installs, miscompiles long loops, and a few paths of many bounces
+//!   end with nothing (docs/gpu.md); Mesa 25.0.7 runs the same SPIR-V
+//!   exactly. On Mesa 22 the test asserts instead that losses come in
+//!   whole paths only (every pixel a multiple of 1/spp, so nothing but
+//!   that defect), at most 1% of the pixels, the mean within 0.5%.
 //! - **The gallery** (`examples/scenes/gallery.toml`, its environment map,
 //!   point light, every object and all 16 materials, each on the GPU):
 //!   GPU and CPU agree within noise. The noise
@@ -60,43 +64,51 @@ fn furnace_stats(img: &Image, what: &str) -> (f32, f64, f64, f32) {
     (worst, good, mean, max)
 }
 
-fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image)> {
+fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image, u32)> {
     let mut scene = common::example("furnace.toml");
     scene.film.width = 64;
     scene.film.height = 48;
     scene.film.spp = 4;
     let diffuse = gpu_image(gpu, &scene);
-    // The same perturbed object in glass: everything entering leaves.
+    // The same perturbed object in glass: everything entering leaves, if
+    // the depth limit lets it.
     scene.materials[0] = Material::Dielectric(isolux_materials::Dielectric { ior: 1.5 });
     scene.film.spp = 8;
+    scene.integrator.max_depth = 100_000;
     vec![
-        ("diffuse furnace", diffuse),
-        ("glass furnace", gpu_image(gpu, &scene)),
+        ("diffuse furnace", diffuse, 4),
+        ("glass furnace", gpu_image(gpu, &scene), 8),
     ]
 }
 
-#[test]
-fn white_furnaces_render_one_within_the_known_defect() {
-    let Some(gpu) = common::open("GPU image tests") else {
-        return;
-    };
-    for (what, img) in furnace_images(&gpu) {
-        let (_, good, mean, max) = furnace_stats(&img, what);
-        assert!((mean - 1.0).abs() < 0.01, "{what}: mean {mean}");
-        assert!(good >= 0.97, "{what}: {good}");
-        assert!(max < 1.0 + 2e-3, "{what}: {max}");
-    }
+/// Mesa 22.3's lavapipe miscompiles long loops (docs/gpu.md): the one
+/// driver known to lose whole paths.
+fn loses_whole_paths(gpu: &Gpu) -> bool {
+    gpu.driver.contains("Mesa 22.")
 }
 
 #[test]
-#[ignore = "known defect: a few long paths end early (docs/gpu.md)"]
-fn white_furnaces_render_one_everywhere() {
+fn white_furnaces_render_one() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    for (what, img) in furnace_images(&gpu) {
-        let (worst, ..) = furnace_stats(&img, what);
-        assert!(worst < 2e-3, "{what}: {worst}");
+    eprintln!("driver: {}", gpu.driver);
+    for (what, img, spp) in furnace_images(&gpu) {
+        let (worst, good, mean, max) = furnace_stats(&img, what);
+        if !loses_whole_paths(&gpu) {
+            assert!(worst < 2e-3, "{what}: {worst}");
+            continue;
+        }
+        assert!((mean - 1.0).abs() < 0.005, "{what}: mean {mean}");
+        assert!(good >= 0.99, "{what}: {good}");
+        assert!(max < 1.0 + 2e-3, "{what}: {max}");
+        // A path lost whole takes 1/spp; a path cut short by a wrong
+        // intersection inside glass would take a fraction (it escapes
+        // with the radiance scale 1/eta^2 of the inside).
+        for c in img.rgb.iter().flatten() {
+            let lost = (1.0 - c) * spp as f32;
+            assert!((lost - lost.round()).abs() < 0.02, "{what}: pixel {c}");
+        }
     }
 }
 

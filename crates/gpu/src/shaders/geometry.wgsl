@@ -135,10 +135,21 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
 }
 
 // First sign change of p on [0, 1], or -1.
+//
+// Each interval on the stack carries p at its two ends, `(u, v, p(u),
+// p(v))`, and a split evaluates p at the midpoint once for both halves: so
+// two neighbours agree exactly on their common end, and a sign change
+// there cannot be lost. (Recomputing the Bernstein coefficients of each
+// interval from the power basis gives end values off by rounding, about
+// 1e-5 where the coefficients reach 1e2 in f32, and a root near a split
+// point could fall between an interval whose hull rounds above zero and a
+// neighbour wholly below it: rays then missed a plain exit from a glass
+// object, `images.rs`, `intersection.rs`.) The hull is the Bernstein
+// coefficients' with their ends replaced by these values.
 fn first_root(p: array<real, 7>) -> real {
-    var stack: array<vec2<real>, 48>;
+    var stack: array<vec4<real>, 48>;
     var top = 1;
-    stack[0] = vec2<real>(0.0, 1.0);
+    stack[0] = vec4<real>(0.0, 1.0, p[0], poly_eval(p, 1.0));
     var guard = 0;
     loop {
         if (top == 0 || guard > MAX_SUBDIVISIONS) {
@@ -147,10 +158,15 @@ fn first_root(p: array<real, 7>) -> real {
         guard++;
         top--;
         let iv = stack[top];
+        let fa = iv.z;
+        let fb = iv.w;
+        if (fa == 0.0) {
+            return iv.x;
+        }
         var b = bernstein(p, iv.x, iv.y);
-        var lo = b[0];
-        var hi = b[0];
-        for (var k = 1; k < 7; k++) {
+        var lo = min(fa, fb);
+        var hi = max(fa, fb);
+        for (var k = 1; k < 6; k++) {
             lo = min(lo, b[k]);
             hi = max(hi, b[k]);
         }
@@ -158,11 +174,6 @@ fn first_root(p: array<real, 7>) -> real {
             continue;
         }
         if (iv.y - iv.x < MIN_WIDTH) {
-            let fa = poly_eval(p, iv.x);
-            let fb = poly_eval(p, iv.y);
-            if (fa == 0.0) {
-                return iv.x;
-            }
             if (fa * fb <= 0.0) {
                 // Regula falsi on the tiny interval.
                 var x0 = iv.x;
@@ -194,8 +205,9 @@ fn first_root(p: array<real, 7>) -> real {
             continue;
         }
         let mid = 0.5 * (iv.x + iv.y);
-        stack[top] = vec2<real>(mid, iv.y);
-        stack[top + 1] = vec2<real>(iv.x, mid);
+        let fm = poly_eval(p, mid);
+        stack[top] = vec4<real>(mid, iv.y, fm, fb);
+        stack[top + 1] = vec4<real>(iv.x, mid, fa, fm);
         top += 2;
     }
     return -1.0;
