@@ -380,15 +380,13 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
 /// have, at most [`MAX_MIX_COMPONENTS`] once flattened).
 pub fn supported(m: &Material) -> bool {
     match m {
-        // A medium inside a mix is not one the integrator can enter (the
-        // CPU treats it as its boundary alone): refused rather than guessed.
-        // A `wave` inside a mix is refused too: the GPU places (maps to
-        // its heightfield) only the material an object names.
+        // A medium inside a mix is its boundary alone ([`flatten_mix`]).
+        // A `wave` inside a mix is refused: the GPU places (maps to its
+        // heightfield) only the material an object names.
         Material::Mix(_) => flatten_mix(m, 1.0, 1.0).is_some_and(|c| {
             c.len() <= MAX_MIX_COMPONENTS
-                && c.iter().all(|(m, ..)| {
-                    supported(m) && m.medium().is_none() && !matches!(m, Material::Wave(_))
-                })
+                && c.iter()
+                    .all(|(m, ..)| supported(m) && !matches!(m, Material::Wave(_)))
         }),
         // Without copying its kernels.
         Material::Wave(_) => true,
@@ -398,10 +396,19 @@ pub fn supported(m: &Material) -> bool {
 
 /// The leaves of a (nested) mix with their weight in `f` and their
 /// selection probability: `f = sum w_i f_i`, component `i` sampled with
-/// probability `p_i`, exactly as the CPU's nested choice.
+/// probability `p_i`, exactly as the CPU's nested choice. A `subsurface`
+/// leaf becomes its boundary (a smooth `dielectric`): the CPU's integrator
+/// enters a medium only through a material that is one, and evaluates a
+/// medium inside a mix as its boundary's BSDF (`Subsurface`'s
+/// `BxdfModel`), so a path refracted through it carries on as through
+/// glass, on both back ends.
 fn flatten_mix(m: &Material, w: f64, p: f64) -> Option<Vec<(Material, f64, f64)>> {
     let Material::Mix(mix) = m else {
-        return Some(vec![(m.clone(), w, p)]);
+        let leaf = match m {
+            Material::Subsurface(s) => Material::Dielectric(s.boundary.clone()),
+            _ => m.clone(),
+        };
+        return Some(vec![(leaf, w, p)]);
     };
     let total: f64 = mix.components.iter().map(|c| c.1).sum();
     if !(total > 0.0) {
@@ -865,7 +872,7 @@ mod tests {
         assert_eq!(GpuMaterials::new(&[grey(0.5), nine]).unwrap_err(), 1);
         let zero = mix(vec![(grey(0.5), 0.0)]);
         assert!(!supported(&zero));
-        // A medium alone runs on the GPU; inside a mix it is refused.
+        // A medium alone runs on the GPU; inside a mix, its boundary.
         let milk = Material::Subsurface(isolux_materials::Subsurface::new(
             Rgb::new(2.0, 2.5, 3.0),
             Rgb::new(0.01, 0.02, 0.05),
@@ -874,10 +881,11 @@ mod tests {
             isolux_materials::subsurface_material::SubsurfaceMode::Dipole,
         ));
         assert!(supported(&milk));
-        assert!(!supported(&mix(vec![
-            (milk.clone(), 1.0),
-            (grey(0.5), 1.0)
-        ])));
+        let half = mix(vec![(milk.clone(), 1.0), (grey(0.5), 1.0)]);
+        assert!(supported(&half));
+        let g = GpuMaterials::new(&[half]).unwrap();
+        assert_eq!(g.materials[1].tag[0], tag::DIELECTRIC);
+        assert_eq!(g.materials[1].a[0], 1.3);
         let g = GpuMaterials::new(&[milk]).unwrap();
         let m = g.materials[0];
         assert_eq!((m.tag[0], m.tag[3]), (tag::SUBSURFACE, 0));

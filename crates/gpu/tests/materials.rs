@@ -249,6 +249,31 @@ fn library() -> Vec<(&'static str, Material)> {
             }),
         ),
         (
+            // A medium inside a mix is its boundary (a smooth dielectric)
+            // on both back ends.
+            "mix diffuse + subsurface medium",
+            Material::Mix(Mix {
+                components: vec![
+                    (
+                        Material::Diffuse(Diffuse {
+                            reflectance: Rgb::splat(0.7),
+                        }),
+                        0.5,
+                    ),
+                    (
+                        Material::Subsurface(isolux_materials::Subsurface::new(
+                            Rgb::new(2.0, 2.5, 3.0),
+                            Rgb::new(0.01, 0.02, 0.05),
+                            0.5,
+                            1.3,
+                            isolux_materials::subsurface_material::SubsurfaceMode::Dipole,
+                        )),
+                        0.5,
+                    ),
+                ],
+            }),
+        ),
+        (
             "mix nested, unnormalized",
             Material::Mix(Mix {
                 components: vec![
