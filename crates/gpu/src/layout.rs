@@ -405,7 +405,7 @@ pub fn supported(m: &Material) -> bool {
 fn flatten_mix(m: &Material, w: f64, p: f64) -> Option<Vec<(Material, f64, f64)>> {
     let Material::Mix(mix) = m else {
         let leaf = match m {
-            Material::Subsurface(s) => Material::Dielectric(s.boundary.clone()),
+            Material::Subsurface(s) => Material::Dielectric(s.boundary),
             _ => m.clone(),
         };
         return Some(vec![(leaf, w, p)]);
