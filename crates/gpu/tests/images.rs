@@ -275,15 +275,22 @@ base = { type = "sphere", center = [0.3, -0.2, 0.0], radius = 0.8 }
     assert!(s[0].0 > s[1].0 && s[1].0 > s[2].0, "{s:?}");
 }
 
-/// The random walk at many samples (`--ignored`: 13 minutes on
-/// lavapipe): the image means of GPU and CPU converge together, and agree
-/// per block within the measured noise. Tracks the loop defect of
-/// docs/gpu.md: measured on lavapipe, GPU 0.4124 against CPU 0.4203
-/// (-1.9%, block difference 1.8x the noise) with one sample per dispatch;
-/// 0.2598 (-38%) when a dispatch looped over 16 samples.
+/// The random walk at many samples (`--ignored`: minutes on Mesa 22.3's
+/// lavapipe, CI's driver, whose loop miscompile loses some of these long
+/// paths, docs/gpu.md): the image means of `SEEDS` renders on each side
+/// agree within three standard errors of their difference (from the
+/// renders' spread) or 0.5%, and one render's blocks differ from the
+/// CPU's by at most twice the CPU's own render-to-render difference (the
+/// GPU carries one colour channel per path through the medium, so its
+/// pixels are noisier than the CPU's: its per-seed image means spread 5x
+/// wider). Measured on Mesa 25.0.7's lavapipe after the root-isolation
+/// fix (docs/gpu.md): GPU 0.43031 +- 0.00079 against CPU 0.42965 +-
+/// 0.00015 over six seeds, 6 s per GPU render; before it, on Mesa 22,
+/// -1.9%, and -38% when a dispatch looped over 16 samples.
 #[test]
-#[ignore]
+#[ignore = "minutes on Mesa 22.3's lavapipe (CI), whose loop miscompile loses long paths"]
 fn translucent_random_walk_converges_to_the_cpu() {
+    const SEEDS: u64 = 4;
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
@@ -291,9 +298,29 @@ fn translucent_random_walk_converges_to_the_cpu() {
     scene.film.width = 64;
     scene.film.height = 40;
     scene.film.spp = 256;
-    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "random walk, 256 spp");
-    assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
-    assert!((mg - mc).abs() <= 0.01 * mc, "{mg} vs {mc}");
+    let (diff, noise, _, _) = compare(&gpu, &mut scene.clone(), "random walk, 256 spp");
+    assert!(diff <= 2.0 * noise, "{diff} vs noise {noise}");
+    let image_mean = |img: &Image| {
+        img.rgb.iter().flatten().map(|&c| c as f64).sum::<f64>() / (3 * img.rgb.len()) as f64
+    };
+    let stats = |v: &[f64]| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        (m, (var / n).sqrt())
+    };
+    let (mut g, mut c) = (Vec::new(), Vec::new());
+    for seed in 0..SEEDS {
+        scene.integrator.seed = 200 + seed;
+        g.push(image_mean(&gpu_image(&gpu, &scene)));
+        c.push(image_mean(&cpu_image(&scene)));
+    }
+    let ((mg, sg), (mc, sc)) = (stats(&g), stats(&c));
+    eprintln!(
+        "random walk: means over {SEEDS} seeds GPU {mg:.5} +- {sg:.5}, CPU {mc:.5} +- {sc:.5}"
+    );
+    let tol = (3.0 * (sg * sg + sc * sc).sqrt()).max(0.005 * mc);
+    assert!((mg - mc).abs() <= tol, "{mg} vs {mc} (tolerance {tol})");
 }
 
 #[test]
