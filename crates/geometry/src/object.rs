@@ -476,7 +476,7 @@ impl Object {
                 g += 3.0 * pert.factor * x * x * pert.quadric.gradient(p);
             }
         }
-        let n = (-g).try_normalize().unwrap_or(-ray.dir.normalize());
+        let n = (-g).try_normalize().unwrap_or_else(|| -ray.dir.normalize());
         Hit { t, p, n }
     }
 
