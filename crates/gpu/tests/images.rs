@@ -50,6 +50,19 @@ fn compare(gpu: &Gpu, scene: &mut Scene, label: &str) -> (f64, f64, f64, f64) {
     common::compare_with_cpu(scene, |s| gpu_image(gpu, s), cpu_image, label)
 }
 
+/// The mean of all channels of all pixels.
+fn image_mean(img: &Image) -> f64 {
+    img.rgb.iter().flatten().map(|&c| c as f64).sum::<f64>() / (3 * img.rgb.len()) as f64
+}
+
+/// Mean and standard error of the mean of per-seed image means.
+fn stats(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, (var / n).sqrt())
+}
+
 /// `(worst |pixel - 1|, fraction of pixels within 2e-3, mean, max)`.
 fn furnace_stats(img: &Image, what: &str) -> (f32, f64, f64, f32) {
     let v: Vec<f32> = img.rgb.iter().flatten().copied().collect();
@@ -160,16 +173,6 @@ fn wave_scenes_match_the_cpu_within_noise() {
     const SEEDS: u64 = 4;
     let Some(gpu) = common::open("GPU image tests") else {
         return;
-    };
-    let image_mean = |img: &Image| {
-        img.rgb.iter().flatten().map(|&c| c as f64).sum::<f64>() / (3 * img.rgb.len()) as f64
-    };
-    // Mean and standard error of the mean of per-seed image means.
-    let stats = |v: &[f64]| {
-        let n = v.len() as f64;
-        let m = v.iter().sum::<f64>() / n;
-        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-        (m, (var / n).sqrt())
     };
     for (name, w, h, spp) in [
         ("wave-grating.toml", 96, 72, 16),
@@ -300,15 +303,6 @@ fn translucent_random_walk_converges_to_the_cpu() {
     scene.film.spp = 256;
     let (diff, noise, _, _) = compare(&gpu, &mut scene.clone(), "random walk, 256 spp");
     assert!(diff <= 2.0 * noise, "{diff} vs noise {noise}");
-    let image_mean = |img: &Image| {
-        img.rgb.iter().flatten().map(|&c| c as f64).sum::<f64>() / (3 * img.rgb.len()) as f64
-    };
-    let stats = |v: &[f64]| {
-        let n = v.len() as f64;
-        let m = v.iter().sum::<f64>() / n;
-        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-        (m, (var / n).sqrt())
-    };
     let (mut g, mut c) = (Vec::new(), Vec::new());
     for seed in 0..SEEDS {
         scene.integrator.seed = 200 + seed;
