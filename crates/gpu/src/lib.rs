@@ -45,6 +45,12 @@ pub const NO_ROOT: f32 = 3.0e38;
 pub const MIN_WIDTH: f32 = 1.0 / 4096.0;
 /// Cap on subdivision steps per segment.
 pub const MAX_SUBDIVISIONS: i32 = 4096;
+/// Entries of the root isolation's interval stack (`first_root`, 16 bytes
+/// each in f32). Depth first, left first: while it descends, the stack
+/// holds one right sibling per level, and an interval of width 2^-k is a
+/// leaf at `k = 13` (below [`MIN_WIDTH`]), so it never holds more than 14.
+pub const ROOT_STACK: i32 = 16;
+const _: () = assert!((1u32 << (ROOT_STACK - 3)) as f32 * MIN_WIDTH >= 1.0);
 /// Rays leaving a surface start `SPAWN_OFFSET (1 + |p|_inf)` off it along
 /// the normal (the CPU's f64 path uses 1e-7; f32 hit points are good to
 /// about 1e-6 relative, so the margin is wider).
@@ -70,6 +76,7 @@ pub fn prelude() -> String {
          const NO_ROOT = {NO_ROOT:e};\n\
          const MIN_WIDTH = {:e};\n\
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
+         const ROOT_STACK: i32 = {ROOT_STACK};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
          const BVH_STACK: u32 = {BVH_STACK}u;\n\
          const NO_NODE: u32 = {}u;\n\
@@ -256,7 +263,7 @@ pub struct Gpu {
     /// Adapter name and back end, for reports.
     pub adapter: String,
     /// The driver's name and version as it reports them (for example
-    /// `Mesa 22.3.6 (LLVM 15.0.6)` for lavapipe), for reports and for
+    /// `llvmpipe Mesa 22.3.6 (LLVM 15.0.6)` for lavapipe), for reports and for
     /// tests that know a driver's defects.
     pub driver: String,
 }

@@ -144,10 +144,10 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
 // 1e-5 where the coefficients reach 1e2 in f32, and a root near a split
 // point could fall between an interval whose hull rounds above zero and a
 // neighbour wholly below it: rays then missed a plain exit from a glass
-// object, `images.rs`, `intersection.rs`.) The hull is the Bernstein
+// object, `images.rs`, `conformance.rs`.) The hull is the Bernstein
 // coefficients' with their ends replaced by these values.
 fn first_root(p: array<real, 7>) -> real {
-    var stack: array<vec4<real>, 48>;
+    var stack: array<vec4<real>, ROOT_STACK>;
     var top = 1;
     stack[0] = vec4<real>(0.0, 1.0, p[0], poly_eval(p, 1.0));
     var guard = 0;
@@ -201,7 +201,7 @@ fn first_root(p: array<real, 7>) -> real {
             }
             continue; // touches zero without crossing
         }
-        if (top + 2 > 48) {
+        if (top + 2 > ROOT_STACK) {
             continue;
         }
         let mid = 0.5 * (iv.x + iv.y);
