@@ -17,7 +17,7 @@
 mod common;
 
 use glam::{DMat3, DVec3};
-use isolux_core::{Pcg32, Ray};
+use isolux_core::{sampling, Pcg32, Ray};
 use isolux_geometry::{Object, Perturbation, Quadric};
 use isolux_gpu::layout::{GpuRay, GpuScene};
 
@@ -316,10 +316,7 @@ fn rays_from_inside_always_leave() {
             if obj.eval(o) <= 1e-4 {
                 continue;
             }
-            let z = 2.0 * rng.next_f64() - 1.0;
-            let phi = std::f64::consts::TAU * rng.next_f64();
-            let s = (1.0 - z * z).sqrt();
-            let d = DVec3::new(s * phi.cos(), s * phi.sin(), z);
+            let d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
             let d = DVec3::new(d.x as f32 as f64, d.y as f32 as f64, d.z as f32 as f64);
             rays.push(GpuRay {
                 o: [o.x as f32, o.y as f32, o.z as f32, 0.0],

@@ -63,6 +63,34 @@ fn stats(v: &[f64]) -> (f64, f64) {
     (m, (var / n).sqrt())
 }
 
+/// Renders `scene` with seeds `first_seed..first_seed + seeds` on both back
+/// ends and asserts that the means of their image means agree within three
+/// standard errors of the difference (from the renders' spread) or
+/// `floor` of the CPU's mean.
+fn means_agree_over_seeds(
+    gpu: &Gpu,
+    scene: &mut Scene,
+    first_seed: u64,
+    seeds: u64,
+    floor: f64,
+    label: &str,
+) {
+    let (mut g, mut c) = (Vec::new(), Vec::new());
+    for seed in 0..seeds {
+        scene.integrator.seed = first_seed + seed;
+        g.push(image_mean(&gpu_image(gpu, scene)));
+        c.push(image_mean(&cpu_image(scene)));
+    }
+    let ((mg, sg), (mc, sc)) = (stats(&g), stats(&c));
+    eprintln!("{label}: means over {seeds} seeds GPU {mg:.5} +- {sg:.5}, CPU {mc:.5} +- {sc:.5}");
+    assert!(mc > 0.0);
+    let tol = (3.0 * (sg * sg + sc * sc).sqrt()).max(floor * mc);
+    assert!(
+        (mg - mc).abs() <= tol,
+        "{label}: {mg} vs {mc} (tolerance {tol})"
+    );
+}
+
 /// `(worst |pixel - 1|, fraction of pixels within 2e-3, mean, max)`.
 fn furnace_stats(img: &Image, what: &str) -> (f32, f64, f64, f32) {
     let v: Vec<f32> = img.rgb.iter().flatten().copied().collect();
@@ -185,22 +213,7 @@ fn wave_scenes_match_the_cpu_within_noise() {
         scene.film.spp = spp;
         let (diff, noise, _, _) = compare(&gpu, &mut scene.clone(), name);
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
-        let (mut g, mut c) = (Vec::new(), Vec::new());
-        for seed in 0..SEEDS {
-            scene.integrator.seed = 100 + seed;
-            g.push(image_mean(&gpu_image(&gpu, &scene)));
-            c.push(image_mean(&cpu_image(&scene)));
-        }
-        let ((mg, sg), (mc, sc)) = (stats(&g), stats(&c));
-        eprintln!(
-            "{name}: means over {SEEDS} seeds GPU {mg:.5} +- {sg:.5}, CPU {mc:.5} +- {sc:.5}"
-        );
-        assert!(mc > 0.0);
-        let tol = (3.0 * (sg * sg + sc * sc).sqrt()).max(0.01 * mc);
-        assert!(
-            (mg - mc).abs() <= tol,
-            "{name}: {mg} vs {mc} (tolerance {tol})"
-        );
+        means_agree_over_seeds(&gpu, &mut scene, 100, SEEDS, 0.01, name);
     }
 }
 
@@ -303,18 +316,7 @@ fn translucent_random_walk_converges_to_the_cpu() {
     scene.film.spp = 256;
     let (diff, noise, _, _) = compare(&gpu, &mut scene.clone(), "random walk, 256 spp");
     assert!(diff <= 2.0 * noise, "{diff} vs noise {noise}");
-    let (mut g, mut c) = (Vec::new(), Vec::new());
-    for seed in 0..SEEDS {
-        scene.integrator.seed = 200 + seed;
-        g.push(image_mean(&gpu_image(&gpu, &scene)));
-        c.push(image_mean(&cpu_image(&scene)));
-    }
-    let ((mg, sg), (mc, sc)) = (stats(&g), stats(&c));
-    eprintln!(
-        "random walk: means over {SEEDS} seeds GPU {mg:.5} +- {sg:.5}, CPU {mc:.5} +- {sc:.5}"
-    );
-    let tol = (3.0 * (sg * sg + sc * sc).sqrt()).max(0.005 * mc);
-    assert!((mg - mc).abs() <= tol, "{mg} vs {mc} (tolerance {tol})");
+    means_agree_over_seeds(&gpu, &mut scene, 200, SEEDS, 0.005, "random walk");
 }
 
 #[test]
