@@ -91,6 +91,8 @@ pub struct Object {
     along: Vec<Along>,
     bvh: Bvh,
     bbox: Aabb,
+    /// How the base quadric is restricted to a ray (a sphere, usually).
+    base_along: Along,
 }
 
 /// Which bounded perturbations a ray considers: all (through the BVH) or
@@ -131,7 +133,7 @@ impl Along {
     }
 
     /// `Q(o + t d)` as `[c, b, a]` (ascending powers).
-    #[inline]
+    #[inline(always)]
     fn along(&self, q: &Quadric, ray: &Ray) -> [f64; 3] {
         match *self {
             Along::Sphere { centre, k, c0 } => {
@@ -223,6 +225,7 @@ impl Object {
             along,
             bvh,
             bbox,
+            base_along: Along::new(&base),
         })
     }
 
@@ -325,14 +328,23 @@ impl Object {
         if none && self.unbounded.is_empty() {
             // No perturbation can be met: the base quadric alone, in
             // closed form (a plain quadric, or a tile of rays between bumps).
-            let t = quadratic_crossings(self.base.along(ray))
+            let t = quadratic_crossings(self.base_along.along(&self.base, ray))
                 .into_iter()
                 .find(|&r| r >= t0 && r <= t1)?;
             return Some(self.hit_at(ray, t, &[]));
         }
+        self.intersect_perturbed(ray, t0, t1, items)
+    }
+
+    /// [`Object::intersect_in`] on the clipped interval `[t0, t1]` when
+    /// perturbations may be met. Kept out of line: its large frame (the
+    /// candidate and breakpoint lists) would otherwise be set up for
+    /// every ray, also those that the closed form answers.
+    #[inline(never)]
+    fn intersect_perturbed(&self, ray: &Ray, t0: f64, t1: f64, items: Items) -> Option<Hit> {
         // The base quadric's crossings, once per ray: they place the split
         // and answer every segment without active perturbations.
-        let base_q = self.base.along(ray);
+        let base_q = self.base_along.along(&self.base, ray);
         let base_roots = quadratic_crossings(base_q);
         let split = base_roots
             .iter()
@@ -364,6 +376,22 @@ impl Object {
                 }
                 continue;
             }
+            // Skip ahead to where the bumps can reach (see `reach`).
+            let lo = match reach(base_q, &cands, lo, hi) {
+                Some(start) => {
+                    if start > lo {
+                        before = -1.0;
+                    }
+                    start
+                }
+                None => {
+                    before = -1.0;
+                    if split >= t1 {
+                        break;
+                    }
+                    continue;
+                }
+            };
             let mut breaks: SmallVec<[f64; 32]> = SmallVec::new();
             for c in &cands {
                 for x in [c.lo, c.hi] {
@@ -596,6 +624,48 @@ fn sign_is_fixed<'a>(
     } else {
         None
     })
+}
+
+/// The first `t` in `[lo, hi]` where `F'` may reach zero, or `None` when
+/// `F' < 0` on all of it.
+///
+/// Perturbations with `f_i > 0` raise `F'` by at most `B = sum f_i
+/// max(Q_i)^3` (each maximum taken on the part of `[lo, hi]` where `Q_i` is
+/// active), and those with `f_i < 0` only lower it, so `F' <= F + B`:
+/// before the first point where the base quadratic reaches `-B`, the ray is
+/// outside the solid. For bumps on a surface that is the inflated base
+/// (a sphere of radius 0.65 around the benchmark's 0.6): the segment walk
+/// and the degree-6 polynomial then start a bump's height from the surface
+/// instead of at the edge of its support, and rays that pass the support
+/// above the bump are done after one quadratic. `B` is widened by `1e-10`
+/// of the magnitudes involved, so that rounding cannot skip a crossing.
+fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64) -> Option<f64> {
+    if !hi.is_finite() {
+        return Some(lo);
+    }
+    let mut bound = 0.0;
+    for c in cands.iter().filter(|c| c.factor > 0.0) {
+        let (a, b) = if c.lo.is_nan() {
+            (lo, hi)
+        } else {
+            (c.lo.max(lo), c.hi.min(hi))
+        };
+        if a < b {
+            let qmax = range2(c.q, a, b).1.max(0.0);
+            bound += c.factor * qmax * qmax * qmax;
+        }
+    }
+    let flo = poly2(base_q, lo);
+    let scale = base_q[0].abs() + (base_q[1] * hi).abs() + (base_q[2] * hi * hi).abs() + bound;
+    let bound = bound + 1e-10 * scale;
+    if !(flo + bound < 0.0) {
+        // Reachable at once (or not finite: no claim).
+        return Some(lo);
+    }
+    let shifted = [base_q[0] + bound, base_q[1], base_q[2]];
+    quadratic_crossings(shifted)
+        .into_iter()
+        .find(|&r| r > lo && r <= hi)
 }
 
 /// The range `(min, max)` of the quadratic `q` (ascending powers) on

@@ -41,9 +41,14 @@ pub const TILE: u32 = 8;
 /// The orthographic primary ray through pixel `(x, y)` of a `size x size`
 /// image over `[-1, 1]^2`, looking down `-z` from `z = 2` (the view of
 /// fidget's 3D heightmap render).
+#[inline]
 pub fn primary_ray(size: u32, x: u32, y: u32) -> Ray {
-    let px = (x as f64 + 0.5) / size as f64 * 2.0 - 1.0;
-    let py = 1.0 - (y as f64 + 0.5) / size as f64 * 2.0;
+    // One division per ray would cost as much as a bump-free sphere's
+    // intersection; the pixel pitch is a power of two for power-of-two
+    // sizes, so the product is exact there.
+    let pitch = 2.0 / size as f64;
+    let px = (x as f64 + 0.5) * pitch - 1.0;
+    let py = 1.0 - (y as f64 + 0.5) * pitch;
     Ray::new(DVec3::new(px, py, 2.0), -DVec3::Z)
 }
 
