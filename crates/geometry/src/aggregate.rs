@@ -93,7 +93,7 @@ impl Aggregate {
         out.items.clear();
         let mut add = |i: u32| {
             let o = &self.objects[i as usize];
-            if beam.meets_box(&o.bbox()) {
+            if o.meets(beam) {
                 let first = out.items.len() as u32;
                 o.cull(beam, &mut out.items);
                 out.objects.push((i, first, out.items.len() as u32));

@@ -93,6 +93,9 @@ pub struct Object {
     bbox: Aabb,
     /// How the base quadric is restricted to a ray (a sphere, usually).
     base_along: Along,
+    /// A ball holding the solid, when it is bounded: tighter than `bbox`
+    /// for round objects (for [`Object::meets`]).
+    ball: Option<(DVec3, f64)>,
 }
 
 /// Which bounded perturbations a ray considers: all (through the BVH) or
@@ -108,7 +111,14 @@ enum Items<'a> {
 #[derive(Clone, Copy, Debug)]
 enum Along {
     /// `Q(p) = c0 - k |p - centre|^2`, `k > 0`.
-    Sphere { centre: DVec3, k: f64, c0: f64 },
+    Sphere {
+        centre: DVec3,
+        k: f64,
+        c0: f64,
+        /// `1 / radius` (0 for an empty sphere): the unit normal on the
+        /// sphere is `(p - centre) / radius`, no square root needed.
+        inv_radius: f64,
+    },
     /// Any other ellipsoid: [`Quadric::along`].
     General,
 }
@@ -122,10 +132,13 @@ impl Along {
         ];
         if k > 0.0 && m.y_axis.y == -k && m.z_axis.z == -k && off.iter().all(|&x| x == 0.0) {
             // p^T M p + 2 b.p + c = -k |p - b/k|^2 + c + |b|^2 / k.
+            let c0 = q.c + q.b.length_squared() / k;
+            let r2 = c0 / k;
             Along::Sphere {
                 centre: q.b / k,
                 k,
-                c0: q.c + q.b.length_squared() / k,
+                c0,
+                inv_radius: if r2 > 0.0 { 1.0 / r2.sqrt() } else { 0.0 },
             }
         } else {
             Along::General
@@ -136,7 +149,7 @@ impl Along {
     #[inline(always)]
     fn along(&self, q: &Quadric, ray: &Ray) -> [f64; 3] {
         match *self {
-            Along::Sphere { centre, k, c0 } => {
+            Along::Sphere { centre, k, c0, .. } => {
                 let v = ray.origin - centre;
                 [
                     c0 - k * v.length_squared(),
@@ -216,6 +229,27 @@ impl Object {
             }
         }
         let bvh = Bvh::build(&support);
+        // The solid lies in the base's positive set united with the
+        // supports of the bumps (`f > 0`), and in the box.
+        let mut ball = base.positive_bounding_sphere();
+        for (k, &i) in bounded.iter().enumerate() {
+            if perturbations[i as usize].factor > 0.0 {
+                ball = ball.map(|b| enclose(b, spheres[k]));
+            }
+        }
+        let ball = match ball {
+            Some(b)
+                if unbounded
+                    .iter()
+                    .all(|&i| perturbations[i as usize].factor <= 0.0) =>
+            {
+                let corner_ball = (bbox.center(), 0.5 * (bbox.max - bbox.min).length());
+                (bbox.is_finite() && corner_ball.1 < b.1)
+                    .then_some(corner_ball)
+                    .or(Some(b))
+            }
+            _ => None,
+        };
         Ok(Self {
             base,
             perturbations,
@@ -226,6 +260,7 @@ impl Object {
             bvh,
             bbox,
             base_along: Along::new(&base),
+            ball,
         })
     }
 
@@ -285,6 +320,14 @@ impl Object {
         self.intersect_in(ray, t_min, t_max, Items::All)
     }
 
+    /// Whether some ray of `beam` may meet the object: its box and, for a
+    /// bounded solid, a ball around it (the base's positive set and the
+    /// bumps' supports), which for round objects rejects the tiles near
+    /// the box's corners.
+    pub fn meets(&self, beam: &Beam) -> bool {
+        beam.meets_box(&self.bbox) && self.ball.is_none_or(|(c, r)| beam.meets_sphere(c, r))
+    }
+
     /// Appends to `out` the perturbations whose support may meet a ray of
     /// `beam` (those with unbounded support are always considered and not
     /// listed), for [`Object::intersect_culled`].
@@ -331,7 +374,7 @@ impl Object {
             let t = quadratic_crossings(self.base_along.along(&self.base, ray))
                 .into_iter()
                 .find(|&r| r >= t0 && r <= t1)?;
-            return Some(self.hit_at(ray, t, &[]));
+            return Some(self.base_hit(ray, t));
         }
         self.intersect_perturbed(ray, t0, t1, items)
     }
@@ -365,7 +408,7 @@ impl Object {
             if cands.is_empty() {
                 // No perturbation on [lo, hi]: the base quadric alone.
                 if let Some(t) = base_roots.iter().copied().find(|&r| r >= lo && r <= hi) {
-                    return Some(self.hit_at(ray, t, &cands));
+                    return Some(self.base_hit(ray, t));
                 }
                 if before * sign(poly2(base_q, lo)) < 0.0 {
                     return Some(self.hit_at(ray, lo, &cands));
@@ -416,6 +459,7 @@ impl Object {
                 }
                 match self.segment_root(ray, base_q, &base_roots, &cands, a, b) {
                     Segment::Crossing(t) => return Some(self.hit_at(ray, t, &cands)),
+                    Segment::BaseCrossing(t) => return Some(self.base_hit(ray, t)),
                     Segment::Clear { start, end } => {
                         if before * start < 0.0 {
                             return Some(self.hit_at(ray, a, &cands));
@@ -450,7 +494,24 @@ impl Object {
         let mut visit = |item: u32| {
             let i = self.bounded[item as usize];
             let q = self.along[item as usize].along(&self.perturbations[i as usize].quadric, ray);
-            if let Some((r0, r1)) = support_interval(q) {
+            if q[2] < 0.0 {
+                // The usual case: decided without the roots' square root
+                // and divisions, which only the supports kept need. The
+                // second phase asks the first phase's question again, so
+                // that the two agree to the last bit on what was gathered.
+                if !positive_on(q, lo, hi) || (!fresh && positive_on(q, t0, lo)) {
+                    return true;
+                }
+                if let Some((r0, r1)) = two_roots(q) {
+                    cands.push(Candidate {
+                        index: i,
+                        factor: self.perturbations[i as usize].factor,
+                        q,
+                        lo: r0,
+                        hi: r1,
+                    });
+                }
+            } else if let Some((r0, r1)) = support_interval(q) {
                 if r1 > lo && r0 < hi {
                     // Already gathered in the first phase if active before lo.
                     if !fresh && r1 > t0 && r0 < lo {
@@ -491,6 +552,27 @@ impl Object {
                 });
             }
         }
+    }
+
+    /// [`Object::hit_at`] where no perturbation is active: a sphere's
+    /// normal without the square root (whose latency was a third of a
+    /// bump-free cast), other bases from their gradient.
+    #[inline]
+    fn base_hit(&self, ray: &Ray, t: f64) -> Hit {
+        if let Along::Sphere {
+            centre, inv_radius, ..
+        } = self.base_along
+        {
+            if inv_radius > 0.0 {
+                let p = ray.at(t);
+                return Hit {
+                    t,
+                    p,
+                    n: (p - centre) * inv_radius,
+                };
+            }
+        }
+        self.hit_at(ray, t, &[])
     }
 
     /// The hit record at `t`: point and outward normal from `grad F'`.
@@ -540,7 +622,7 @@ impl Object {
         match sign_is_fixed(base_q, cands.iter().filter(|c| active(c)), a, b) {
             None => {
                 return match base_roots.iter().copied().find(|&r| r >= a && r <= b) {
-                    Some(t) => Segment::Crossing(t),
+                    Some(t) => Segment::BaseCrossing(t),
                     None => Segment::Clear {
                         start: sign(poly2(base_q, a)),
                         end: sign(poly2(base_q, b)),
@@ -573,6 +655,9 @@ impl Object {
 enum Segment {
     /// The first crossing.
     Crossing(f64),
+    /// The first crossing, of the base quadric where no perturbation is
+    /// active.
+    BaseCrossing(f64),
     /// None: the signs (`1`, `-1`, `0` unknown) of `F'` just after the
     /// segment's start and just before its end.
     Clear { start: f64, end: f64 },
@@ -668,6 +753,22 @@ fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64) -> Option<f64>
         .find(|&r| r > lo && r <= hi)
 }
 
+/// The smallest ball holding the balls `a` and `b` (centre, radius).
+fn enclose(a: (DVec3, f64), b: (DVec3, f64)) -> (DVec3, f64) {
+    let d = (b.0 - a.0).length();
+    if d + b.1 <= a.1 {
+        return a;
+    }
+    if d + a.1 <= b.1 {
+        return b;
+    }
+    let r = 0.5 * (d + a.1 + b.1);
+    // On the segment from a's centre towards b's, r - a.1 along it.
+    let c = a.0 + (b.0 - a.0) * ((r - a.1) / d);
+    // Rounding: pad so that both balls stay inside.
+    (c, r * (1.0 + 1e-12) + 1e-15)
+}
+
 /// The range `(min, max)` of the quadratic `q` (ascending powers) on
 /// `[a, b]`: its values at the ends, and at the vertex when the slope
 /// changes sign in between.
@@ -694,6 +795,18 @@ fn support_interval(q: [f64; 3]) -> Option<(f64, f64)> {
     } else {
         quadratic_crossings(q).pair()
     }
+}
+
+/// Whether the concave quadratic `q` (ascending powers, `q[2] < 0`) is
+/// positive somewhere in `(lo, hi)`: at an end, or at its vertex when
+/// the slope changes sign in between (no square root, no division).
+#[inline]
+fn positive_on(q: [f64; 3], lo: f64, hi: f64) -> bool {
+    let [c, b, a] = q;
+    b * b - 4.0 * a * c > 0.0
+        && (poly2(q, lo) > 0.0
+            || poly2(q, hi) > 0.0
+            || (2.0 * a * lo + b > 0.0 && 2.0 * a * hi + b < 0.0))
 }
 
 /// `q(a + s len)` as a quadratic in `s`.
@@ -884,6 +997,70 @@ mod tests {
             segments > 1000 && skipped > segments / 10,
             "{skipped} of {segments}"
         );
+    }
+
+    #[test]
+    fn enclosing_ball_holds_both_balls() {
+        let mut rng = isolux_core::Pcg32::new(24, 0);
+        let mut u = || 2.0 * rng.next_f64() - 1.0;
+        for _ in 0..10_000 {
+            let a = (DVec3::new(u(), u(), u()), u().abs());
+            let b = (DVec3::new(u(), u(), u()) * 0.1, 0.3 * u().abs());
+            let (c, r) = enclose(a, b);
+            for (centre, radius) in [a, b] {
+                assert!(
+                    (centre - c).length() + radius <= r,
+                    "{a:?} {b:?} -> {c} {r}"
+                );
+            }
+            // Never larger than the ball around a's centre holding both.
+            let loose = a.1.max((b.0 - a.0).length() + b.1);
+            assert!(r <= loose * (1.0 + 1e-9) + 1e-12);
+        }
+    }
+
+    /// `positive_on` (no roots) says whether the support interval meets
+    /// `(lo, hi)`, as the roots do, except within rounding of an end.
+    #[test]
+    fn positive_on_matches_the_roots() {
+        let mut rng = isolux_core::Pcg32::new(25, 0);
+        let mut u = || 4.0 * rng.next_f64() - 2.0;
+        for _ in 0..100_000 {
+            let q = [u(), u(), -u().abs() - 1e-3];
+            let (lo, hi) = {
+                let (x, y) = (u(), u());
+                (x.min(y), x.max(y))
+            };
+            let by_roots = two_roots(q).is_some_and(|(r0, r1)| r1 > lo && r0 < hi);
+            if positive_on(q, lo, hi) != by_roots {
+                let (r0, r1) = two_roots(q).unwrap_or((f64::NAN, f64::NAN));
+                let near = |x: f64| (x - lo).abs().min((x - hi).abs()) < 1e-12;
+                assert!(near(r0) || near(r1), "{q:?} on ({lo}, {hi})");
+            }
+        }
+    }
+
+    /// A sphere base's normal without the square root equals the
+    /// gradient's.
+    #[test]
+    fn sphere_base_normal_matches_the_gradient() {
+        let mut rng = isolux_core::Pcg32::new(26, 0);
+        let mut u = || 2.0 * rng.next_f64() - 1.0;
+        for _ in 0..1000 {
+            let q = Quadric::sphere(DVec3::new(u(), u(), u()), 0.1 + u().abs());
+            let k = 0.5 + u().abs();
+            let q = Quadric {
+                m: q.m * k,
+                b: q.b * k,
+                c: q.c * k,
+            };
+            let o = Object::new(q, vec![], None).unwrap();
+            let ray = Ray::new(DVec3::new(u(), u(), u()) * 5.0, DVec3::new(u(), u(), u()));
+            if let Some(h) = o.intersect(&ray, 0.0, f64::INFINITY) {
+                let g = (-o.gradient(h.p)).normalize();
+                assert!((h.n - g).length() < 1e-12, "{:?} vs {g:?}", h.n);
+            }
+        }
     }
 
     #[test]

@@ -78,6 +78,9 @@ pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>, coherent: 
                 .map(|(x, y)| primary_ray(size, x, y).origin);
             culled.clear();
             let beam = Beam::cylinder(-DVec3::Z, &corners).expect("a tile has rays");
+            if !obj.meets(&beam) {
+                continue;
+            }
             obj.cull(&beam, &mut culled);
             for y in y0..y1 {
                 for x in x0..x1 {
