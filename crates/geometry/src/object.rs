@@ -160,6 +160,18 @@ impl Along {
             Along::General => q.along(ray),
         }
     }
+
+    /// `Q(p)` and `grad Q(p)`.
+    #[inline(always)]
+    fn value_gradient(&self, q: &Quadric, p: DVec3) -> (f64, DVec3) {
+        match *self {
+            Along::Sphere { centre, k, c0, .. } => {
+                let v = p - centre;
+                (c0 - k * v.length_squared(), -2.0 * k * v)
+            }
+            Along::General => (q.eval(p), q.gradient(p)),
+        }
+    }
 }
 
 /// A perturbation the current ray crosses.
@@ -167,6 +179,9 @@ impl Along {
 struct Candidate {
     /// Perturbation index.
     index: u32,
+    /// Its support BVH item (for [`Object::along`]), `u32::MAX` when
+    /// unbounded.
+    item: u32,
     /// Its form factor `f_i`.
     factor: f64,
     /// `Q_i(t)` along the ray, ascending powers.
@@ -505,6 +520,7 @@ impl Object {
                 if let Some((r0, r1)) = two_roots(q) {
                     cands.push(Candidate {
                         index: i,
+                        item,
                         factor: self.perturbations[i as usize].factor,
                         q,
                         lo: r0,
@@ -519,6 +535,7 @@ impl Object {
                     }
                     cands.push(Candidate {
                         index: i,
+                        item,
                         factor: self.perturbations[i as usize].factor,
                         q,
                         lo: r0,
@@ -545,6 +562,7 @@ impl Object {
                 let q = self.perturbations[i as usize].quadric.along(ray);
                 cands.push(Candidate {
                     index: i,
+                    item: u32::MAX,
                     factor: self.perturbations[i as usize].factor,
                     q,
                     lo: f64::NAN,
@@ -578,12 +596,15 @@ impl Object {
     /// The hit record at `t`: point and outward normal from `grad F'`.
     fn hit_at(&self, ray: &Ray, t: f64, cands: &[Candidate]) -> Hit {
         let p = ray.at(t);
-        let mut g = self.base.gradient(p);
+        let mut g = self.base_along.value_gradient(&self.base, p).1;
         for c in cands {
-            let pert = &self.perturbations[c.index as usize];
-            let x = pert.quadric.eval(p);
+            let q = &self.perturbations[c.index as usize].quadric;
+            let (x, grad) = match self.along.get(c.item as usize) {
+                Some(along) => along.value_gradient(q, p),
+                None => (q.eval(p), q.gradient(p)),
+            };
             if x > 0.0 {
-                g += 3.0 * pert.factor * x * x * pert.quadric.gradient(p);
+                g += 3.0 * c.factor * x * x * grad;
             }
         }
         let n = (-g).try_normalize().unwrap_or_else(|| -ray.dir.normalize());
@@ -954,6 +975,7 @@ mod tests {
             let cands: Vec<Candidate> = (0..1 + (u().abs() * 4.0) as usize)
                 .map(|i| Candidate {
                     index: i as u32,
+                    item: u32::MAX,
                     factor: 10.0 * u(),
                     // Concave, positive somewhere near [0, 1].
                     q: [0.2 + 0.3 * u(), u(), -0.5 - u().abs()],
