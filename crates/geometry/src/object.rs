@@ -509,39 +509,30 @@ impl Object {
         let mut visit = |item: u32| {
             let i = self.bounded[item as usize];
             let q = self.along[item as usize].along(&self.perturbations[i as usize].quadric, ray);
-            if q[2] < 0.0 {
+            let interval = if q[2] < 0.0 {
                 // The usual case: decided without the roots' square root
                 // and divisions, which only the supports kept need. The
                 // second phase asks the first phase's question again, so
                 // that the two agree to the last bit on what was gathered.
                 if !positive_on(q, lo, hi) || (!fresh && positive_on(q, t0, lo)) {
-                    return true;
+                    None
+                } else {
+                    two_roots(q)
                 }
-                if let Some((r0, r1)) = two_roots(q) {
-                    cands.push(Candidate {
-                        index: i,
-                        item,
-                        factor: self.perturbations[i as usize].factor,
-                        q,
-                        lo: r0,
-                        hi: r1,
-                    });
-                }
-            } else if let Some((r0, r1)) = support_interval(q) {
-                if r1 > lo && r0 < hi {
-                    // Already gathered in the first phase if active before lo.
-                    if !fresh && r1 > t0 && r0 < lo {
-                        return true;
-                    }
-                    cands.push(Candidate {
-                        index: i,
-                        item,
-                        factor: self.perturbations[i as usize].factor,
-                        q,
-                        lo: r0,
-                        hi: r1,
-                    });
-                }
+            } else {
+                // Already gathered in the first phase if active before lo.
+                support_interval(q)
+                    .filter(|&(r0, r1)| r1 > lo && r0 < hi && (fresh || !(r1 > t0 && r0 < lo)))
+            };
+            if let Some((r0, r1)) = interval {
+                cands.push(Candidate {
+                    index: i,
+                    item,
+                    factor: self.perturbations[i as usize].factor,
+                    q,
+                    lo: r0,
+                    hi: r1,
+                });
             }
             true
         };
@@ -917,19 +908,24 @@ mod tests {
         assert!((h.p.y - 0.015625).abs() < 1e-12, "{:?}", h.p);
     }
 
+    /// A random sphere with all its coefficients scaled by a positive
+    /// factor, as the scene's `scale`d spheres and transforms make it.
+    fn scaled_sphere(u: &mut impl FnMut() -> f64) -> Quadric {
+        let q = Quadric::sphere(DVec3::new(u(), u(), u()), 0.1 + u().abs());
+        let k = 0.5 + u().abs();
+        Quadric {
+            m: q.m * k,
+            b: q.b * k,
+            c: q.c * k,
+        }
+    }
+
     #[test]
     fn sphere_restriction_matches_the_general_quadric() {
         let mut rng = isolux_core::Pcg32::new(21, 0);
         let mut u = || 4.0 * rng.next_f64() - 2.0;
         for _ in 0..1000 {
-            let q = Quadric::sphere(DVec3::new(u(), u(), u()), 0.1 + u().abs());
-            // Scaled, as the scene's `scale`d spheres and transforms make it.
-            let k = 0.5 + u().abs();
-            let q = Quadric {
-                m: q.m * k,
-                b: q.b * k,
-                c: q.c * k,
-            };
+            let q = scaled_sphere(&mut u);
             let along = Along::new(&q);
             assert!(matches!(along, Along::Sphere { .. }));
             let ray = Ray::new(DVec3::new(u(), u(), u()), DVec3::new(u(), u(), u()));
@@ -1069,14 +1065,7 @@ mod tests {
         let mut rng = isolux_core::Pcg32::new(26, 0);
         let mut u = || 2.0 * rng.next_f64() - 1.0;
         for _ in 0..1000 {
-            let q = Quadric::sphere(DVec3::new(u(), u(), u()), 0.1 + u().abs());
-            let k = 0.5 + u().abs();
-            let q = Quadric {
-                m: q.m * k,
-                b: q.b * k,
-                c: q.c * k,
-            };
-            let o = Object::new(q, vec![], None).unwrap();
+            let o = Object::new(scaled_sphere(&mut u), vec![], None).unwrap();
             let ray = Ray::new(DVec3::new(u(), u(), u()) * 5.0, DVec3::new(u(), u(), u()));
             if let Some(h) = o.intersect(&ray, 0.0, f64::INFINITY) {
                 let g = (-o.gradient(h.p)).normalize();
