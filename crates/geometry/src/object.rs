@@ -245,26 +245,20 @@ impl Object {
         }
         let bvh = Bvh::build(&support);
         // The solid lies in the base's positive set united with the
-        // supports of the bumps (`f > 0`), and in the box.
+        // supports of the bumps (`f > 0`). (It also lies in the box, whose
+        // circumscribed ball `Beam::meets_box` tests already.)
         let mut ball = base.positive_bounding_sphere();
         for (k, &i) in bounded.iter().enumerate() {
             if perturbations[i as usize].factor > 0.0 {
                 ball = ball.map(|b| enclose(b, spheres[k]));
             }
         }
-        let ball = match ball {
-            Some(b)
-                if unbounded
-                    .iter()
-                    .all(|&i| perturbations[i as usize].factor <= 0.0) =>
-            {
-                let corner_ball = (bbox.center(), 0.5 * (bbox.max - bbox.min).length());
-                (bbox.is_finite() && corner_ball.1 < b.1)
-                    .then_some(corner_ball)
-                    .or(Some(b))
-            }
-            _ => None,
-        };
+        if unbounded
+            .iter()
+            .any(|&i| perturbations[i as usize].factor > 0.0)
+        {
+            ball = None;
+        }
         Ok(Self {
             base,
             perturbations,
@@ -589,11 +583,11 @@ impl Object {
         let p = ray.at(t);
         let mut g = self.base_along.value_gradient(&self.base, p).1;
         for c in cands {
-            let q = &self.perturbations[c.index as usize].quadric;
-            let (x, grad) = match self.along.get(c.item as usize) {
-                Some(along) => along.value_gradient(q, p),
-                None => (q.eval(p), q.gradient(p)),
-            };
+            // Unbounded supports (no BVH item) take the general form.
+            let along = self.along.get(c.item as usize).copied();
+            let (x, grad) = along
+                .unwrap_or(Along::General)
+                .value_gradient(&self.perturbations[c.index as usize].quadric, p);
             if x > 0.0 {
                 g += 3.0 * c.factor * x * x * grad;
             }

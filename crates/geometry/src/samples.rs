@@ -43,9 +43,10 @@ pub const TILE: u32 = 8;
 /// fidget's 3D heightmap render).
 #[inline]
 pub fn primary_ray(size: u32, x: u32, y: u32) -> Ray {
-    // One division per ray would cost as much as a bump-free sphere's
-    // intersection; the pixel pitch is a power of two for power-of-two
-    // sizes, so the product is exact there.
+    // A product with the pitch, whose division the callers' pixel loops
+    // hoist once this is inlined (a division per ray cost as much as a
+    // bump-free sphere's intersection). For power-of-two sizes the pitch
+    // is a power of two and the product exact, as the quotient was.
     let pitch = 2.0 / size as f64;
     let px = (x as f64 + 0.5) * pitch - 1.0;
     let py = 1.0 - (y as f64 + 0.5) * pitch;

@@ -21,6 +21,17 @@ use isolux_core::{sampling, Pcg32, Ray};
 use isolux_geometry::{Object, Perturbation, Quadric};
 use isolux_gpu::layout::{GpuRay, GpuScene};
 
+/// The ray as the kernel reads it (f32, unbounded) and the same rounded
+/// ray in f64 for the CPU reference.
+fn kernel_ray(o: DVec3, d: DVec3) -> (GpuRay, Ray) {
+    let (o, d) = (o.as_vec3(), d.as_vec3());
+    let gpu = GpuRay {
+        o: [o.x, o.y, o.z, 0.0],
+        d: [d.x, d.y, d.z, 1e30],
+    };
+    (gpu, Ray::new(o.as_dvec3(), d.as_dvec3()))
+}
+
 fn random_object(rng: &mut Pcg32) -> Object {
     random_object_at(rng, DVec3::ZERO)
 }
@@ -182,14 +193,9 @@ fn agreement(gpu: &isolux_gpu::Gpu) -> Agreement {
                 rng.next_f64() - 0.5,
             ) * 1.6;
             let d = (target - o).normalize();
-            rays.push(GpuRay {
-                o: [o.x as f32, o.y as f32, o.z as f32, 0.0],
-                d: [d.x as f32, d.y as f32, d.z as f32, 1e30],
-            });
-            // The ray the kernel reads.
-            let o = DVec3::new(o.x as f32 as f64, o.y as f32 as f64, o.z as f32 as f64);
-            let d = DVec3::new(d.x as f32 as f64, d.y as f32 as f64, d.z as f32 as f64);
-            cpu_rays.push(Ray::new(o, d));
+            let (gpu_ray, cpu_ray) = kernel_ray(o, d);
+            rays.push(gpu_ray);
+            cpu_rays.push(cpu_ray);
         }
         let hits = gpu.intersect(&scene, &rays).unwrap();
         for (ray, h) in cpu_rays.iter().zip(&hits) {
@@ -312,17 +318,14 @@ fn rays_from_inside_always_leave() {
         while rays.len() < 4000 {
             let u = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
             let o = bb.min + (bb.max - bb.min) * u;
-            let o = DVec3::new(o.x as f32 as f64, o.y as f32 as f64, o.z as f32 as f64);
-            if obj.eval(o) <= 1e-4 {
+            // Inside at the origin the kernel reads.
+            if obj.eval(o.as_vec3().as_dvec3()) <= 1e-4 {
                 continue;
             }
             let d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
-            let d = DVec3::new(d.x as f32 as f64, d.y as f32 as f64, d.z as f32 as f64);
-            rays.push(GpuRay {
-                o: [o.x as f32, o.y as f32, o.z as f32, 0.0],
-                d: [d.x as f32, d.y as f32, d.z as f32, 1e30],
-            });
-            cpu_rays.push(Ray::new(o, d));
+            let (gpu_ray, cpu_ray) = kernel_ray(o, d);
+            rays.push(gpu_ray);
+            cpu_rays.push(cpu_ray);
         }
         let hits = gpu
             .intersect(&GpuScene::new(std::slice::from_ref(obj)), &rays)
