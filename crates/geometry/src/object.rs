@@ -37,7 +37,7 @@
 
 use crate::beam::Beam;
 use crate::bvh::Bvh;
-use crate::poly::{quadratic_crossings, sign, two_roots, Poly, UnitRoot};
+use crate::poly::{fmax, fmin, quadratic_crossings, sign, two_roots, Poly, UnitRoot};
 use crate::quadric::Quadric;
 use isolux_core::{Aabb, DVec3, Ray};
 use smallvec::SmallVec;
@@ -689,14 +689,14 @@ fn sign_is_fixed<'a>(
 ) -> Option<Option<f64>> {
     let mut active = active.peekable();
     active.peek()?;
-    let (fmin, fmax) = range2(base_q, a, b);
-    let (mut lo, mut hi) = (fmin, fmax);
-    let mut scale = fmin.abs() + fmax.abs() + base_q[0].abs();
+    let (base_min, base_max) = range2(base_q, a, b);
+    let (mut lo, mut hi) = (base_min, base_max);
+    let mut scale = base_min.abs() + base_max.abs() + base_q[0].abs();
     for c in active {
         let f = c.factor;
         let (qmin, qmax) = range2(c.q, a, b);
         // Active: Q >= 0 on the segment (up to rounding at its ends).
-        let (qmin, qmax) = (qmin.max(0.0), qmax.max(0.0));
+        let (qmin, qmax) = (fmax(qmin, 0.0), fmax(qmax, 0.0));
         let (rmin, rmax) = (f * qmin * qmin * qmin, f * qmax * qmax * qmax);
         if f > 0.0 {
             lo += rmin;
@@ -739,10 +739,10 @@ fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64) -> Option<f64>
         let (a, b) = if c.lo.is_nan() {
             (lo, hi)
         } else {
-            (c.lo.max(lo), c.hi.min(hi))
+            (fmax(c.lo, lo), fmin(c.hi, hi))
         };
         if a < b {
-            let qmax = range2(c.q, a, b).1.max(0.0);
+            let qmax = fmax(range2(c.q, a, b).1, 0.0);
             bound += c.factor * qmax * qmax * qmax;
         }
     }
@@ -781,12 +781,12 @@ fn enclose(a: (DVec3, f64), b: (DVec3, f64)) -> (DVec3, f64) {
 #[inline]
 fn range2(q: [f64; 3], a: f64, b: f64) -> (f64, f64) {
     let (va, vb) = (poly2(q, a), poly2(q, b));
-    let (mut lo, mut hi) = (va.min(vb), va.max(vb));
+    let (mut lo, mut hi) = (fmin(va, vb), fmax(va, vb));
     let (da, db) = (2.0 * q[2] * a + q[1], 2.0 * q[2] * b + q[1]);
     if (da < 0.0) != (db < 0.0) && q[2] != 0.0 {
         let v = q[0] - q[1] * q[1] / (4.0 * q[2]);
-        lo = lo.min(v);
-        hi = hi.max(v);
+        lo = fmin(lo, v);
+        hi = fmax(hi, v);
     }
     (lo, hi)
 }

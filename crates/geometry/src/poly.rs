@@ -63,6 +63,24 @@ impl Poly {
     /// Value and derivative at `s` (Horner).
     #[inline]
     pub fn eval_d(&self, s: f64) -> (f64, f64) {
+        if self.degree == MAX_DEGREE {
+            // The usual degree, with the loop unrolled.
+            let c = &self.c;
+            let mut p = c[6];
+            let mut d = p;
+            p = p * s + c[5];
+            d = d * s + p;
+            p = p * s + c[4];
+            d = d * s + p;
+            p = p * s + c[3];
+            d = d * s + p;
+            p = p * s + c[2];
+            d = d * s + p;
+            p = p * s + c[1];
+            d = d * s + p;
+            p = p * s + c[0];
+            return (p, d);
+        }
         let mut p = self.c[self.degree];
         let mut d = 0.0;
         for i in (0..self.degree).rev() {
@@ -86,6 +104,9 @@ impl Poly {
     /// `b_k = sum_{j <= k} C(k, j) / C(n, j) a_j`.
     pub fn bernstein(&self) -> [f64; MAX_DEGREE + 1] {
         let n = self.degree;
+        if n == MAX_DEGREE {
+            return bernstein6(&self.c);
+        }
         let table = &BERNSTEIN[n];
         let mut b = [0.0; MAX_DEGREE + 1];
         for (k, bk) in b.iter_mut().enumerate().take(n + 1) {
@@ -109,6 +130,24 @@ impl Poly {
     pub fn first_crossing(&self) -> UnitRoot {
         let b = self.bernstein();
         let n = self.degree;
+        if b[..=n].iter().all(|&x| x != 0.0) {
+            // The usual case, decided without the subdivision stack: no
+            // zero coefficient, and no sign change (no root) or a single
+            // one between ends of opposite signs (exactly one root).
+            let mut changes = 0;
+            for k in 0..n {
+                changes += ((b[k] < 0.0) != (b[k + 1] < 0.0)) as u32;
+            }
+            if changes == 0 {
+                return UnitRoot::Clear {
+                    start: sign(b[0]),
+                    end: sign(b[n]),
+                };
+            }
+            if changes == 1 {
+                return UnitRoot::Root(self.refine(0.0, 1.0, b[0], b[n]));
+            }
+        }
         match self.isolate(b) {
             Some(s) => UnitRoot::Root(s),
             None => {
@@ -249,6 +288,34 @@ const BERNSTEIN: [[[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DEGREE + 1] = {
     t
 };
 
+/// [`Poly::bernstein`] for degree 6, written out: the weights are
+/// constants and the sums are in the same order, so the coefficients are
+/// those of the general loop to the last bit.
+#[inline]
+fn bernstein6(c: &[f64; MAX_DEGREE + 1]) -> [f64; MAX_DEGREE + 1] {
+    const W: [[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1] = BERNSTEIN[MAX_DEGREE];
+    [
+        W[0][0] * c[0],
+        W[1][0] * c[0] + W[1][1] * c[1],
+        W[2][0] * c[0] + W[2][1] * c[1] + W[2][2] * c[2],
+        W[3][0] * c[0] + W[3][1] * c[1] + W[3][2] * c[2] + W[3][3] * c[3],
+        W[4][0] * c[0] + W[4][1] * c[1] + W[4][2] * c[2] + W[4][3] * c[3] + W[4][4] * c[4],
+        W[5][0] * c[0]
+            + W[5][1] * c[1]
+            + W[5][2] * c[2]
+            + W[5][3] * c[3]
+            + W[5][4] * c[4]
+            + W[5][5] * c[5],
+        W[6][0] * c[0]
+            + W[6][1] * c[1]
+            + W[6][2] * c[2]
+            + W[6][3] * c[3]
+            + W[6][4] * c[4]
+            + W[6][5] * c[5]
+            + W[6][6] * c[6],
+    ]
+}
+
 /// Number of sign changes among the non-zero entries.
 #[inline]
 fn sign_changes(b: &[f64]) -> u32 {
@@ -365,7 +432,29 @@ pub(crate) fn two_roots(q: [f64; 3]) -> Option<(f64, f64)> {
     } else {
         (h / a, c / h)
     };
-    Some((r1.min(r2), r1.max(r2)))
+    Some((fmin(r1, r2), fmax(r1, r2)))
+}
+
+/// The smaller of `a` and `b` by one comparison (a single `minsd`, where
+/// `f64::min`'s NaN rules take four more instructions): for operands
+/// that are not NaN, as on the intersection's hot path.
+#[inline(always)]
+pub(crate) fn fmin(a: f64, b: f64) -> f64 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The larger of `a` and `b` by one comparison; see [`fmin`].
+#[inline(always)]
+pub(crate) fn fmax(a: f64, b: f64) -> f64 {
+    if a > b {
+        a
+    } else {
+        b
+    }
 }
 
 /// `1` or `-1` by the sign of `x`; `0` for zero and NaN.
