@@ -191,6 +191,40 @@ struct Candidate {
     hi: f64,
 }
 
+impl Candidate {
+    /// Whether `Q_i` is the concave quadratic of a bounded support, whose
+    /// vertex lies midway between the roots `lo` and `hi`.
+    #[inline]
+    fn concave(&self) -> bool {
+        self.q[2] < 0.0 && !self.lo.is_nan()
+    }
+
+    /// The maximum of `Q_i` on `[a, b]`: for a bounded support at its
+    /// vertex clamped into `[a, b]`, without [`range2`]'s division.
+    #[inline]
+    fn max_on(&self, a: f64, b: f64) -> f64 {
+        if self.concave() {
+            poly2(self.q, fmin(fmax(0.5 * (self.lo + self.hi), a), b))
+        } else {
+            range2(self.q, a, b).1
+        }
+    }
+
+    /// The range `(min, max)` of `Q_i` on `[a, b]`: for a bounded
+    /// support the minimum is at an end (`Q_i` is concave).
+    #[inline]
+    fn range_on(&self, a: f64, b: f64) -> (f64, f64) {
+        if self.concave() {
+            (
+                fmin(poly2(self.q, a), poly2(self.q, b)),
+                poly2(self.q, fmin(fmax(0.5 * (self.lo + self.hi), a), b)),
+            )
+        } else {
+            range2(self.q, a, b)
+        }
+    }
+}
+
 impl Object {
     /// Builds an object; `bounds` clips the surface.
     pub fn new(
@@ -694,7 +728,7 @@ fn sign_is_fixed<'a>(
     let mut scale = base_min.abs() + base_max.abs() + base_q[0].abs();
     for c in active {
         let f = c.factor;
-        let (qmin, qmax) = range2(c.q, a, b);
+        let (qmin, qmax) = c.range_on(a, b);
         // Active: Q >= 0 on the segment (up to rounding at its ends).
         let (qmin, qmax) = (fmax(qmin, 0.0), fmax(qmax, 0.0));
         let (rmin, rmax) = (f * qmin * qmin * qmin, f * qmax * qmax * qmax);
@@ -742,7 +776,7 @@ fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64) -> Option<f64>
             (fmax(c.lo, lo), fmin(c.hi, hi))
         };
         if a < b {
-            let qmax = fmax(range2(c.q, a, b).1, 0.0);
+            let qmax = fmax(c.max_on(a, b), 0.0);
             bound += c.factor * qmax * qmax * qmax;
         }
     }
@@ -963,14 +997,23 @@ mod tests {
         for _ in 0..4000 {
             let base = [u(), u(), u()];
             let cands: Vec<Candidate> = (0..1 + (u().abs() * 4.0) as usize)
-                .map(|i| Candidate {
-                    index: i as u32,
-                    item: u32::MAX,
-                    factor: 10.0 * u(),
+                .map(|i| {
                     // Concave, positive somewhere near [0, 1].
-                    q: [0.2 + 0.3 * u(), u(), -0.5 - u().abs()],
-                    lo: f64::NAN,
-                    hi: f64::NAN,
+                    let q = [0.2 + 0.3 * u(), u(), -0.5 - u().abs()];
+                    // Every other one as a bounded support (its roots
+                    // known, ranges from the vertex between them), the
+                    // rest as unbounded ones (ranges by `range2`).
+                    let (lo, hi) = two_roots(q)
+                        .filter(|_| i % 2 == 0)
+                        .unwrap_or((f64::NAN, f64::NAN));
+                    Candidate {
+                        index: i as u32,
+                        item: u32::MAX,
+                        factor: 10.0 * u(),
+                        q,
+                        lo,
+                        hi,
+                    }
                 })
                 .collect();
             let (a, b) = (0.5 * u(), 0.5 + 0.5 * u().abs());
@@ -1009,6 +1052,47 @@ mod tests {
             segments > 1000 && skipped > segments / 10,
             "{skipped} of {segments}"
         );
+    }
+
+    #[test]
+    fn support_ranges_hold_the_sampled_values() {
+        // Candidate::range_on / max_on against dense sampling, for bounded
+        // supports (vertex midway between the roots) and unbounded ones.
+        let mut rng = isolux_core::Pcg32::new(29, 0);
+        let mut u = || 2.0 * rng.next_f64() - 1.0;
+        for i in 0..2000 {
+            let q = [
+                0.5 * u(),
+                u(),
+                if i % 3 == 0 { u() } else { -0.2 - u().abs() },
+            ];
+            let (lo, hi) = match two_roots(q) {
+                Some(r) if q[2] < 0.0 && i % 2 == 0 => r,
+                _ => (f64::NAN, f64::NAN),
+            };
+            let c = Candidate {
+                index: 0,
+                item: u32::MAX,
+                factor: 1.0,
+                q,
+                lo,
+                hi,
+            };
+            let (a, b) = (u(), u());
+            let (a, b) = (a.min(b), a.max(b));
+            let (min, max) = c.range_on(a, b);
+            assert_eq!(max, c.max_on(a, b));
+            let (mut smin, mut smax) = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in 0..=1000 {
+                let v = poly2(q, a + (b - a) * k as f64 / 1000.0);
+                smin = smin.min(v);
+                smax = smax.max(v);
+            }
+            let tol = 1e-12 * (1.0 + smax.abs() + smin.abs());
+            assert!(min <= smin + tol && max >= smax - tol, "{q:?} [{a}, {b}]");
+            // Tight: the sampled extremes are within the sampling step.
+            assert!(min >= smin - 1e-5 && max <= smax + 1e-5, "{q:?} [{a}, {b}]");
+        }
     }
 
     #[test]

@@ -426,7 +426,7 @@ impl IntoIterator for Crossings {
 pub fn quadratic_crossings(q: [f64; 3]) -> Crossings {
     let [c, b, a] = q;
     let mut out = Crossings::default();
-    let scale = a.abs().max(b.abs()).max(c.abs());
+    let scale = fmax(fmax(a.abs(), b.abs()), c.abs());
     if scale == 0.0 {
         return out;
     }
