@@ -27,6 +27,15 @@
 //!    surface), the degree-6 polynomial in a local parameter with
 //!    Bernstein root isolation (see [`crate::poly`]).
 //!
+//! Rays of one tile (a [`Beam`]) can share the perturbation list that
+//! [`Object::cull`] makes for the beam ([`Object::intersect_culled`]), and
+//! can be cast together ([`Object::intersect_tile`]): step 2's test of each
+//! support against the ray's interval then runs support by support over
+//! arrays of the tile's rays, in vector registers, and finds the same
+//! candidates. The geometry benchmark's primary rays go that way; the
+//! renderer still casts ray by ray (its per-pixel random streams order the
+//! camera rays between shading calls).
+//!
 //! `F'` is C² across breakpoints, so nothing special happens there. No
 //! marching, no sphere tracing: thin bumps and grazing rays are found as
 //! long as their two crossings are more than `2^-48` of a segment apart.
@@ -37,7 +46,7 @@
 
 use crate::beam::Beam;
 use crate::bvh::Bvh;
-use crate::poly::{fmax, fmin, quadratic_crossings, sign, two_roots, Poly, UnitRoot};
+use crate::poly::{fmax, fmin, quadratic_crossings, sign, two_roots, Crossings, Poly, UnitRoot};
 use crate::quadric::Quadric;
 use isolux_core::{Aabb, DVec3, Ray};
 use smallvec::SmallVec;
@@ -161,6 +170,15 @@ impl Along {
         }
     }
 
+    /// `Q(p)`.
+    #[inline(always)]
+    fn value(&self, q: &Quadric, p: DVec3) -> f64 {
+        match *self {
+            Along::Sphere { centre, k, c0, .. } => c0 - k * (p - centre).length_squared(),
+            Along::General => q.eval(p),
+        }
+    }
+
     /// `Q(p)` and `grad Q(p)`.
     #[inline(always)]
     fn value_gradient(&self, q: &Quadric, p: DVec3) -> (f64, DVec3) {
@@ -173,6 +191,9 @@ impl Along {
         }
     }
 }
+
+/// Most rays that one [`Object::intersect_tile`] call takes.
+pub const TILE_RAYS: usize = 64;
 
 /// A perturbation the current ray crosses.
 #[derive(Clone, Copy, Debug)]
@@ -405,6 +426,134 @@ impl Object {
         self.intersect_in(ray, t_min, t_max, Items::Only(culled))
     }
 
+    /// [`Object::intersect_culled`] for up to [`TILE_RAYS`] rays of one
+    /// beam at once, `hits[k]` for `rays[k]`: the same hits, found with
+    /// the first phase of the perturbation gathering done for all rays
+    /// together, candidate by candidate over arrays of the rays (a loop
+    /// that the compiler vectorizes), instead of ray by ray. Rays fall back
+    /// to [`Object::intersect_culled`] where that does not apply (more
+    /// than 64 culled perturbations, supports that are not spheres,
+    /// unbounded ones, an empty list).
+    ///
+    /// # Panics
+    /// When `rays` holds more than [`TILE_RAYS`] rays or `hits` is not as
+    /// long as `rays`.
+    pub fn intersect_tile(
+        &self,
+        rays: &[Ray],
+        t_min: f64,
+        t_max: f64,
+        culled: &[u32],
+        hits: &mut [Option<Hit>],
+    ) {
+        assert!(rays.len() <= TILE_RAYS && hits.len() == rays.len());
+        let spheres = culled.len() <= 64
+            && culled
+                .iter()
+                .all(|&item| matches!(self.along[item as usize], Along::Sphere { .. }));
+        if culled.is_empty() || !self.unbounded.is_empty() || !spheres {
+            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                *hit = self.intersect_culled(ray, t_min, t_max, culled);
+            }
+            return;
+        }
+        // Per ray: the clipped interval and the base's crossings, as in
+        // `intersect_in` and `intersect_perturbed`. Arrays of the rays'
+        // coordinates for the candidate loop; dead lanes (rays missing
+        // the box) carry NaN ends, which every test below rejects.
+        let mut ends = [(f64::NAN, f64::NAN); TILE_RAYS];
+        let mut bases = [([0.0; 3], Crossings::default()); TILE_RAYS];
+        let (mut lo, mut hi) = ([f64::NAN; TILE_RAYS], [f64::NAN; TILE_RAYS]);
+        let mut o = [[0.0; TILE_RAYS]; 3];
+        let mut d = [[0.0; TILE_RAYS]; 3];
+        let mut dd = [0.0; TILE_RAYS];
+        for (k, ray) in rays.iter().enumerate() {
+            for a in 0..3 {
+                o[a][k] = ray.origin[a];
+                d[a][k] = ray.dir[a];
+            }
+            dd[k] = ray.dir.length_squared();
+            let Some((t0, t1)) = self.bbox.clip(ray, t_min, t_max) else {
+                continue;
+            };
+            let base_q = self.base_along.along(&self.base, ray);
+            let base_roots = quadratic_crossings(base_q);
+            let split = base_roots
+                .iter()
+                .copied()
+                .find(|&r| r > t0 && r < t1)
+                .unwrap_or(t1);
+            ends[k] = (t0, t1);
+            bases[k] = (base_q, base_roots);
+            (lo[k], hi[k]) = (t0, split);
+        }
+        // Candidate by candidate, all rays: does the support meet the
+        // ray on its first phase `[t0, split]`? The arithmetic is
+        // `Along::along` and `positive_on` operation for operation, so the
+        // answers are those of `gather` to the last bit. `q2 >= 0` (a
+        // zero direction) is no sphere's ray: such a ray falls back.
+        let mut keep = [0u64; TILE_RAYS];
+        let mut odd = [false; TILE_RAYS];
+        for (j, &item) in culled.iter().enumerate() {
+            let Along::Sphere { centre, k, c0, .. } = self.along[item as usize] else {
+                unreachable!("checked above")
+            };
+            for r in 0..TILE_RAYS {
+                let (vx, vy, vz) = (o[0][r] - centre.x, o[1][r] - centre.y, o[2][r] - centre.z);
+                let c = c0 - k * (vx * vx + vy * vy + vz * vz);
+                let b = -2.0 * k * (d[0][r] * vx + d[1][r] * vy + d[2][r] * vz);
+                let a = -k * dd[r];
+                let (l, h) = (lo[r], hi[r]);
+                let meets = b * b - 4.0 * a * c > 0.0
+                    && ((a * l + b) * l + c > 0.0
+                        || (a * h + b) * h + c > 0.0
+                        || (2.0 * a * l + b > 0.0 && 2.0 * a * h + b < 0.0));
+                keep[r] |= ((meets && a < 0.0) as u64) << j;
+                odd[r] |= a >= 0.0;
+            }
+        }
+        for (r, ray) in rays.iter().enumerate() {
+            if ends[r].0.is_nan() {
+                hits[r] = None;
+                continue;
+            }
+            if odd[r] {
+                hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
+                continue;
+            }
+            let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
+            let mut bits = keep[r];
+            while bits != 0 {
+                let j = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let item = culled[j];
+                let i = self.bounded[item as usize];
+                let p = &self.perturbations[i as usize];
+                let q = self.along[item as usize].along(&p.quadric, ray);
+                if let Some((r0, r1)) = two_roots(q) {
+                    cands.push(Candidate {
+                        index: i,
+                        item,
+                        factor: p.factor,
+                        q,
+                        lo: r0,
+                        hi: r1,
+                    });
+                }
+            }
+            let (t0, t1) = ends[r];
+            let (base_q, base_roots) = bases[r];
+            hits[r] = self.walk(
+                ray,
+                t0,
+                t1,
+                (base_q, base_roots, hi[r]),
+                Items::Only(culled),
+                &mut cands,
+            );
+        }
+    }
+
     fn intersect_in(&self, ray: &Ray, t_min: f64, t_max: f64, items: Items) -> Option<Hit> {
         let (t0, t1) = self.bbox.clip(ray, t_min, t_max)?;
         let none = match items {
@@ -438,6 +587,23 @@ impl Object {
             .find(|&r| r > t0 && r < t1)
             .unwrap_or(t1);
         let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
+        self.gather(ray, t0, t0, split, items, &mut cands);
+        self.walk(ray, t0, t1, (base_q, base_roots, split), items, &mut cands)
+    }
+
+    /// The rest of [`Object::intersect_perturbed`] once the perturbations
+    /// active on `[t0, split]` are gathered in `cands` (in `items` order):
+    /// the segment walk over `[t0, split]`, then over `[split, t1]`.
+    #[inline(always)]
+    fn walk(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        (base_q, base_roots, split): ([f64; 3], Crossings, f64),
+        items: Items,
+        cands: &mut SmallVec<[Candidate; 16]>,
+    ) -> Option<Hit> {
         // The sign of F' just before the current position (0: unknown). A
         // crossing within rounding of a breakpoint can escape both
         // neighbouring segments (each sees its end value on its own side
@@ -447,14 +613,17 @@ impl Object {
             if hi <= lo && !(lo == t0 && hi == t1) {
                 continue;
             }
-            self.gather(ray, t0, lo, hi, items, &mut cands);
+            if lo > t0 {
+                // The first phase's were gathered by the caller.
+                self.gather(ray, t0, lo, hi, items, cands);
+            }
             if cands.is_empty() {
                 // No perturbation on [lo, hi]: the base quadric alone.
                 if let Some(t) = base_roots.iter().copied().find(|&r| r >= lo && r <= hi) {
                     return Some(self.base_hit(ray, t));
                 }
                 if before * sign(poly2(base_q, lo)) < 0.0 {
-                    return Some(self.hit_at(ray, lo, &cands));
+                    return Some(self.hit_at(ray, lo, cands));
                 }
                 before = sign(poly2(base_q, hi));
                 if split >= t1 {
@@ -463,7 +632,7 @@ impl Object {
                 continue;
             }
             // Skip ahead to where the bumps can reach (see `reach`).
-            let lo = match reach(base_q, &cands, lo, hi) {
+            let lo = match reach(base_q, cands, lo, hi) {
                 Some(start) => {
                     if start > lo {
                         before = -1.0;
@@ -479,7 +648,7 @@ impl Object {
                 }
             };
             let mut breaks: SmallVec<[f64; 32]> = SmallVec::new();
-            for c in &cands {
+            for c in cands.iter() {
                 for x in [c.lo, c.hi] {
                     if x > lo && x < hi {
                         breaks.push(x);
@@ -500,12 +669,12 @@ impl Object {
                 if b <= a {
                     continue;
                 }
-                match self.segment_root(ray, base_q, &base_roots, &cands, a, b) {
-                    Segment::Crossing(t) => return Some(self.hit_at(ray, t, &cands)),
+                match self.segment_root(ray, base_q, &base_roots, cands, a, b) {
+                    Segment::Crossing(t) => return Some(self.hit_at(ray, t, cands)),
                     Segment::BaseCrossing(t) => return Some(self.base_hit(ray, t)),
                     Segment::Clear { start, end } => {
                         if before * start < 0.0 {
-                            return Some(self.hit_at(ray, a, &cands));
+                            return Some(self.hit_at(ray, a, cands));
                         }
                         before = end;
                     }
@@ -679,7 +848,7 @@ impl Object {
         // ray quadratic.
         let len = b - a;
         let mut q = shift(base_q, a, len);
-        q[0] = self.base.eval(ray.at(a));
+        q[0] = self.base_along.value(&self.base, ray.at(a));
         let mut poly = Poly::quadratic(q);
         for c in cands.iter().filter(|c| active(c)) {
             poly.add_cube(c.factor, shift(c.q, a, len));

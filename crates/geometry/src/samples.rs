@@ -56,8 +56,8 @@ pub fn primary_ray(size: u32, x: u32, y: u32) -> Ray {
 /// Casts the primary ray ([`primary_ray`]) of every pixel in `rows` on the
 /// calling thread and returns the hit count. With `coherent`, the rays go
 /// in tiles of [`TILE`] x [`TILE`] pixels, each culled once through its
-/// [`Beam`] ([`Object::intersect_culled`]); otherwise each ray walks the
-/// object's BVH ([`Object::intersect`]). Both find the same hits.
+/// [`Beam`] and cast together ([`Object::intersect_tile`]); otherwise each
+/// ray walks the object's BVH ([`Object::intersect`]). Both find the same hits.
 pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>, coherent: bool) -> usize {
     let mut hits = 0;
     if !coherent {
@@ -71,6 +71,8 @@ pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>, coherent: 
         return hits;
     }
     let mut culled = Vec::new();
+    let mut rays = Vec::with_capacity((TILE * TILE) as usize);
+    let mut found = [None; crate::object::TILE_RAYS];
     for y0 in rows.clone().step_by(TILE as usize) {
         let y1 = (y0 + TILE).min(rows.end);
         for x0 in (0..size).step_by(TILE as usize) {
@@ -83,14 +85,15 @@ pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>, coherent: 
                 continue;
             }
             obj.cull(&beam, &mut culled);
+            rays.clear();
             for y in y0..y1 {
                 for x in x0..x1 {
-                    let ray = primary_ray(size, x, y);
-                    hits += obj
-                        .intersect_culled(&ray, 0.0, f64::INFINITY, &culled)
-                        .is_some() as usize;
+                    rays.push(primary_ray(size, x, y));
                 }
             }
+            let found = &mut found[..rays.len()];
+            obj.intersect_tile(&rays, 0.0, f64::INFINITY, &culled, found);
+            hits += found.iter().filter(|h| h.is_some()).count();
         }
     }
     hits

@@ -100,6 +100,12 @@ fn random_rotation(rng: &mut Pcg32) -> DMat3 {
 /// ellipsoid bumps/dents (most), a bounded plane, a bounded cylinder, and an
 /// unbounded (plane) perturbation on a sphere.
 fn random_object(rng: &mut Pcg32) -> (Object, RefObject) {
+    random_object_with(rng, 0.5)
+}
+
+/// [`random_object`] with a share `spheres` of its perturbations' supports
+/// spheres (the others rotated ellipsoids).
+fn random_object_with(rng: &mut Pcg32, spheres: f64) -> (Object, RefObject) {
     let kind = rng.next_below(8);
     let centre = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5;
     let (base, bounds, region) = match kind {
@@ -140,7 +146,7 @@ fn random_object(rng: &mut Pcg32) -> (Object, RefObject) {
             }
         }
         let r = 0.08 + 0.3 * rng.next_f64();
-        let quadric = if rng.next_f64() < 0.5 {
+        let quadric = if rng.next_f64() < spheres {
             Quadric::sphere(p, r)
         } else {
             let radii = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * r + 0.3 * r;
@@ -376,6 +382,59 @@ fn tile_culled_rays_find_the_per_ray_hit() {
         culled_away > 1000,
         "culling removed only {culled_away} perturbations"
     );
+}
+
+/// `Object::intersect_tile` (the first gathering phase done for a tile's
+/// rays together) finds exactly, to the last bit, the hits of
+/// `Object::intersect_culled` ray by ray: on objects whose supports are
+/// all spheres (the batched path) and on mixed ones (which fall back).
+#[test]
+fn tile_batches_find_the_per_ray_hits() {
+    let mut rng = Pcg32::new(7, 11);
+    let (mut rays, mut hits) = (0, 0);
+    let mut culled = Vec::new();
+    for scene in 0..80 {
+        let spheres = if scene % 4 == 3 { 0.5 } else { 1.0 };
+        let obj = random_object_with(&mut rng, spheres).0;
+        for _ in 0..20 {
+            let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 1.5;
+            let eye =
+                target + sampling::uniform_sphere(rng.next_2d()) * (2.0 + 3.0 * rng.next_f64());
+            let axis = (target - eye).normalize();
+            let (u, v) = axis.any_orthonormal_pair();
+            let w = 0.02 + 0.3 * rng.next_f64();
+            let grid = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
+            let pinhole = scene % 2 == 0;
+            let ray_at = |a: f64, b: f64| {
+                if pinhole {
+                    Ray::new(eye, (axis + w * (a * u + b * v)).normalize())
+                } else {
+                    Ray::new(eye + 2.0 * w * (a * u + b * v), axis)
+                }
+            };
+            let beam = if pinhole {
+                Beam::cone(eye, &grid.map(|(a, b)| ray_at(a, b).dir))
+            } else {
+                Beam::cylinder(axis, &grid.map(|(a, b)| ray_at(a, b).origin))
+            }
+            .expect("a narrow tile has a beam");
+            culled.clear();
+            obj.cull(&beam, &mut culled);
+            let n = 1 + rng.next_below(64) as usize;
+            let batch: Vec<Ray> = (0..n)
+                .map(|_| ray_at(2.0 * rng.next_f64() - 1.0, 2.0 * rng.next_f64() - 1.0))
+                .collect();
+            let mut got = vec![None; n];
+            obj.intersect_tile(&batch, 0.0, f64::INFINITY, &culled, &mut got);
+            for (ray, got) in batch.iter().zip(&got) {
+                let want = obj.intersect_culled(ray, 0.0, f64::INFINITY, &culled);
+                assert_eq!(*got, want, "{ray:?}");
+                rays += 1;
+                hits += got.is_some() as usize;
+            }
+        }
+    }
+    assert!(hits > rays / 4, "{hits} of {rays}");
 }
 
 #[test]
