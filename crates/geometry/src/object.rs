@@ -413,6 +413,20 @@ impl Object {
         out[start..].sort_unstable();
     }
 
+    /// [`Object::cull`] for a `beam` inside an `outer` beam, from the
+    /// list `coarse` that [`Object::cull`] made for `outer`: the items of
+    /// `coarse` whose bounding sphere `beam` may meet, appended to `out`
+    /// in the same order. A flat pass over a short list instead of a BVH
+    /// walk; every perturbation that [`Object::cull`] would list is in it
+    /// (possibly a few more, whose support no ray of `beam` crosses and
+    /// that [`Object::intersect_culled`] sets aside), so hits are the same.
+    pub fn cull_within(&self, beam: &Beam, coarse: &[u32], out: &mut Vec<u32>) {
+        out.extend(coarse.iter().copied().filter(|&k| {
+            let (c, r) = self.spheres[k as usize];
+            beam.meets_sphere(c, r)
+        }));
+    }
+
     /// [`Object::intersect`] for a ray inside a beam, considering only the
     /// perturbations that [`Object::cull`] listed for that beam: the same
     /// hit, without the BVH walk.

@@ -38,6 +38,11 @@ pub fn bumpy_sphere(bumps: usize) -> Object {
 /// Edge of the square tiles of rays that [`cast_rows`] culls together.
 pub const TILE: u32 = 8;
 
+/// Edge, in tiles, of the square blocks that [`cast_rows`] culls through
+/// the support BVH before culling their tiles from the block's list
+/// ([`Object::cull_within`]).
+pub const BLOCK: u32 = 4;
+
 /// The orthographic primary ray through pixel `(x, y)` of a `size x size`
 /// image over `[-1, 1]^2`, looking down `-z` from `z = 2` (the view of
 /// fidget's 3D heightmap render).
@@ -70,30 +75,48 @@ pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>, coherent: 
         }
         return hits;
     }
-    let mut culled = Vec::new();
+    let (mut coarse, mut culled) = (Vec::new(), Vec::new());
     let mut rays = Vec::with_capacity((TILE * TILE) as usize);
     let mut found = [None; crate::object::TILE_RAYS];
-    for y0 in rows.clone().step_by(TILE as usize) {
-        let y1 = (y0 + TILE).min(rows.end);
-        for x0 in (0..size).step_by(TILE as usize) {
-            let x1 = (x0 + TILE).min(size);
-            let corners = [(x0, y0), (x1 - 1, y0), (x0, y1 - 1), (x1 - 1, y1 - 1)]
-                .map(|(x, y)| primary_ray(size, x, y).origin);
-            culled.clear();
-            let beam = Beam::cylinder(-DVec3::Z, &corners).expect("a tile has rays");
-            if !obj.meets(&beam) {
+    let beam_of = |x0: u32, x1: u32, y0: u32, y1: u32| {
+        let corners = [(x0, y0), (x1 - 1, y0), (x0, y1 - 1), (x1 - 1, y1 - 1)]
+            .map(|(x, y)| primary_ray(size, x, y).origin);
+        Beam::cylinder(-DVec3::Z, &corners).expect("a tile has rays")
+    };
+    // Blocks of BLOCK x BLOCK tiles are culled through the support BVH
+    // first; their tiles then only test the block's list.
+    let block = BLOCK * TILE;
+    for by0 in rows.clone().step_by(block as usize) {
+        let by1 = (by0 + block).min(rows.end);
+        for bx0 in (0..size).step_by(block as usize) {
+            let bx1 = (bx0 + block).min(size);
+            let outer = beam_of(bx0, bx1, by0, by1);
+            if !obj.meets(&outer) {
                 continue;
             }
-            obj.cull(&beam, &mut culled);
-            rays.clear();
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    rays.push(primary_ray(size, x, y));
+            coarse.clear();
+            obj.cull(&outer, &mut coarse);
+            for y0 in (by0..by1).step_by(TILE as usize) {
+                let y1 = (y0 + TILE).min(by1);
+                for x0 in (bx0..bx1).step_by(TILE as usize) {
+                    let x1 = (x0 + TILE).min(bx1);
+                    let beam = beam_of(x0, x1, y0, y1);
+                    if !obj.meets(&beam) {
+                        continue;
+                    }
+                    culled.clear();
+                    obj.cull_within(&beam, &coarse, &mut culled);
+                    rays.clear();
+                    for y in y0..y1 {
+                        for x in x0..x1 {
+                            rays.push(primary_ray(size, x, y));
+                        }
+                    }
+                    let found = &mut found[..rays.len()];
+                    obj.intersect_tile(&rays, 0.0, f64::INFINITY, &culled, found);
+                    hits += found.iter().filter(|h| h.is_some()).count();
                 }
             }
-            let found = &mut found[..rays.len()];
-            obj.intersect_tile(&rays, 0.0, f64::INFINITY, &culled, found);
-            hits += found.iter().filter(|h| h.is_some()).count();
         }
     }
     hits

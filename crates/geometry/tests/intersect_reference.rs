@@ -437,6 +437,56 @@ fn tile_batches_find_the_per_ray_hits() {
     assert!(hits > rays / 4, "{hits} of {rays}");
 }
 
+/// `Object::cull_within` (a tile's list taken from its block's) holds
+/// every perturbation that `Object::cull` lists for the tile, nothing
+/// outside the block's list, and gives the same hits.
+#[test]
+fn tiles_culled_within_a_block_keep_every_candidate() {
+    let mut rng = Pcg32::new(3, 17);
+    let (mut rays, mut narrowed) = (0, 0);
+    let (mut outer_list, mut inner_list, mut within) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..60 {
+        let obj = random_object(&mut rng).0;
+        for _ in 0..10 {
+            let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 1.5;
+            let axis = sampling::uniform_sphere(rng.next_2d());
+            let eye = target - 3.0 * axis;
+            let (u, v) = axis.any_orthonormal_pair();
+            let w = 0.1 + 0.4 * rng.next_f64();
+            let at = |a: f64, b: f64| eye + w * (a * u + b * v);
+            let grid = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
+            let outer = Beam::cylinder(axis, &grid.map(|(a, b)| at(a, b))).unwrap();
+            outer_list.clear();
+            obj.cull(&outer, &mut outer_list);
+            for _ in 0..8 {
+                // A quarter-size tile somewhere inside the block.
+                let (a0, b0) = (rng.next_f64() * 1.5 - 1.0, rng.next_f64() * 1.5 - 1.0);
+                let tile = |a: f64, b: f64| at(a0 + 0.25 * (a + 1.0), b0 + 0.25 * (b + 1.0));
+                let inner = Beam::cylinder(axis, &grid.map(|(a, b)| tile(a, b))).unwrap();
+                inner_list.clear();
+                within.clear();
+                obj.cull(&inner, &mut inner_list);
+                obj.cull_within(&inner, &outer_list, &mut within);
+                assert!(inner_list.iter().all(|k| within.contains(k)));
+                assert!(within.iter().all(|k| outer_list.contains(k)));
+                narrowed += outer_list.len() - within.len();
+                for _ in 0..8 {
+                    let o = tile(2.0 * rng.next_f64() - 1.0, 2.0 * rng.next_f64() - 1.0);
+                    let ray = Ray::new(o, axis);
+                    let want = obj.intersect_culled(&ray, 0.0, f64::INFINITY, &inner_list);
+                    let got = obj.intersect_culled(&ray, 0.0, f64::INFINITY, &within);
+                    assert_eq!(got, want, "{ray:?}");
+                    rays += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        rays > 30_000 && narrowed > 1000,
+        "{rays} rays, {narrowed} narrowed"
+    );
+}
+
 #[test]
 #[ignore = "slow: a million rays at 8000 reference samples"]
 fn million_random_rays_match_brute_force() {
