@@ -192,6 +192,79 @@ impl Along {
     }
 }
 
+/// The rays of an [`Object::intersect_tile`] call as arrays (one lane per
+/// ray): origins, directions, squared direction lengths, and the first
+/// phase's interval `[lo, hi]` (NaN for rays that miss the box).
+struct Lanes {
+    o: [[f64; TILE_RAYS]; 3],
+    d: [[f64; TILE_RAYS]; 3],
+    dd: [f64; TILE_RAYS],
+    lo: [f64; TILE_RAYS],
+    hi: [f64; TILE_RAYS],
+}
+
+/// For every sphere support `(centre, k, c0)` (`Q = c0 - k |p - centre|^2`)
+/// `j` and every lane `r`: bit `j` of `keep[r]` when the support meets the
+/// ray on `[lo, hi]`, by `Along::along` and `positive_on` operation for
+/// operation (so the answers are `gather`'s to the last bit); `odd[r]` when
+/// the ray's `q2` is not negative (a zero direction), which `gather` treats
+/// apart. The loops run over the lanes, so the compiler vectorizes them:
+/// with AVX2 where the processor has it (chosen at run time; the results
+/// are the same, IEEE operations being exact whatever the vector width),
+/// SSE2 otherwise.
+fn filter_supports(
+    lanes: &Lanes,
+    spheres: &[(DVec3, f64, f64)],
+    keep: &mut [u64; TILE_RAYS],
+    odd: &mut [bool; TILE_RAYS],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2, checked just above.
+        return unsafe { filter_supports_avx2(lanes, spheres, keep, odd) };
+    }
+    filter_supports_lanes(lanes, spheres, keep, odd)
+}
+
+/// [`filter_supports`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn filter_supports_avx2(
+    lanes: &Lanes,
+    spheres: &[(DVec3, f64, f64)],
+    keep: &mut [u64; TILE_RAYS],
+    odd: &mut [bool; TILE_RAYS],
+) {
+    filter_supports_lanes(lanes, spheres, keep, odd)
+}
+
+/// The body of [`filter_supports`], inlined into each instruction set's
+/// version.
+#[inline(always)]
+fn filter_supports_lanes(
+    lanes: &Lanes,
+    spheres: &[(DVec3, f64, f64)],
+    keep: &mut [u64; TILE_RAYS],
+    odd: &mut [bool; TILE_RAYS],
+) {
+    let Lanes { o, d, dd, lo, hi } = lanes;
+    for (j, &(centre, k, c0)) in spheres.iter().enumerate() {
+        for r in 0..TILE_RAYS {
+            let (vx, vy, vz) = (o[0][r] - centre.x, o[1][r] - centre.y, o[2][r] - centre.z);
+            let c = c0 - k * (vx * vx + vy * vy + vz * vz);
+            let b = -2.0 * k * (d[0][r] * vx + d[1][r] * vy + d[2][r] * vz);
+            let a = -k * dd[r];
+            let (l, h) = (lo[r], hi[r]);
+            let meets = b * b - 4.0 * a * c > 0.0
+                && ((a * l + b) * l + c > 0.0
+                    || (a * h + b) * h + c > 0.0
+                    || (2.0 * a * l + b > 0.0 && 2.0 * a * h + b < 0.0));
+            keep[r] |= ((meets && a < 0.0) as u64) << j;
+            odd[r] |= a >= 0.0;
+        }
+    }
+}
+
 /// Most rays that one [`Object::intersect_tile`] call takes.
 pub const TILE_RAYS: usize = 64;
 
@@ -506,26 +579,16 @@ impl Object {
         // `Along::along` and `positive_on` operation for operation, so the
         // answers are those of `gather` to the last bit. `q2 >= 0` (a
         // zero direction) is no sphere's ray: such a ray falls back.
+        let spheres: SmallVec<[(DVec3, f64, f64); 64]> = culled
+            .iter()
+            .map(|&item| match self.along[item as usize] {
+                Along::Sphere { centre, k, c0, .. } => (centre, k, c0),
+                Along::General => unreachable!("checked above"),
+            })
+            .collect();
         let mut keep = [0u64; TILE_RAYS];
         let mut odd = [false; TILE_RAYS];
-        for (j, &item) in culled.iter().enumerate() {
-            let Along::Sphere { centre, k, c0, .. } = self.along[item as usize] else {
-                unreachable!("checked above")
-            };
-            for r in 0..TILE_RAYS {
-                let (vx, vy, vz) = (o[0][r] - centre.x, o[1][r] - centre.y, o[2][r] - centre.z);
-                let c = c0 - k * (vx * vx + vy * vy + vz * vz);
-                let b = -2.0 * k * (d[0][r] * vx + d[1][r] * vy + d[2][r] * vz);
-                let a = -k * dd[r];
-                let (l, h) = (lo[r], hi[r]);
-                let meets = b * b - 4.0 * a * c > 0.0
-                    && ((a * l + b) * l + c > 0.0
-                        || (a * h + b) * h + c > 0.0
-                        || (2.0 * a * l + b > 0.0 && 2.0 * a * h + b < 0.0));
-                keep[r] |= ((meets && a < 0.0) as u64) << j;
-                odd[r] |= a >= 0.0;
-            }
-        }
+        filter_supports(&Lanes { o, d, dd, lo, hi }, &spheres, &mut keep, &mut odd);
         for (r, ray) in rays.iter().enumerate() {
             if ends[r].0.is_nan() {
                 hits[r] = None;
