@@ -18,7 +18,7 @@
 use fidget::context::Tree;
 use fidget::jit::JitShape;
 use fidget::render::{RenderHints, ThreadPool, VoxelRenderConfig, VoxelSize};
-use isolux_geometry::samples::{bumpy_sphere, cast_rows, fibonacci_sphere, BUMP_FACTOR, TILE};
+use isolux_geometry::samples::{bumpy_sphere, cast_rows, fibonacci_sphere, BAND, BUMP_FACTOR};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -72,9 +72,9 @@ fn main() {
         let obj = bumpy_sphere(bumps);
         let (i1, ih) = best(repeat, || cast_rows(&obj, size, 0..size, coherent));
         let (in_, _) = best(repeat, || {
-            (0..size.div_ceil(TILE))
+            (0..size.div_ceil(BAND))
                 .into_par_iter()
-                .map(|b| cast_rows(&obj, size, b * TILE..((b + 1) * TILE).min(size), coherent))
+                .map(|b| cast_rows(&obj, size, b * BAND..((b + 1) * BAND).min(size), coherent))
                 .sum()
         });
 

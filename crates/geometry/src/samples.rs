@@ -43,6 +43,10 @@ pub const TILE: u32 = 8;
 /// ([`Object::cull_within`]).
 pub const BLOCK: u32 = 4;
 
+/// Rows per parallel work item when an image is cast with [`cast_rows`] on
+/// several threads: whole blocks, so that the threads cull as one does.
+pub const BAND: u32 = BLOCK * TILE;
+
 /// The orthographic primary ray through pixel `(x, y)` of a `size x size`
 /// image over `[-1, 1]^2`, looking down `-z` from `z = 2` (the view of
 /// fidget's 3D heightmap render).

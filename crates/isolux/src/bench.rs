@@ -3,7 +3,7 @@
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
 use isolux_geometry::{
-    samples::{bumpy_sphere, cast_rows, TILE},
+    samples::{bumpy_sphere, cast_rows, BAND, TILE},
     Object,
 };
 use rayon::prelude::*;
@@ -57,11 +57,11 @@ pub struct BenchArgs {
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
-/// [`TILE`] rows in parallel; `coherent` culls per tile.
+/// [`BAND`] rows in parallel; `coherent` culls per tile.
 pub fn cast_primary(obj: &Object, size: u32, coherent: bool) -> usize {
-    (0..size.div_ceil(TILE))
+    (0..size.div_ceil(BAND))
         .into_par_iter()
-        .map(|b| cast_rows(obj, size, b * TILE..((b + 1) * TILE).min(size), coherent))
+        .map(|b| cast_rows(obj, size, b * BAND..((b + 1) * BAND).min(size), coherent))
         .sum()
 }
 
