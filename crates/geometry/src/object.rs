@@ -709,7 +709,7 @@ impl Object {
                 continue;
             }
             // Skip ahead to where the bumps can reach (see `reach`).
-            let lo = match reach(base_q, cands, lo, hi) {
+            let lo = match reach(base_q, cands, lo, hi, hi == split && split < t1) {
                 Some(start) => {
                     if start > lo {
                         before = -1.0;
@@ -1010,7 +1010,16 @@ fn sign_is_fixed<'a>(
 /// instead of at the edge of its support, and rays that pass the support
 /// above the bump are done after one quadratic. `B` is widened by `1e-10`
 /// of the magnitudes involved, so that rounding cannot skip a crossing.
-fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64) -> Option<f64> {
+///
+/// With `entering` (`hi` is where the ray enters a concave base), the
+/// start is where the base's tangent line at `hi` reaches `-B`: no later
+/// than the quadratic's own root (the line lies above the curve), found
+/// without a square root. It is earlier by a share of about `|q2| B /
+/// slope^2`, which grazing rays pay in longer segments: measured side by
+/// side, 3% faster at 16 benchmark bumps, 1.5% at 64, 2% slower at 256
+/// (where a tightness test to choose between the two cost more than it
+/// saved).
+fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64, entering: bool) -> Option<f64> {
     if !hi.is_finite() {
         return Some(lo);
     }
@@ -1032,6 +1041,17 @@ fn reach(base_q: [f64; 3], cands: &[Candidate], lo: f64, hi: f64) -> Option<f64>
     if !(flo + bound < 0.0) {
         // Reachable at once (or not finite: no claim).
         return Some(lo);
+    }
+    if entering && base_q[2] < 0.0 {
+        // `hi` is where the ray enters the concave base: below its tangent
+        // line there, `F(t) <= F(hi) + F'(hi) (t - hi)`, so `F` reaches
+        // `-B` no earlier than where that line does. A start as safe as
+        // the root's, without its square root.
+        let slope = base_q[1] + 2.0 * base_q[2] * hi;
+        if slope > 0.0 {
+            let start = hi - (bound + poly2(base_q, hi)) / slope;
+            return Some(fmax(fmin(start, hi), lo));
+        }
     }
     let shifted = [base_q[0] + bound, base_q[1], base_q[2]];
     quadratic_crossings(shifted)
@@ -1339,6 +1359,48 @@ mod tests {
             // Tight: the sampled extremes are within the sampling step.
             assert!(min >= smin - 1e-5 && max <= smax + 1e-5, "{q:?} [{a}, {b}]");
         }
+    }
+
+    #[test]
+    fn tangent_start_is_never_after_the_root() {
+        // reach with `entering` (the tangent line at the base's entry)
+        // starts no later than the exact root of F + B (to rounding), and
+        // not before lo.
+        let mut rng = isolux_core::Pcg32::new(31, 0);
+        let mut u = || 2.0 * rng.next_f64() - 1.0;
+        let mut tangent_used = 0;
+        for _ in 0..5000 {
+            // A concave base entered at r0 within (lo, hi_end).
+            let (r0, width, curv) = (u(), 0.1 + u().abs(), 0.1 + u().abs());
+            let base = [-curv * r0 * (r0 + width), curv * (2.0 * r0 + width), -curv];
+            let lo = r0 - 0.5 * u().abs() - 1e-3;
+            let q = [0.05 * u().abs(), 0.1 * u(), -0.5 - u().abs()];
+            let Some((qlo, qhi)) = two_roots(q) else {
+                continue;
+            };
+            let c = Candidate {
+                index: 0,
+                item: u32::MAX,
+                factor: 10.0 * u().abs(),
+                q,
+                lo: qlo,
+                hi: qhi,
+            };
+            let split = quadratic_crossings(base)[0];
+            let exact = reach(base, &[c], lo, split, false);
+            let tangent = reach(base, &[c], lo, split, true);
+            match (exact, tangent) {
+                (Some(e), Some(t)) => {
+                    // Both are conservative by B's widening (1e-10 of
+                    // the magnitudes), which dwarfs their rounding.
+                    assert!(t <= e + 1e-13 * (1.0 + e.abs()) && t >= lo, "{t} vs {e}");
+                    tangent_used += (t < e) as u32;
+                }
+                (None, _) => {}
+                (Some(e), None) => panic!("tangent start lost the root {e}"),
+            }
+        }
+        assert!(tangent_used > 1000, "{tangent_used}");
     }
 
     #[test]
