@@ -589,6 +589,7 @@ impl Object {
         let mut keep = [0u64; TILE_RAYS];
         let mut odd = [false; TILE_RAYS];
         filter_supports(&Lanes { o, d, dd, lo, hi }, &spheres, &mut keep, &mut odd);
+        let mut raw = [false; TILE_RAYS];
         for (r, ray) in rays.iter().enumerate() {
             if ends[r].0.is_nan() {
                 hits[r] = None;
@@ -620,14 +621,22 @@ impl Object {
             }
             let (t0, t1) = ends[r];
             let (base_q, base_roots) = bases[r];
-            hits[r] = self.walk(
+            hits[r] = self.walk::<true>(
                 ray,
                 t0,
                 t1,
                 (base_q, base_roots, hi[r]),
                 Items::Only(culled),
                 &mut cands,
+                &mut raw[r],
             );
+        }
+        // The normals, all together: each is a square root and a division
+        // that the loop's independent iterations overlap.
+        for ((hit, ray), raw) in hits.iter_mut().zip(rays).zip(raw) {
+            if let (Some(h), true) = (hit, raw) {
+                h.n = unit_normal(h.n, ray);
+            }
         }
     }
 
@@ -665,14 +674,26 @@ impl Object {
             .unwrap_or(t1);
         let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
         self.gather(ray, t0, t0, split, items, &mut cands);
-        self.walk(ray, t0, t1, (base_q, base_roots, split), items, &mut cands)
+        self.walk::<false>(
+            ray,
+            t0,
+            t1,
+            (base_q, base_roots, split),
+            items,
+            &mut cands,
+            &mut false,
+        )
     }
 
     /// The rest of [`Object::intersect_perturbed`] once the perturbations
     /// active on `[t0, split]` are gathered in `cands` (in `items` order):
     /// the segment walk over `[t0, split]`, then over `[split, t1]`.
+    ///
+    /// With `DEFER`, a hit off the base's closed form comes back with its
+    /// normal not yet normalized (`-grad F'`) and `raw` set, for the
+    /// caller to normalize many at once.
     #[inline(always)]
-    fn walk(
+    fn walk<const DEFER: bool>(
         &self,
         ray: &Ray,
         t0: f64,
@@ -680,7 +701,16 @@ impl Object {
         (base_q, base_roots, split): ([f64; 3], Crossings, f64),
         items: Items,
         cands: &mut SmallVec<[Candidate; 16]>,
+        raw: &mut bool,
     ) -> Option<Hit> {
+        let mut hit_at = |t: f64, cands: &[Candidate]| {
+            if DEFER {
+                *raw = true;
+                self.hit_at_raw(ray, t, cands)
+            } else {
+                self.hit_at(ray, t, cands)
+            }
+        };
         // The sign of F' just before the current position (0: unknown). A
         // crossing within rounding of a breakpoint can escape both
         // neighbouring segments (each sees its end value on its own side
@@ -700,7 +730,7 @@ impl Object {
                     return Some(self.base_hit(ray, t));
                 }
                 if before * sign(poly2(base_q, lo)) < 0.0 {
-                    return Some(self.hit_at(ray, lo, cands));
+                    return Some(hit_at(lo, cands));
                 }
                 before = sign(poly2(base_q, hi));
                 if split >= t1 {
@@ -747,11 +777,11 @@ impl Object {
                     continue;
                 }
                 match self.segment_root(ray, base_q, &base_roots, cands, a, b) {
-                    Segment::Crossing(t) => return Some(self.hit_at(ray, t, cands)),
+                    Segment::Crossing(t) => return Some(hit_at(t, cands)),
                     Segment::BaseCrossing(t) => return Some(self.base_hit(ray, t)),
                     Segment::Clear { start, end } => {
                         if before * start < 0.0 {
-                            return Some(self.hit_at(ray, a, cands));
+                            return Some(hit_at(a, cands));
                         }
                         before = end;
                     }
@@ -860,6 +890,15 @@ impl Object {
 
     /// The hit record at `t`: point and outward normal from `grad F'`.
     fn hit_at(&self, ray: &Ray, t: f64, cands: &[Candidate]) -> Hit {
+        let mut hit = self.hit_at_raw(ray, t, cands);
+        hit.n = unit_normal(hit.n, ray);
+        hit
+    }
+
+    /// [`Object::hit_at`] with `n = -grad F'` not yet normalized (see
+    /// [`unit_normal`]), for callers that normalize many at once.
+    #[inline]
+    fn hit_at_raw(&self, ray: &Ray, t: f64, cands: &[Candidate]) -> Hit {
         let p = ray.at(t);
         let mut g = self.base_along.value_gradient(&self.base, p).1;
         for c in cands {
@@ -872,8 +911,7 @@ impl Object {
                 g += 3.0 * c.factor * x * x * grad;
             }
         }
-        let n = (-g).try_normalize().unwrap_or_else(|| -ray.dir.normalize());
-        Hit { t, p, n }
+        Hit { t, p, n: -g }
     }
 
     /// Whether the surface crosses the ray within `[t_min, t_max]`.
@@ -935,6 +973,15 @@ impl Object {
             UnitRoot::Clear { start, end } => Segment::Clear { start, end },
         }
     }
+}
+
+/// The unit normal along `-grad F'` (given as `minus_grad`), or against
+/// the ray where the gradient vanishes.
+#[inline]
+fn unit_normal(minus_grad: DVec3, ray: &Ray) -> DVec3 {
+    minus_grad
+        .try_normalize()
+        .unwrap_or_else(|| -ray.dir.normalize())
 }
 
 /// What [`Object::segment_root`] found on a segment.
