@@ -623,8 +623,7 @@ impl Object {
             let (base_q, base_roots) = bases[r];
             hits[r] = self.walk::<true>(
                 ray,
-                t0,
-                t1,
+                (t0, t1),
                 (base_q, base_roots, hi[r]),
                 Items::Only(culled),
                 &mut cands,
@@ -676,8 +675,7 @@ impl Object {
         self.gather(ray, t0, t0, split, items, &mut cands);
         self.walk::<false>(
             ray,
-            t0,
-            t1,
+            (t0, t1),
             (base_q, base_roots, split),
             items,
             &mut cands,
@@ -696,8 +694,7 @@ impl Object {
     fn walk<const DEFER: bool>(
         &self,
         ray: &Ray,
-        t0: f64,
-        t1: f64,
+        (t0, t1): (f64, f64),
         (base_q, base_roots, split): ([f64; 3], Crossings, f64),
         items: Items,
         cands: &mut SmallVec<[Candidate; 16]>,
