@@ -217,13 +217,14 @@ fn filter_supports(
     spheres: &[(DVec3, f64, f64)],
     keep: &mut [u64; TILE_RAYS],
     odd: &mut [bool; TILE_RAYS],
+    roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the processor has AVX2, checked just above.
-        return unsafe { filter_supports_avx2(lanes, spheres, keep, odd) };
+        return unsafe { filter_supports_avx2(lanes, spheres, keep, odd, roots) };
     }
-    filter_supports_lanes(lanes, spheres, keep, odd)
+    filter_supports_lanes(lanes, spheres, keep, odd, roots)
 }
 
 /// [`filter_supports`] compiled for AVX2.
@@ -234,8 +235,9 @@ unsafe fn filter_supports_avx2(
     spheres: &[(DVec3, f64, f64)],
     keep: &mut [u64; TILE_RAYS],
     odd: &mut [bool; TILE_RAYS],
+    roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
-    filter_supports_lanes(lanes, spheres, keep, odd)
+    filter_supports_lanes(lanes, spheres, keep, odd, roots)
 }
 
 /// The body of [`filter_supports`], inlined into each instruction set's
@@ -246,9 +248,11 @@ fn filter_supports_lanes(
     spheres: &[(DVec3, f64, f64)],
     keep: &mut [u64; TILE_RAYS],
     odd: &mut [bool; TILE_RAYS],
+    roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
     let Lanes { o, d, dd, lo, hi } = lanes;
     for (j, &(centre, k, c0)) in spheres.iter().enumerate() {
+        let [r0s, r1s] = &mut roots[j];
         for r in 0..TILE_RAYS {
             let (vx, vy, vz) = (o[0][r] - centre.x, o[1][r] - centre.y, o[2][r] - centre.z);
             let c = c0 - k * (vx * vx + vy * vy + vz * vz);
@@ -261,8 +265,28 @@ fn filter_supports_lanes(
                     || (2.0 * a * l + b > 0.0 && 2.0 * a * h + b < 0.0));
             keep[r] |= ((meets && a < 0.0) as u64) << j;
             odd[r] |= a >= 0.0;
+            // `two_roots`, operation for operation (lanes where it has
+            // none hold values that are never read).
+            let sq = (b * b - 4.0 * a * c).sqrt();
+            let h = -0.5 * (b + sq.copysign(b));
+            let (x0, x1) = if h == 0.0 {
+                let x = sq / (2.0 * a);
+                (-x, x)
+            } else {
+                (h / a, c / h)
+            };
+            r0s[r] = fmin(x0, x1);
+            r1s[r] = fmax(x0, x1);
         }
     }
+}
+
+thread_local! {
+    /// [`Object::intersect_tile`]'s support roots (per culled support,
+    /// the two roots for every lane), kept between calls so that no tile
+    /// pays for clearing or allocating them.
+    static ROOTS: std::cell::RefCell<Vec<[[f64; TILE_RAYS]; 2]>> =
+        const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Most rays that one [`Object::intersect_tile`] call takes.
@@ -588,55 +612,66 @@ impl Object {
             .collect();
         let mut keep = [0u64; TILE_RAYS];
         let mut odd = [false; TILE_RAYS];
-        filter_supports(&Lanes { o, d, dd, lo, hi }, &spheres, &mut keep, &mut odd);
-        let mut raw = [false; TILE_RAYS];
-        for (r, ray) in rays.iter().enumerate() {
-            if ends[r].0.is_nan() {
-                hits[r] = None;
-                continue;
+        ROOTS.with_borrow_mut(|scratch| {
+            if scratch.len() < spheres.len() {
+                scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
             }
-            if odd[r] {
-                hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
-                continue;
-            }
-            let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
-            let mut bits = keep[r];
-            while bits != 0 {
-                let j = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let item = culled[j];
-                let i = self.bounded[item as usize];
-                let p = &self.perturbations[i as usize];
-                let q = self.along[item as usize].along(&p.quadric, ray);
-                if let Some((r0, r1)) = two_roots(q) {
+            filter_supports(
+                &Lanes { o, d, dd, lo, hi },
+                &spheres,
+                &mut keep,
+                &mut odd,
+                &mut scratch[..spheres.len()],
+            );
+            let mut raw = [false; TILE_RAYS];
+            for (r, ray) in rays.iter().enumerate() {
+                if ends[r].0.is_nan() {
+                    hits[r] = None;
+                    continue;
+                }
+                if odd[r] {
+                    hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
+                    continue;
+                }
+                let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
+                let mut bits = keep[r];
+                while bits != 0 {
+                    let j = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let item = culled[j];
+                    let i = self.bounded[item as usize];
+                    let p = &self.perturbations[i as usize];
+                    let q = self.along[item as usize].along(&p.quadric, ray);
+                    // Kept: the discriminant is positive, so `two_roots` has
+                    // both roots, computed above for all lanes at once.
                     cands.push(Candidate {
                         index: i,
                         item,
                         factor: p.factor,
                         q,
-                        lo: r0,
-                        hi: r1,
+                        lo: scratch[j][0][r],
+                        hi: scratch[j][1][r],
                     });
                 }
+                let (t0, t1) = ends[r];
+                let (base_q, base_roots) = bases[r];
+                hits[r] = self.walk::<true>(
+                    ray,
+                    (t0, t1),
+                    (base_q, base_roots, hi[r]),
+                    Items::Only(culled),
+                    &mut cands,
+                    &mut raw[r],
+                );
             }
-            let (t0, t1) = ends[r];
-            let (base_q, base_roots) = bases[r];
-            hits[r] = self.walk::<true>(
-                ray,
-                (t0, t1),
-                (base_q, base_roots, hi[r]),
-                Items::Only(culled),
-                &mut cands,
-                &mut raw[r],
-            );
-        }
-        // The normals, all together: each is a square root and a division
-        // that the loop's independent iterations overlap.
-        for ((hit, ray), raw) in hits.iter_mut().zip(rays).zip(raw) {
-            if let (Some(h), true) = (hit, raw) {
-                h.n = unit_normal(h.n, ray);
+            // The normals, all together: each is a square root and a division
+            // that the loop's independent iterations overlap.
+            for ((hit, ray), raw) in hits.iter_mut().zip(rays).zip(raw) {
+                if let (Some(h), true) = (hit, raw) {
+                    h.n = unit_normal(h.n, ray);
+                }
             }
-        }
+        });
     }
 
     fn intersect_in(&self, ray: &Ray, t_min: f64, t_max: f64, items: Items) -> Option<Hit> {
