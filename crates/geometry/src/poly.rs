@@ -248,8 +248,9 @@ impl Poly {
     /// `sign(f(lo)) = sign(fa)` opposite to `sign(f(hi)) = sign(fb)`.
     ///
     /// Starts at the false-position point of the end values (the segments
-    /// are short next to the polynomial's curvature, so it is close) and
-    /// bisects whenever a step would leave the bracket. Halley's method
+    /// are short next to the polynomial's curvature, so it is close; see
+    /// [`Poly::refine_from`] for a better start) and bisects whenever a
+    /// step would leave the bracket. Halley's method
     /// converges cubically, so a step below `1e-6` leaves an error of
     /// order `1e-18` times the derivatives' ratios: the iteration stops
     /// after applying it, or when the bracket reaches rounding. (Newton,
