@@ -3,7 +3,7 @@
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
 use isolux_geometry::{
-    samples::{bumpy_sphere, cast_rows, BAND, TILE},
+    samples::{bumpy_sphere, cast_rows, BAND, BLOCK, TILE},
     Object,
 };
 use rayon::prelude::*;
@@ -93,7 +93,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 a.size, a.size, a.repeat
             );
             println!(
-                "per ray: a BVH walk per ray; tiles: one culling per {TILE} x {TILE} rays (times in ms)"
+                "per ray: a BVH walk per ray; tiles: {TILE} x {TILE} rays culled together (from blocks of {BLOCK} x {BLOCK} tiles) and cast together (times in ms)"
             );
             println!("| bumps | hits | per ray, 1 thread | tiles, 1 thread | per ray, {threads} threads | tiles, {threads} threads | Mrays/s (tiles, {threads} threads) |");
             println!("|---:|---:|---:|---:|---:|---:|---:|");
