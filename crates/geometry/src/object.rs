@@ -587,13 +587,7 @@ impl Object {
             let Some((t0, t1)) = self.bbox.clip(ray, t_min, t_max) else {
                 continue;
             };
-            let base_q = self.base_along.along(&self.base, ray);
-            let base_roots = quadratic_crossings(base_q);
-            let split = base_roots
-                .iter()
-                .copied()
-                .find(|&r| r > t0 && r < t1)
-                .unwrap_or(t1);
+            let (base_q, base_roots, split) = self.base_along_ray(ray, t0, t1);
             ends[k] = (t0, t1);
             bases[k] = (base_q, base_roots);
             (lo[k], hi[k]) = (t0, split);
@@ -697,15 +691,7 @@ impl Object {
     /// every ray, also those that the closed form answers.
     #[inline(never)]
     fn intersect_perturbed(&self, ray: &Ray, t0: f64, t1: f64, items: Items) -> Option<Hit> {
-        // The base quadric's crossings, once per ray: they place the split
-        // and answer every segment without active perturbations.
-        let base_q = self.base_along.along(&self.base, ray);
-        let base_roots = quadratic_crossings(base_q);
-        let split = base_roots
-            .iter()
-            .copied()
-            .find(|&r| r > t0 && r < t1)
-            .unwrap_or(t1);
+        let (base_q, base_roots, split) = self.base_along_ray(ray, t0, t1);
         let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
         self.gather(ray, t0, t0, split, items, &mut cands);
         self.walk::<false>(
@@ -716,6 +702,22 @@ impl Object {
             &mut cands,
             &mut false,
         )
+    }
+
+    /// The base quadric along `ray` (ascending powers), its crossings, and
+    /// the split: the first crossing inside `(t0, t1)`, else `t1`. Computed
+    /// once per ray, they place the two gathering phases and answer every
+    /// segment without active perturbations.
+    #[inline(always)]
+    fn base_along_ray(&self, ray: &Ray, t0: f64, t1: f64) -> ([f64; 3], Crossings, f64) {
+        let base_q = self.base_along.along(&self.base, ray);
+        let base_roots = quadratic_crossings(base_q);
+        let split = base_roots
+            .iter()
+            .copied()
+            .find(|&r| r > t0 && r < t1)
+            .unwrap_or(t1);
+        (base_q, base_roots, split)
     }
 
     /// The rest of [`Object::intersect_perturbed`] once the perturbations

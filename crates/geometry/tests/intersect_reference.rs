@@ -309,6 +309,56 @@ fn hundred_thousand_random_rays_match_brute_force() {
     check(&t);
 }
 
+/// A tile of rays aimed near the origin: from one eye (`pinhole`, a cone
+/// of directions) or parallel (a cylinder of origins), `w` wide.
+struct Tile {
+    eye: DVec3,
+    axis: DVec3,
+    u: DVec3,
+    v: DVec3,
+    w: f64,
+    pinhole: bool,
+}
+
+impl Tile {
+    fn random(rng: &mut Pcg32, pinhole: bool) -> Self {
+        let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 1.5;
+        let eye = target + sampling::uniform_sphere(rng.next_2d()) * (2.0 + 3.0 * rng.next_f64());
+        let axis = (target - eye).normalize();
+        let (u, v) = axis.any_orthonormal_pair();
+        let w = 0.02 + 0.3 * rng.next_f64();
+        Tile {
+            eye,
+            axis,
+            u,
+            v,
+            w,
+            pinhole,
+        }
+    }
+
+    /// The ray at `(a, b)` in `[-1, 1]^2` across the tile.
+    fn ray(&self, a: f64, b: f64) -> Ray {
+        let off = self.w * (a * self.u + b * self.v);
+        if self.pinhole {
+            Ray::new(self.eye, (self.axis + off).normalize())
+        } else {
+            Ray::new(self.eye + 2.0 * off, self.axis)
+        }
+    }
+
+    /// The beam around the tile's four corner rays.
+    fn beam(&self) -> Beam {
+        let grid = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
+        if self.pinhole {
+            Beam::cone(self.eye, &grid.map(|(a, b)| self.ray(a, b).dir))
+        } else {
+            Beam::cylinder(self.axis, &grid.map(|(a, b)| self.ray(a, b).origin))
+        }
+        .expect("a narrow tile has a beam")
+    }
+}
+
 /// Coherent culling (`Aggregate::cull` + `intersect_culled`) finds, for
 /// every ray inside its tile's beam, the hit that the per-ray BVH walk
 /// finds (itself checked against the brute force above): the same object,
@@ -327,27 +377,8 @@ fn tile_culled_rays_find_the_per_ray_hit() {
         let agg = Aggregate::new(objects);
         for _ in 0..40 {
             // A tile: a pinhole cone (even scenes) or parallel rays (odd).
-            let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 1.5;
-            let eye =
-                target + sampling::uniform_sphere(rng.next_2d()) * (2.0 + 3.0 * rng.next_f64());
-            let axis = (target - eye).normalize();
-            let (u, v) = axis.any_orthonormal_pair();
-            let w = 0.02 + 0.3 * rng.next_f64();
-            let grid = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
-            let pinhole = scene % 2 == 0;
-            let ray_at = |a: f64, b: f64| {
-                if pinhole {
-                    Ray::new(eye, (axis + w * (a * u + b * v)).normalize())
-                } else {
-                    Ray::new(eye + 2.0 * w * (a * u + b * v), axis)
-                }
-            };
-            let beam = if pinhole {
-                Beam::cone(eye, &grid.map(|(a, b)| ray_at(a, b).dir))
-            } else {
-                Beam::cylinder(axis, &grid.map(|(a, b)| ray_at(a, b).origin))
-            }
-            .expect("a narrow tile has a beam");
+            let tile = Tile::random(&mut rng, scene % 2 == 0);
+            let (ray_at, beam) = (|a, b| tile.ray(a, b), tile.beam());
             agg.cull(&beam, &mut culled);
             culled_away += total - culled.perturbation_count().min(total);
             for _ in 0..25 {
@@ -397,27 +428,8 @@ fn tile_batches_find_the_per_ray_hits() {
         let spheres = if scene % 4 == 3 { 0.5 } else { 1.0 };
         let obj = random_object_with(&mut rng, spheres).0;
         for _ in 0..20 {
-            let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 1.5;
-            let eye =
-                target + sampling::uniform_sphere(rng.next_2d()) * (2.0 + 3.0 * rng.next_f64());
-            let axis = (target - eye).normalize();
-            let (u, v) = axis.any_orthonormal_pair();
-            let w = 0.02 + 0.3 * rng.next_f64();
-            let grid = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
-            let pinhole = scene % 2 == 0;
-            let ray_at = |a: f64, b: f64| {
-                if pinhole {
-                    Ray::new(eye, (axis + w * (a * u + b * v)).normalize())
-                } else {
-                    Ray::new(eye + 2.0 * w * (a * u + b * v), axis)
-                }
-            };
-            let beam = if pinhole {
-                Beam::cone(eye, &grid.map(|(a, b)| ray_at(a, b).dir))
-            } else {
-                Beam::cylinder(axis, &grid.map(|(a, b)| ray_at(a, b).origin))
-            }
-            .expect("a narrow tile has a beam");
+            let tile = Tile::random(&mut rng, scene % 2 == 0);
+            let (ray_at, beam) = (|a, b| tile.ray(a, b), tile.beam());
             culled.clear();
             obj.cull(&beam, &mut culled);
             let n = 1 + rng.next_below(64) as usize;
