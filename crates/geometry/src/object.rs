@@ -281,6 +281,131 @@ fn filter_supports_lanes(
     }
 }
 
+/// A tile's rays against a sphere base, lane by lane (see [`setup_lanes`]).
+struct BaseLanes {
+    /// The clipped interval `[t0, t1]` (NaN ends: the ray misses the box).
+    t0: [f64; TILE_RAYS],
+    t1: [f64; TILE_RAYS],
+    /// The base quadric along the ray, ascending powers.
+    q: [[f64; TILE_RAYS]; 3],
+    /// Its two roots, ascending (meaningful where `two`).
+    r0: [f64; TILE_RAYS],
+    r1: [f64; TILE_RAYS],
+    two: [bool; TILE_RAYS],
+    /// Lanes that the closed form below does not cover (a degenerate
+    /// quadratic, a zero direction): computed ray by ray instead.
+    slow: [bool; TILE_RAYS],
+}
+
+/// For every lane of `lanes` (its `o`, `d`, `dd`; `lo` and `hi` are
+/// written here): `Aabb::clip` to `[t_min, t_max]`, the sphere base `(centre,
+/// k, c0)` along the ray (`Along::along`), its roots (`quadratic_crossings`)
+/// and the split (`Object::base_along_ray`), operation for operation, so
+/// that every value is the scalar code's to the last bit. The loop runs
+/// over the lanes without branches, so the compiler vectorizes it (AVX2
+/// chosen at run time, as for [`filter_supports`]).
+fn setup_lanes(
+    lanes: &mut Lanes,
+    bbox: &Aabb,
+    (t_min, t_max): (f64, f64),
+    (centre, k, c0): (DVec3, f64, f64),
+    out: &mut BaseLanes,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2, checked just above.
+        return unsafe { setup_lanes_avx2(lanes, bbox, (t_min, t_max), (centre, k, c0), out) };
+    }
+    setup_lanes_body(lanes, bbox, (t_min, t_max), (centre, k, c0), out)
+}
+
+/// [`setup_lanes`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn setup_lanes_avx2(
+    lanes: &mut Lanes,
+    bbox: &Aabb,
+    ends: (f64, f64),
+    sphere: (DVec3, f64, f64),
+    out: &mut BaseLanes,
+) {
+    setup_lanes_body(lanes, bbox, ends, sphere, out)
+}
+
+/// The body of [`setup_lanes`].
+#[inline(always)]
+fn setup_lanes_body(
+    lanes: &mut Lanes,
+    bbox: &Aabb,
+    (t_min, t_max): (f64, f64),
+    (centre, k, c0): (DVec3, f64, f64),
+    out: &mut BaseLanes,
+) {
+    let Lanes { o, d, dd, lo, hi } = lanes;
+    let (bmin, bmax) = (bbox.min.to_array(), bbox.max.to_array());
+    // Branch-free (`&` and `|` on booleans, selects), so that the loop
+    // vectorizes.
+    #[inline(always)]
+    fn sel(c: bool, a: f64, b: f64) -> f64 {
+        if c {
+            a
+        } else {
+            b
+        }
+    }
+    for r in 0..TILE_RAYS {
+        // `Aabb::clip`: an axis with a zero direction only tests the
+        // origin; the others tighten `[lo, hi]` with real numbers only.
+        let (mut l, mut h) = (t_min, t_max);
+        let mut outside = false;
+        let mut axis = |oa: f64, da: f64, bmin: f64, bmax: f64| {
+            let zero = da == 0.0;
+            outside |= zero & ((oa < bmin) | (oa > bmax));
+            let inv = 1.0 / da;
+            let (ta, tb) = ((bmin - oa) * inv, (bmax - oa) * inv);
+            let (ta, tb) = (fmin(tb, ta), fmax(ta, tb));
+            l = sel(!zero & (ta > l), ta, l);
+            h = sel(!zero & (tb < h), tb, h);
+        };
+        axis(o[0][r], d[0][r], bmin[0], bmax[0]);
+        axis(o[1][r], d[1][r], bmin[1], bmax[1]);
+        axis(o[2][r], d[2][r], bmin[2], bmax[2]);
+        let dead = outside | (l > h);
+        // `Along::along` for the sphere base.
+        let (vx, vy, vz) = (o[0][r] - centre.x, o[1][r] - centre.y, o[2][r] - centre.z);
+        let c = c0 - k * (vx * vx + vy * vy + vz * vz);
+        let b = -2.0 * k * (d[0][r] * vx + d[1][r] * vy + d[2][r] * vz);
+        let qa = -k * dd[r];
+        // `quadratic_crossings` through `two_roots`; its degenerate cases
+        // (a zero or nearly linear quadratic, `h == 0`) go ray by ray.
+        let scale = fmax(fmax(qa.abs(), b.abs()), c.abs());
+        let disc = b * b - 4.0 * qa * c;
+        let sq = disc.sqrt();
+        let hh = -0.5 * (b + sq.copysign(b));
+        let (x0, x1) = (hh / qa, c / hh);
+        let (r0, r1) = (fmin(x0, x1), fmax(x0, x1));
+        let two = disc > 0.0;
+        out.slow[r] = !dead & ((scale == 0.0) | (qa.abs() <= 1e-15 * scale) | (two & (hh == 0.0)));
+        // The split: the first root inside `(l, h)`, else `h`.
+        let split = sel(
+            two & (r0 > l) & (r0 < h),
+            r0,
+            sel(two & (r1 > l) & (r1 < h), r1, h),
+        );
+        let nan = f64::NAN;
+        out.t0[r] = sel(dead, nan, l);
+        out.t1[r] = sel(dead, nan, h);
+        lo[r] = sel(dead, nan, l);
+        hi[r] = sel(dead, nan, split);
+        out.q[0][r] = c;
+        out.q[1][r] = b;
+        out.q[2][r] = qa;
+        out.r0[r] = r0;
+        out.r1[r] = r1;
+        out.two[r] = two;
+    }
+}
+
 thread_local! {
     /// [`Object::intersect_tile`]'s support roots (per culled support,
     /// the two roots for every lane), kept between calls so that no tile
@@ -539,12 +664,13 @@ impl Object {
 
     /// [`Object::intersect_culled`] for up to [`TILE_RAYS`] rays of one
     /// beam at once, `hits[k]` for `rays[k]`: the same hits, found with
-    /// the first phase of the perturbation gathering done for all rays
-    /// together, candidate by candidate over arrays of the rays (a loop
-    /// that the compiler vectorizes), instead of ray by ray. Rays fall back
-    /// to [`Object::intersect_culled`] where that does not apply (more
-    /// than 64 culled perturbations, supports that are not spheres,
-    /// unbounded ones, an empty list).
+    /// the clipping, the base quadric's crossings and the first phase of
+    /// the perturbation gathering done for all rays together, over arrays
+    /// of the rays (loops that the compiler vectorizes), instead of ray by
+    /// ray. Rays fall back to [`Object::intersect_culled`] where that does
+    /// not apply (a base that is not a sphere, more than 64 culled
+    /// perturbations, supports that are not spheres, unbounded ones, and
+    /// lanes where the base's quadratic degenerates).
     ///
     /// # Panics
     /// When `rays` holds more than [`TILE_RAYS`] rays or `hits` is not as
@@ -562,36 +688,78 @@ impl Object {
             && culled
                 .iter()
                 .all(|&item| matches!(self.along[item as usize], Along::Sphere { .. }));
-        if culled.is_empty() || !self.unbounded.is_empty() || !spheres {
+        let base = match self.base_along {
+            Along::Sphere { centre, k, c0, .. } => Some((centre, k, c0)),
+            Along::General => None,
+        };
+        let Some(base) = base.filter(|_| self.unbounded.is_empty() && spheres) else {
             for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
                 *hit = self.intersect_culled(ray, t_min, t_max, culled);
             }
             return;
-        }
-        // Per ray: the clipped interval and the base's crossings, as in
-        // `intersect_in` and `intersect_perturbed`. Arrays of the rays'
-        // coordinates for the candidate loop; dead lanes (rays missing
-        // the box) carry NaN ends, which every test below rejects.
-        let mut ends = [(f64::NAN, f64::NAN); TILE_RAYS];
-        let mut bases = [([0.0; 3], Crossings::default()); TILE_RAYS];
-        let (mut lo, mut hi) = ([f64::NAN; TILE_RAYS], [f64::NAN; TILE_RAYS]);
-        let mut o = [[0.0; TILE_RAYS]; 3];
-        let mut d = [[0.0; TILE_RAYS]; 3];
-        let mut dd = [0.0; TILE_RAYS];
+        };
+        // Arrays of the rays' coordinates, then per lane the clipped
+        // interval, the base's crossings and the first phase's interval
+        // `[t0, split]`, all rays together (`setup_lanes`). Dead lanes
+        // (rays missing the box, and the lanes past the rays) carry NaN
+        // ends, which every test below rejects.
+        let mut lanes = Lanes {
+            o: [[0.0; TILE_RAYS]; 3],
+            d: [[0.0; TILE_RAYS]; 3],
+            dd: [0.0; TILE_RAYS],
+            lo: [f64::NAN; TILE_RAYS],
+            hi: [f64::NAN; TILE_RAYS],
+        };
         for (k, ray) in rays.iter().enumerate() {
             for a in 0..3 {
-                o[a][k] = ray.origin[a];
-                d[a][k] = ray.dir[a];
+                lanes.o[a][k] = ray.origin[a];
+                lanes.d[a][k] = ray.dir[a];
             }
-            dd[k] = ray.dir.length_squared();
-            let Some((t0, t1)) = self.bbox.clip(ray, t_min, t_max) else {
-                continue;
-            };
-            let (base_q, base_roots, split) = self.base_along_ray(ray, t0, t1);
-            ends[k] = (t0, t1);
-            bases[k] = (base_q, base_roots);
-            (lo[k], hi[k]) = (t0, split);
+            lanes.dd[k] = ray.dir.length_squared();
         }
+        let mut bl = BaseLanes {
+            t0: [f64::NAN; TILE_RAYS],
+            t1: [f64::NAN; TILE_RAYS],
+            q: [[0.0; TILE_RAYS]; 3],
+            r0: [0.0; TILE_RAYS],
+            r1: [0.0; TILE_RAYS],
+            two: [false; TILE_RAYS],
+            slow: [false; TILE_RAYS],
+        };
+        setup_lanes(&mut lanes, &self.bbox, (t_min, t_max), base, &mut bl);
+        // Lanes past the rays: zero directions, never read, kept dead.
+        for r in rays.len()..TILE_RAYS {
+            (lanes.lo[r], lanes.hi[r]) = (f64::NAN, f64::NAN);
+        }
+        let base_of = |r: usize| {
+            let q = [bl.q[0][r], bl.q[1][r], bl.q[2][r]];
+            let roots = if bl.two[r] {
+                Crossings::two(bl.r0[r], bl.r1[r])
+            } else {
+                Crossings::default()
+            };
+            (q, roots)
+        };
+        if culled.is_empty() {
+            // No support meets the tile: the base alone, in closed form,
+            // as `intersect_in` answers it.
+            for (r, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
+                let (t0, t1) = (bl.t0[r], bl.t1[r]);
+                *hit = if bl.slow[r] {
+                    self.intersect_culled(ray, t_min, t_max, culled)
+                } else if t0.is_nan() {
+                    None
+                } else {
+                    base_of(r)
+                        .1
+                        .into_iter()
+                        .find(|&x| x >= t0 && x <= t1)
+                        .map(|t| self.base_hit(ray, t))
+                };
+            }
+            return;
+        }
+        let hi = lanes.hi;
         // Candidate by candidate, all rays: does the support meet the
         // ray on its first phase `[t0, split]`? The arithmetic is
         // `Along::along` and `positive_on` operation for operation, so the
@@ -611,7 +779,7 @@ impl Object {
                 scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
             }
             filter_supports(
-                &Lanes { o, d, dd, lo, hi },
+                &lanes,
                 &spheres,
                 &mut keep,
                 &mut odd,
@@ -619,11 +787,11 @@ impl Object {
             );
             let mut raw = [false; TILE_RAYS];
             for (r, ray) in rays.iter().enumerate() {
-                if ends[r].0.is_nan() {
+                if bl.t0[r].is_nan() {
                     hits[r] = None;
                     continue;
                 }
-                if odd[r] {
+                if odd[r] || bl.slow[r] {
                     hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
                     continue;
                 }
@@ -647,8 +815,8 @@ impl Object {
                         hi: scratch[j][1][r],
                     });
                 }
-                let (t0, t1) = ends[r];
-                let (base_q, base_roots) = bases[r];
+                let (t0, t1) = (bl.t0[r], bl.t1[r]);
+                let (base_q, base_roots) = base_of(r);
                 hits[r] = self.walk::<true>(
                     ray,
                     (t0, t1),

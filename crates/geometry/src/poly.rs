@@ -427,6 +427,15 @@ pub struct Crossings {
 }
 
 impl Crossings {
+    /// Two roots `r0 <= r1`.
+    #[inline]
+    pub(crate) fn two(r0: f64, r1: f64) -> Self {
+        Self {
+            roots: [r0, r1],
+            len: 2,
+        }
+    }
+
     /// Both roots `(r0, r1)`, `r0 <= r1`, when there are two.
     #[inline]
     pub fn pair(&self) -> Option<(f64, f64)> {

@@ -100,12 +100,13 @@ fn random_rotation(rng: &mut Pcg32) -> DMat3 {
 /// ellipsoid bumps/dents (most), a bounded plane, a bounded cylinder, and an
 /// unbounded (plane) perturbation on a sphere.
 fn random_object(rng: &mut Pcg32) -> (Object, RefObject) {
-    random_object_with(rng, 0.5)
+    random_object_with(rng, 0.5, false)
 }
 
 /// [`random_object`] with a share `spheres` of its perturbations' supports
-/// spheres (the others rotated ellipsoids).
-fn random_object_with(rng: &mut Pcg32, spheres: f64) -> (Object, RefObject) {
+/// spheres (the others rotated ellipsoids), and with `round`, a sphere
+/// instead of the ellipsoid base (same random draws).
+fn random_object_with(rng: &mut Pcg32, spheres: f64, round: bool) -> (Object, RefObject) {
     let kind = rng.next_below(8);
     let centre = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5;
     let (base, bounds, region) = match kind {
@@ -129,6 +130,11 @@ fn random_object_with(rng: &mut Pcg32, spheres: f64) -> (Object, RefObject) {
         _ => {
             let radii = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 0.7 + 0.3;
             let q = Quadric::ellipsoid(centre, radii, random_rotation(rng));
+            let q = if round {
+                Quadric::sphere(centre, radii.x)
+            } else {
+                q
+            };
             (q, None, Aabb::new(centre - 1.6, centre + 1.6))
         }
     };
@@ -415,18 +421,21 @@ fn tile_culled_rays_find_the_per_ray_hit() {
     );
 }
 
-/// `Object::intersect_tile` (the first gathering phase done for a tile's
-/// rays together) finds exactly, to the last bit, the hits of
-/// `Object::intersect_culled` ray by ray: on objects whose supports are
-/// all spheres (the batched path) and on mixed ones (which fall back).
+/// `Object::intersect_tile` (the base and the first gathering phase done
+/// for a tile's rays together) finds exactly, to the last bit, the hits of
+/// `Object::intersect_culled` ray by ray: on sphere bases whose supports
+/// are all spheres (the batched path, with and without culled supports),
+/// on other bases and on mixed supports (which fall back), over `[0, inf)`
+/// and over finite intervals.
 #[test]
 fn tile_batches_find_the_per_ray_hits() {
     let mut rng = Pcg32::new(7, 11);
-    let (mut rays, mut hits) = (0, 0);
+    let (mut rays, mut hits, mut batched, mut bare) = (0, 0, 0, 0);
     let mut culled = Vec::new();
-    for scene in 0..80 {
+    for scene in 0..120 {
         let spheres = if scene % 4 == 3 { 0.5 } else { 1.0 };
-        let obj = random_object_with(&mut rng, spheres).0;
+        let round = scene % 3 != 2;
+        let obj = random_object_with(&mut rng, spheres, round).0;
         for _ in 0..20 {
             let tile = Tile::random(&mut rng, scene % 2 == 0);
             let (ray_at, beam) = (|a, b| tile.ray(a, b), tile.beam());
@@ -436,17 +445,36 @@ fn tile_batches_find_the_per_ray_hits() {
             let batch: Vec<Ray> = (0..n)
                 .map(|_| ray_at(2.0 * rng.next_f64() - 1.0, 2.0 * rng.next_f64() - 1.0))
                 .collect();
+            let (t_min, t_max) = if rng.next_below(3) == 0 {
+                (2.0 * rng.next_f64(), 2.0 + 4.0 * rng.next_f64())
+            } else {
+                (0.0, f64::INFINITY)
+            };
             let mut got = vec![None; n];
-            obj.intersect_tile(&batch, 0.0, f64::INFINITY, &culled, &mut got);
+            obj.intersect_tile(&batch, t_min, t_max, &culled, &mut got);
             for (ray, got) in batch.iter().zip(&got) {
-                let want = obj.intersect_culled(ray, 0.0, f64::INFINITY, &culled);
-                assert_eq!(*got, want, "{ray:?}");
+                let want = obj.intersect_culled(ray, t_min, t_max, &culled);
+                assert_eq!(*got, want, "{ray:?} on [{t_min}, {t_max}]");
                 rays += 1;
                 hits += got.is_some() as usize;
+                let c = obj.base().coefficients();
+                let sphere = c[0] == c[1] && c[1] == c[2] && c[3..6] == [0.0; 3];
+                if sphere && got.is_some() {
+                    if culled.is_empty() {
+                        bare += 1;
+                    } else {
+                        batched += 1;
+                    }
+                }
             }
         }
     }
     assert!(hits > rays / 4, "{hits} of {rays}");
+    eprintln!("{rays} rays, {hits} hits, {batched} batched, {bare} bare");
+    assert!(
+        batched > 5000 && bare > 500,
+        "{batched} batched, {bare} bare"
+    );
 }
 
 /// `Object::cull_within` (a tile's list taken from its block's) holds
