@@ -214,17 +214,16 @@ struct Lanes {
 /// SSE2 otherwise.
 fn filter_supports(
     lanes: &Lanes,
-    spheres: &[(DVec3, f64, f64)],
-    keep: &mut [u64; TILE_RAYS],
-    odd: &mut [bool; TILE_RAYS],
+    spheres: &[(DVec3, f64, f64, f64)],
+    out: &mut Filtered,
     roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the processor has AVX2, checked just above.
-        return unsafe { filter_supports_avx2(lanes, spheres, keep, odd, roots) };
+        return unsafe { filter_supports_avx2(lanes, spheres, out, roots) };
     }
-    filter_supports_lanes(lanes, spheres, keep, odd, roots)
+    filter_supports_lanes(lanes, spheres, out, roots)
 }
 
 /// [`filter_supports`] compiled for AVX2.
@@ -232,12 +231,11 @@ fn filter_supports(
 #[target_feature(enable = "avx2")]
 unsafe fn filter_supports_avx2(
     lanes: &Lanes,
-    spheres: &[(DVec3, f64, f64)],
-    keep: &mut [u64; TILE_RAYS],
-    odd: &mut [bool; TILE_RAYS],
+    spheres: &[(DVec3, f64, f64, f64)],
+    out: &mut Filtered,
     roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
-    filter_supports_lanes(lanes, spheres, keep, odd, roots)
+    filter_supports_lanes(lanes, spheres, out, roots)
 }
 
 /// The body of [`filter_supports`], inlined into each instruction set's
@@ -245,13 +243,13 @@ unsafe fn filter_supports_avx2(
 #[inline(always)]
 fn filter_supports_lanes(
     lanes: &Lanes,
-    spheres: &[(DVec3, f64, f64)],
-    keep: &mut [u64; TILE_RAYS],
-    odd: &mut [bool; TILE_RAYS],
+    spheres: &[(DVec3, f64, f64, f64)],
+    out: &mut Filtered,
     roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
     let Lanes { o, d, dd, lo, hi } = lanes;
-    for (j, &(centre, k, c0)) in spheres.iter().enumerate() {
+    let Filtered { keep, odd, raise } = out;
+    for (j, &(centre, k, c0, f)) in spheres.iter().enumerate() {
         let [r0s, r1s] = &mut roots[j];
         for r in 0..TILE_RAYS {
             let (vx, vy, vz) = (o[0][r] - centre.x, o[1][r] - centre.y, o[2][r] - centre.z);
@@ -275,10 +273,31 @@ fn filter_supports_lanes(
             } else {
                 (h / a, c / h)
             };
-            r0s[r] = fmin(x0, x1);
-            r1s[r] = fmax(x0, x1);
+            let (x0, x1) = (fmin(x0, x1), fmax(x0, x1));
+            r0s[r] = x0;
+            r1s[r] = x1;
+            // The most a raising support adds along the whole ray: its
+            // value at the vertex, midway between the roots, cubed.
+            let m = 0.5 * (x0 + x1);
+            let top = fmax((a * m + b) * m + c, 0.0);
+            let add = f * top * top * top;
+            raise[r] += if meets && a < 0.0 && f > 0.0 {
+                add
+            } else {
+                0.0
+            };
         }
     }
+}
+
+/// What [`filter_supports`] finds per lane: the supports kept (bit `j`),
+/// whether the ray is one that the filter does not cover (a zero
+/// direction), and `raise`, an upper bound on `sum f_i Q_i^3` over the
+/// whole ray (the kept supports with `f_i > 0`, each at its maximum).
+struct Filtered {
+    keep: [u64; TILE_RAYS],
+    odd: [bool; TILE_RAYS],
+    raise: [f64; TILE_RAYS],
 }
 
 /// A tile's rays against a sphere base, lane by lane (see [`setup_lanes`]).
@@ -765,15 +784,23 @@ impl Object {
         // `Along::along` and `positive_on` operation for operation, so the
         // answers are those of `gather` to the last bit. `q2 >= 0` (a
         // zero direction) is no sphere's ray: such a ray falls back.
-        let spheres: SmallVec<[(DVec3, f64, f64); 64]> = culled
+        let spheres: SmallVec<[(DVec3, f64, f64, f64); 64]> = culled
             .iter()
             .map(|&item| match self.along[item as usize] {
-                Along::Sphere { centre, k, c0, .. } => (centre, k, c0),
+                Along::Sphere { centre, k, c0, .. } => (
+                    centre,
+                    k,
+                    c0,
+                    self.perturbations[self.bounded[item as usize] as usize].factor,
+                ),
                 Along::General => unreachable!("checked above"),
             })
             .collect();
-        let mut keep = [0u64; TILE_RAYS];
-        let mut odd = [false; TILE_RAYS];
+        let mut filtered = Filtered {
+            keep: [0; TILE_RAYS],
+            odd: [false; TILE_RAYS],
+            raise: [0.0; TILE_RAYS],
+        };
         ROOTS.with_borrow_mut(|scratch| {
             if scratch.len() < spheres.len() {
                 scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
@@ -781,10 +808,10 @@ impl Object {
             filter_supports(
                 &lanes,
                 &spheres,
-                &mut keep,
-                &mut odd,
+                &mut filtered,
                 &mut scratch[..spheres.len()],
             );
+            let Filtered { keep, odd, raise } = filtered;
             let mut raw = [false; TILE_RAYS];
             for (r, ray) in rays.iter().enumerate() {
                 if bl.t0[r].is_nan() {
@@ -793,6 +820,19 @@ impl Object {
                 }
                 if odd[r] || bl.slow[r] {
                     hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
+                    continue;
+                }
+                // `F' <= F + raise` along the ray: where even that stays
+                // negative (the concave base's quadratic shifted up by
+                // `raise` has no real root, by a margin of `1e-9` of its
+                // discriminant's terms for rounding), the ray passes above
+                // every bump and meets nothing. (`F'` has no other terms:
+                // the kept supports are all those active on the ray, which
+                // does not enter the base.)
+                let (c, b, a) = (bl.q[0][r], bl.q[1][r], bl.q[2][r]);
+                let (bb, ac) = (b * b, 4.0 * a * (c + raise[r]));
+                if keep[r] != 0 && bb - ac < -1e-9 * (bb + ac.abs()) {
+                    hits[r] = None;
                     continue;
                 }
                 let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
