@@ -336,7 +336,8 @@ pub struct GpuMaterial {
     pub d: [f32; 4],
     /// Fifth parameter block.
     pub e: [f32; 4],
-    /// `[material data offset, first mix component, mix components, 0]`.
+    /// `[material data offset, first mix component, mix components, the
+    /// mix's wave component + 1 (0: none)]`.
     pub idx: [u32; 4],
 }
 
@@ -377,20 +378,43 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
 }
 
 /// Whether `m` has a GPU implementation (a `mix` when all its components
-/// have, at most [`MAX_MIX_COMPONENTS`] once flattened).
+/// have, at most [`MAX_MIX_COMPONENTS`] once flattened; see [`mix_fits`]).
 pub fn supported(m: &Material) -> bool {
     match m {
         // A medium inside a mix is its boundary alone ([`flatten_mix`]).
-        // A `wave` inside a mix is refused: the GPU places (maps to its
-        // heightfield) only the material an object names.
         Material::Mix(_) => flatten_mix(m, 1.0, 1.0).is_some_and(|c| {
-            c.len() <= MAX_MIX_COMPONENTS
-                && c.iter()
-                    .all(|(m, ..)| supported(m) && !matches!(m, Material::Wave(_)))
+            c.len() <= MAX_MIX_COMPONENTS && c.iter().all(|(m, ..)| supported(m)) && mix_fits(&c)
         }),
         // Without copying its kernels.
         Material::Wave(_) => true,
         _ => GpuMaterials::default().leaf(m).is_some(),
+    }
+}
+
+/// Whether a flattened mix fits the GPU's mix record, whose blocks `d`
+/// and `e` hold either the selection weights of components 5-8 or, with
+/// at most four components, the shading frame's tangent and a placed
+/// `wave`'s state (`place_material`):
+/// - at most one `wave` component, with at most four components in all,
+///   and no component before it carrying a tangent (the CPU's frame takes
+///   the first component's tangent, which is then the placed `wave`'s);
+/// - without a `wave`, a tangent (the first component's, as on the CPU)
+///   only with at most four components.
+fn mix_fits(parts: &[(Material, f64, f64)]) -> bool {
+    let waves = parts
+        .iter()
+        .filter(|(m, ..)| matches!(m, Material::Wave(_)))
+        .count();
+    let tangent = parts.iter().position(|(m, ..)| m.tangent().is_some());
+    match waves {
+        0 => tangent.is_none() || parts.len() <= 4,
+        1 => {
+            let wave = parts
+                .iter()
+                .position(|(m, ..)| matches!(m, Material::Wave(_)));
+            parts.len() <= 4 && tangent == wave
+        }
+        _ => false,
     }
 }
 
@@ -437,7 +461,7 @@ pub struct GpuMaterials {
 
 impl GpuMaterials {
     /// The GPU mirror of `materials`, or the index of the first one not on
-    /// the GPU (`subsurface`, `wave`, or a mix of them).
+    /// the GPU (see [`supported`]).
     ///
     /// | tag | a | b | c | d | e |
     /// |---|---|---|---|---|---|
@@ -451,7 +475,7 @@ impl GpuMaterials {
     /// | conductor | | Fresnel | Fresnel | | |
     /// | dielectric | ior | | | | |
     /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | | |
-    /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7 | |
+    /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7, or (at most 4 components) tangent / the `wave` component's (placed) | the `wave` component's (placed) |
     /// | factored | scale | | | | |
     /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
     /// | merl | | | | | |
@@ -461,7 +485,8 @@ impl GpuMaterials {
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
     /// 1), pdf per bin (n)]` at `idx[0]` of `data`. A mix's components are
-    /// `idx[2]` materials from `idx[1]`. A `factored` material's data at
+    /// `idx[2]` materials from `idx[1]`, its `wave` component (placed
+    /// per hit into the mix's `d` and `e`) at `idx[3] - 1`. A `factored` material's data at
     /// `idx[0]`: `res`, then `ln p` and `ln q` per texel (3 floats each,
     /// row-major, stand-ins substituted), then the half-vector density's
     /// marginal table and its `res` conditional tables (each `[n, cdf,
@@ -515,7 +540,20 @@ impl GpuMaterials {
         g.b.copy_from_slice(&w[4..]);
         g.c.copy_from_slice(&p[..4]);
         g.d.copy_from_slice(&p[4..]);
-        g.idx = [0, first as u32, parts.len() as u32, 0];
+        // A `wave` component (placed per hit into `d` and `e`, which also
+        // sets the frame's tangent), or the first component's tangent
+        // (`mix_fits`: at most four components then, `d` is free).
+        let wave = parts
+            .iter()
+            .position(|(c, ..)| matches!(c, Material::Wave(_)))
+            .map_or(0, |k| k as u32 + 1);
+        if wave == 0 {
+            if let Some(t) = m.tangent() {
+                g.tag[2] = 1;
+                g.d = [t.x as f32, t.y as f32, t.z as f32, 0.0];
+            }
+        }
+        g.idx = [0, first as u32, parts.len() as u32, wave];
         Some(g)
     }
 
@@ -896,7 +934,7 @@ mod tests {
     }
 
     #[test]
-    fn wave_surfaces_are_copied_once_and_refused_inside_mixes() {
+    fn wave_surfaces_are_copied_once_and_fit_mixes() {
         use isolux_materials::metals::Metal;
         use isolux_materials::wave::{Wave, WaveFresnel};
         let heights: Vec<f32> = (0..40 * 24).map(|i| (i % 7) as f32 * 0.01).collect();
@@ -910,7 +948,36 @@ mod tests {
         let plain = Wave::new(surface, isolux_wave::Model::Ohs, WaveFresnel::None);
         let (a, b) = (Material::Wave(silver), Material::Wave(plain));
         assert!(supported(&a));
-        assert!(!supported(&mix(vec![(a.clone(), 1.0), (grey(0.5), 1.0)])));
+        // Inside a mix: one `wave`, at most four components, and no tangent
+        // before it (the CPU's frame would take that one).
+        let ggx = |tangent: Option<glam::DVec3>| {
+            let mut g = isolux_materials::Ggx::new(
+                0.2,
+                0.4,
+                isolux_materials::Fresnel::Schlick {
+                    f0: Rgb::splat(0.04),
+                },
+            );
+            g.tangent = tangent;
+            Material::Ggx(g)
+        };
+        let along = Some(glam::DVec3::X);
+        let with = mix(vec![(grey(0.5), 1.0), (a.clone(), 2.0), (ggx(along), 1.0)]);
+        assert!(supported(&with));
+        assert!(!supported(&mix(vec![(a.clone(), 1.0), (b.clone(), 1.0)])));
+        assert!(!supported(&mix(vec![(ggx(along), 1.0), (a.clone(), 1.0)])));
+        assert!(supported(&mix(vec![(ggx(None), 1.0), (a.clone(), 1.0)])));
+        let five: Vec<_> = (0..4).map(|i| (grey(0.1 * i as f64), 1.0)).collect();
+        assert!(!supported(&mix([five, vec![(a.clone(), 1.0)]].concat())));
+        let g = GpuMaterials::new(&[with]).unwrap();
+        assert_eq!(g.materials[0].idx[2..], [3, 2]);
+        assert_eq!(g.materials[2].tag[0], tag::WAVE);
+        // Without a `wave`: the first tangent is the frame's.
+        let g = GpuMaterials::new(&[mix(vec![(grey(0.5), 1.0), (ggx(along), 1.0)])]).unwrap();
+        assert_eq!(
+            (g.materials[0].tag[2], g.materials[0].d),
+            (1, [1.0, 0.0, 0.0, 0.0])
+        );
         let g = GpuMaterials::new(&[a, b]).unwrap();
         let (m0, m1) = (g.materials[0], g.materials[1]);
         assert_eq!(

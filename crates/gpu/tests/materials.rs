@@ -464,8 +464,27 @@ fn wave_library() -> Vec<(&'static str, Material, f64)> {
     c.mapping = Mapping::Cylindrical(DVec3::ZERO);
     c.um_per_unit = 2000.0;
     c.settings.hierarchy = false;
+    // A mix holding a `wave` (placed per hit into the mix's record).
+    let diffuse = Material::Diffuse(isolux_materials::Diffuse {
+        reflectance: Rgb::new(0.5, 0.3, 0.2),
+    });
+    let rough = Material::Ggx(isolux_materials::Ggx::new(
+        0.3,
+        0.3,
+        isolux_materials::Fresnel::Schlick {
+            f0: Rgb::splat(0.04),
+        },
+    ));
+    let mixed = Material::Mix(isolux_materials::Mix {
+        components: vec![
+            (diffuse, 1.0),
+            (Material::Wave(b.clone()), 2.0),
+            (rough, 1.0),
+        ],
+    });
     vec![
         ("wave grating Ag planar, 4 wl", Material::Wave(a), 0.0),
+        ("mix: diffuse 1, wave noise ohs 2, ggx 1", mixed, 0.004),
         ("wave noise ohs seed ior, 1 wl", Material::Wave(b), 0.004),
         (
             "wave noise cylinder, 7 wl, no tree",

@@ -17,6 +17,7 @@ mod common;
 
 use isolux_core::Image;
 use isolux_gpu::Gpu;
+use isolux_materials::Material;
 use isolux_render::{render, RenderOptions, Scene};
 use std::path::Path;
 
@@ -110,4 +111,28 @@ fn realtime_wave_scenes_match_the_cpu_within_noise() {
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
         assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
     }
+    // The brushed metal inside a mix (placed through the mix's record,
+    // whose frame takes the placed `wave`'s tangent, as the CPU's does).
+    let mut scene = common::example("wave-brushed.toml");
+    let mut mixed = 0;
+    for m in scene.materials.iter_mut() {
+        if matches!(m, Material::Wave(_)) {
+            let wave = m.clone();
+            let grey = Material::Diffuse(isolux_materials::Diffuse {
+                reflectance: isolux_core::Rgb::splat(0.4),
+            });
+            *m = Material::Mix(isolux_materials::Mix {
+                components: vec![(grey, 1.0), (wave, 3.0)],
+            });
+            mixed += 1;
+        }
+    }
+    assert!(mixed > 0);
+    assert!(isolux_gpu::unsupported_material(&scene).is_none());
+    scene.film.width = 96;
+    scene.film.height = 72;
+    scene.film.spp = 16;
+    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "wave-brushed in a mix");
+    assert!(diff <= 1.5 * noise, "mixed: {diff} vs noise {noise}");
+    assert!((mg - mc).abs() <= 0.03 * mc, "mixed: {mg} vs {mc}");
 }

@@ -1318,17 +1318,37 @@ fn material_flags(m: Material) -> u32 {
     return f;
 }
 
-// f(wo, wi) without the cosine, local frame. `wave` is dispatched here,
-// at the top level only (never inside a mix, and not among the internal
-// lobes): its code, inlined at every call site, is large.
+// A mix may hold one `wave` component (`idx.w`: its position + 1, at
+// most four components, so that the mix's `d` and `e` are free):
+// `place_material` keeps the placed state there, and `mix_wave` rebuilds
+// the placed component from it.
+fn mix_wave(m: Material) -> Material {
+    var w = materials[m.idx.y + m.idx.w - 1u];
+    w.d = m.d;
+    w.e = m.e;
+    w.tag.z = 1u;
+    return w;
+}
+
+// f(wo, wi) without the cosine, local frame. `wave` is evaluated at one
+// call site (its code, inlined at every call site, is large): a `wave`
+// material, or a mix's `wave` component beside the others' `base_f`
+// (whose `wave` case is zero).
 fn material_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    if (m.tag.x == MAT_WAVE) {
-        return wave_f(m, wo, wi);
-    }
-    if (m.tag.x != MAT_MIX) {
+    var f = vec3<f32>(0.0);
+    var wm = m;
+    var ww = 1.0;
+    if (m.tag.x == MAT_MIX) {
+        f = mix_f(m, wo, wi);
+        if (m.idx.w == 0u) {
+            return f;
+        }
+        wm = mix_wave(m);
+        ww = mix_w(m, m.idx.w - 1u);
+    } else if (m.tag.x != MAT_WAVE) {
         return base_f(m, wo, wi);
     }
-    return mix_f(m, wo, wi);
+    return f + ww * wave_f(wm, wo, wi);
 }
 
 fn mix_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
@@ -1340,13 +1360,20 @@ fn mix_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
 }
 
 fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    if (m.tag.x == MAT_WAVE) {
-        return wave_pdf(m, wo, wi);
-    }
-    if (m.tag.x != MAT_MIX) {
+    var p = 0.0;
+    var wm = m;
+    var wp = 1.0;
+    if (m.tag.x == MAT_MIX) {
+        p = mix_pdf(m, wo, wi);
+        if (m.idx.w == 0u) {
+            return p;
+        }
+        wm = mix_wave(m);
+        wp = mix_p(m, m.idx.w - 1u);
+    } else if (m.tag.x != MAT_WAVE) {
         return base_pdf(m, wo, wi);
     }
-    return mix_pdf(m, wo, wi);
+    return p + wp * wave_pdf(wm, wo, wi);
 }
 
 fn mix_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
@@ -1357,30 +1384,62 @@ fn mix_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return p;
 }
 
-// One component chosen by uc (rescaled for it), as the CPU's Mix::sample.
+// One component chosen by uc (rescaled for it), as the CPU's Mix::sample;
+// `wave_sample` at one call site, for a `wave` material or a mix's
+// `wave` component.
 fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
-    if (m.tag.x == MAT_WAVE) {
-        return wave_sample(m, wo, uc, u);
+    var sm = m;
+    var uc_rest = uc;
+    if (m.tag.x == MAT_MIX) {
+        let n = m.idx.z;
+        var acc = 0.0;
+        var chosen = n - 1u;
+        for (var k = 0u; k < n; k++) {
+            let p = mix_p(m, k);
+            if (uc < acc + p || k + 1u == n) {
+                chosen = k;
+                uc_rest = select(0.0, clamp((uc - acc) / p, 0.0, 0.99999994), p > 0.0);
+                break;
+            }
+            acc += p;
+        }
+        if (chosen + 1u == m.idx.w) {
+            sm = mix_wave(m);
+        } else {
+            sm = materials[m.idx.y + chosen];
+        }
+    }
+    var s: BsdfSample;
+    if (sm.tag.x == MAT_WAVE) {
+        s = wave_sample(sm, wo, uc_rest, u);
+    } else {
+        s = base_sample(sm, wo, uc_rest, u);
     }
     if (m.tag.x != MAT_MIX) {
-        return base_sample(m, wo, uc, u);
+        return s;
     }
-    let n = m.idx.z;
-    var acc = 0.0;
-    var chosen = n - 1u;
-    var uc_rest = uc;
-    for (var k = 0u; k < n; k++) {
-        let p = mix_p(m, k);
-        if (uc < acc + p || k + 1u == n) {
-            chosen = k;
-            uc_rest = select(0.0, clamp((uc - acc) / p, 0.0, 0.99999994), p > 0.0);
-            break;
-        }
-        acc += p;
-    }
-    let s = base_sample(materials[m.idx.y + chosen], wo, uc_rest, u);
     if (!s.ok) {
         return no_sample();
     }
-    return BsdfSample(s.wi, mix_f(m, wo, s.wi), mix_pdf(m, wo, s.wi), s.flags, 1.0, true);
+    if (m.idx.w == 0u) {
+        return BsdfSample(s.wi, mix_f(m, wo, s.wi), mix_pdf(m, wo, s.wi), s.flags, 1.0, true);
+    }
+    // With a `wave` component: its value at the sampled direction (the
+    // sample's own when it chose it).
+    let wm = mix_wave(m);
+    let k = m.idx.w - 1u;
+    var wf = s.f;
+    var wpdf = s.pdf;
+    if (sm.tag.x != MAT_WAVE) {
+        wf = wave_f(wm, wo, s.wi);
+        wpdf = wave_pdf(wm, wo, s.wi);
+    }
+    return BsdfSample(
+        s.wi,
+        mix_f(m, wo, s.wi) + mix_w(m, k) * wf,
+        mix_pdf(m, wo, s.wi) + mix_p(m, k) * wpdf,
+        s.flags,
+        1.0,
+        true,
+    );
 }

@@ -20,13 +20,29 @@
 //         rows (lambda um, n, k)], w 1 when culling by the leaves
 
 // The material placed at world point `p` (Material::at_point): a `wave`
-// maps `p` to its heightfield and narrows its coherence area to half the
-// pixel footprint `footprint` (scene units; <= 0: none) when smaller,
-// with the comb offset `xi`; every other model is returned as is.
+// (alone, or a mix's component) maps `p` to its heightfield and narrows
+// its coherence area to half the pixel footprint `footprint` (scene
+// units; <= 0: none) when smaller, with the comb offset `xi`; every other
+// model is returned as is.
 fn place_material(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
+    if (m.tag.x == MAT_MIX && m.idx.w > 0u) {
+        // A mix's `wave` component: placed, its state kept in the mix.
+        // The CPU's frame takes the first component's tangent, which the
+        // layout makes the `wave`'s.
+        let w = place_wave(materials[m.idx.y + m.idx.w - 1u], p, footprint, xi);
+        var out = m;
+        out.d = w.d;
+        out.e = w.e;
+        out.tag.z = 1u;
+        return out;
+    }
     if (m.tag.x != MAT_WAVE) {
         return m;
     }
+    return place_wave(m, p, footprint, xi);
+}
+
+fn place_wave(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
     var out = m;
     let code = u32(m.b.w);
     var s = vec2<f32>(0.0);
