@@ -365,8 +365,8 @@ bounds = { min = [-5.0, -0.1, -5.0], max = [5.0, 0.1, 5.0] }
 }
 
 /// `--gpu` never falls back to the CPU: with an adapter it names the first
-/// material not on the GPU (a `wave` inside a mix is not), without one it
-/// says so; exit 1, no image.
+/// material not on the GPU (a mix of two `wave` leaves is not), without
+/// one it says so; exit 1, no image.
 #[test]
 fn render_gpu_refuses_clearly() {
     let dir = tempfile::tempdir().unwrap();
@@ -395,14 +395,15 @@ type = "wave"
 heightfield = "{field}"
 
 [[material]]
-name = "grey"
-type = "diffuse"
-reflectance = [0.5, 0.5, 0.5]
+name = "brushed too"
+type = "wave"
+heightfield = "{field}"
+model = "ohs"
 
 [[material]]
 name = "blend"
 type = "mix"
-components = [{{ material = "brushed", weight = 0.5 }}, {{ material = "grey", weight = 0.5 }}]
+components = [{{ material = "brushed", weight = 0.5 }}, {{ material = "brushed too", weight = 0.5 }}]
 
 [[object]]
 material = "blend"
