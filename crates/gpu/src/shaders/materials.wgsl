@@ -1384,10 +1384,15 @@ fn mix_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return p;
 }
 
-// One component chosen by uc (rescaled for it), as the CPU's Mix::sample;
-// `wave_sample` at one call site, for a `wave` material or a mix's
-// `wave` component.
+// One component chosen by uc (rescaled for it), as the CPU's Mix::sample.
+// A `wave` (the material, or a mix's leaf) is sampled and evaluated at one
+// call site each (`wave_sample_dir`, `wave_pdf`, `wave_f`), whichever leaf
+// drew the direction: its code, inlined at every call site, is large.
 fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+    if (m.tag.x != MAT_MIX && m.tag.x != MAT_WAVE) {
+        return base_sample(m, wo, uc, u);
+    }
+    var wm = m;
     var sm = m;
     var uc_rest = uc;
     if (m.tag.x == MAT_MIX) {
@@ -1403,42 +1408,47 @@ fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSam
             }
             acc += p;
         }
+        if (m.idx.w > 0u) {
+            wm = mix_wave(m);
+        }
         if (chosen + 1u == m.idx.w) {
-            sm = mix_wave(m);
+            sm = wm;
         } else {
             sm = materials[m.idx.y + chosen];
         }
     }
-    var s: BsdfSample;
+    var wi: vec3<f32>;
+    var flags = FLAG_REFLECTION | FLAG_GLOSSY;
     if (sm.tag.x == MAT_WAVE) {
-        s = wave_sample(sm, wo, uc_rest, u);
+        let d = wave_sample_dir(sm, wo, uc_rest, u);
+        if (d.w == 0.0) {
+            return no_sample();
+        }
+        wi = d.xyz;
     } else {
-        s = base_sample(sm, wo, uc_rest, u);
+        let s = base_sample(sm, wo, uc_rest, u);
+        if (!s.ok) {
+            return no_sample();
+        }
+        if (m.idx.w == 0u) {
+            return BsdfSample(s.wi, mix_f(m, wo, s.wi), mix_pdf(m, wo, s.wi), s.flags, 1.0, true);
+        }
+        wi = s.wi;
+        flags = s.flags;
     }
-    if (m.tag.x != MAT_MIX) {
-        return s;
+    // The `wave` at the direction, pdf before f (docs/gpu.md: Mesa 22's
+    // loop miscompile hit a pdf evaluated after f).
+    let wpdf = wave_pdf(wm, wo, wi);
+    let wf = wave_f(wm, wo, wi);
+    if (m.tag.x == MAT_WAVE) {
+        return BsdfSample(wi, wf, wpdf, flags, 1.0, true);
     }
-    if (!s.ok) {
-        return no_sample();
-    }
-    if (m.idx.w == 0u) {
-        return BsdfSample(s.wi, mix_f(m, wo, s.wi), mix_pdf(m, wo, s.wi), s.flags, 1.0, true);
-    }
-    // With a `wave` component: its value at the sampled direction (the
-    // sample's own when it chose it).
-    let wm = mix_wave(m);
     let k = m.idx.w - 1u;
-    var wf = s.f;
-    var wpdf = s.pdf;
-    if (sm.tag.x != MAT_WAVE) {
-        wf = wave_f(wm, wo, s.wi);
-        wpdf = wave_pdf(wm, wo, s.wi);
-    }
     return BsdfSample(
-        s.wi,
-        mix_f(m, wo, s.wi) + mix_w(m, k) * wf,
-        mix_pdf(m, wo, s.wi) + mix_p(m, k) * wpdf,
-        s.flags,
+        wi,
+        mix_f(m, wo, wi) + mix_w(m, k) * wf,
+        mix_pdf(m, wo, wi) + mix_p(m, k) * wpdf,
+        flags,
         1.0,
         true,
     );

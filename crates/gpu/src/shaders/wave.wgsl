@@ -332,9 +332,14 @@ fn wave_lobe_sigmas(m: Material) -> vec2<f32> {
     return vec2<f32>(k / (0.5 * m.a.x), k / m.e.z);
 }
 
-fn wave_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+// The direction `Wave::sample` draws (`xyz`), with `w` 1 when there is
+// one (0: none). Its `f` and `pdf` are evaluated by the caller
+// (`material_sample`), pdf first: `wave_pdf` after `wave_f` in one
+// function met Mesa 22's loop miscompile (docs/gpu.md), and one call
+// site each keeps the kernel's compile time down.
+fn wave_sample_dir(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> vec4<f32> {
     if (wo.z <= 0.0 || !(m.e.z > 0.0)) {
-        return no_sample();
+        return vec4<f32>(0.0);
     }
     let k0 = wave_comb(m).x;
     let win = wave_window(m);
@@ -360,16 +365,12 @@ fn wave_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
     let xy = uv / k0 - wo.xy;
     let r2 = dot(xy, xy);
     if (!(r2 < 1.0)) {
-        return no_sample();
+        return vec4<f32>(0.0);
     }
-    let wi = vec3<f32>(xy, sqrt(1.0 - r2));
-    // pdf before f: this order avoids Mesa 22's loop miscompile
-    // (docs/gpu.md), which hit a pdf evaluated after f here.
-    let pdf = wave_pdf(m, wo, wi);
-    return BsdfSample(wi, wave_f(m, wo, wi), pdf, FLAG_REFLECTION | FLAG_GLOSSY, 1.0, true);
+    return vec4<f32>(xy, sqrt(1.0 - r2), 1.0);
 }
 
-// The solid-angle density of wave_sample (GaborSurface::pdf): the lobe
+// The solid-angle density of wave_sample_dir (GaborSurface::pdf): the lobe
 // mixture summed over the window square with the kernels' weights.
 fn wave_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     if (!(wo.z > 0.0 && wi.z > 0.0 && m.e.z > 0.0)) {

@@ -15,6 +15,6 @@ fn wave_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return 0.0;
 }
 
-fn wave_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
-    return no_sample();
+fn wave_sample_dir(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> vec4<f32> {
+    return vec4<f32>(0.0);
 }
