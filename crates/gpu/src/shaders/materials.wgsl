@@ -24,6 +24,17 @@
 //                idx.x dipoles, idx.yzw radial tables (render.wgsl)
 //   WAVE         wave.wgsl (placed per shading point by place_material)
 
+// i mod n in [0, n) for any i and n > 0, from unsigned remainders alone:
+// NVIDIA's Vulkan driver (580.159, H100, 2026-11-24) got WGSL's `%` of a
+// negative i32 wrong where n is not a power of two (a wave heightfield
+// of 48 rows wrapped negative rows to the wrong ones; lavapipe was right).
+fn wrap_index(i: i32, n: i32) -> i32 {
+    if (i >= 0) {
+        return i32(u32(i) % u32(n));
+    }
+    return n - 1 - i32(u32(-(i + 1)) % u32(n));
+}
+
 struct Material { tag: vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e: vec4<f32>, idx: vec4<u32> }
 
 struct BsdfSample { wi: vec3<f32>, f: vec3<f32>, pdf: f32, flags: u32, eta: f32, ok: bool }

@@ -31,7 +31,7 @@ fn level_bilinear(k: u32, uv: vec2<f32>) -> vec3<f32> {
     let fx = x - x0;
     let fy = y - y0;
     let wi = i32(w);
-    let xa = u32(((i32(x0) % wi) + wi) % wi);
+    let xa = u32(wrap_index(i32(x0), wi));
     let xb = (xa + 1u) % w;
     let ya = u32(y0);
     let yb = min(ya + 1u, h - 1u);

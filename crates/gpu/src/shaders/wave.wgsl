@@ -138,7 +138,7 @@ fn wave_window(m: Material) -> WaveWindow {
 }
 
 fn wave_wrap(i: i32, n: i32) -> i32 {
-    return ((i % n) + n) % n;
+    return wrap_index(i, n);
 }
 
 // exp(-i 2 pi c) for a phase of c cycles, reduced first.
