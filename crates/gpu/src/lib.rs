@@ -58,6 +58,11 @@ pub const SPAWN_OFFSET: f32 = 1e-4;
 /// Perturbations a ray keeps per object after culling (those active on its
 /// span); a ray that meets more uses all of the object's perturbations.
 pub const MAX_CANDIDATES: u32 = 32;
+/// Objects with at most this many perturbations cull them by a linear
+/// pass over all of them instead of their hierarchy (the traversal's stack
+/// costs more than it saves on a few supports: see docs/benchmarks.md).
+pub const LINEAR_CULL: u32 = 4;
+const _: () = assert!(LINEAR_CULL <= MAX_CANDIDATES);
 /// Entries of a BVH traversal's stack: the depth of a median-split
 /// hierarchy of up to 2^32 leaves.
 pub const BVH_STACK: u32 = 32;
@@ -79,6 +84,7 @@ pub fn prelude() -> String {
          const ROOT_STACK: i32 = {ROOT_STACK};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
          const BVH_STACK: u32 = {BVH_STACK}u;\n\
+         const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
          const NO_NODE: u32 = {}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
@@ -246,6 +252,34 @@ fn size(bytes: u64) -> String {
     }
 }
 
+/// Two GPU timestamps (the start of a frame's first dispatch and the end of
+/// its last) and the buffer they resolve into.
+pub(crate) struct Timestamps {
+    pub(crate) set: wgpu::QuerySet,
+    pub(crate) resolve: wgpu::Buffer,
+    /// Nanoseconds per tick.
+    pub(crate) period: f64,
+}
+
+impl Timestamps {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Self {
+        Self {
+            set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("frame timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("frame timestamps"),
+                size: 2 * wgpu::QUERY_SIZE as u64,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            period: queue.get_timestamp_period() as f64,
+        }
+    }
+}
+
 /// An open device with the compiled kernels.
 pub struct Gpu {
     device: wgpu::Device,
@@ -258,6 +292,9 @@ pub struct Gpu {
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
     /// Without and with the `wave` code ([`render_source_variant`]).
     render_module: [OnceLock<wgpu::ShaderModule>; 2],
+    /// GPU timestamps around a frame's dispatches, where the adapter offers
+    /// `TIMESTAMP_QUERY` (for `isolux bench gpu`).
+    pub(crate) timestamps: Option<Timestamps>,
     precision: Precision,
     f64_supported: bool,
     /// Adapter name and back end, for reports.
@@ -298,11 +335,16 @@ impl Gpu {
         // f64 is requested where offered, so that `set_precision` can
         // switch the intersection without reopening the device.
         let f64_supported = adapter.features().contains(wgpu::Features::SHADER_F64);
-        let required_features = if f64_supported {
-            wgpu::Features::SHADER_F64
-        } else {
-            wgpu::Features::empty()
-        };
+        let timestamps_supported = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut required_features = wgpu::Features::empty();
+        if f64_supported {
+            required_features |= wgpu::Features::SHADER_F64;
+        }
+        // Timestamps only time the benchmark's frames; requested where
+        // offered, never needed.
+        if timestamps_supported {
+            required_features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("isolux"),
             required_features,
@@ -314,7 +356,9 @@ impl Gpu {
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
+        let timestamps = timestamps_supported.then(|| Timestamps::new(&device, &queue));
         Ok(Self {
+            timestamps,
             device,
             queue,
             intersect: OnceLock::new(),
@@ -615,7 +659,10 @@ impl Gpu {
     }
 
     /// Copies a storage buffer back to the host (waits for the queue).
-    fn read_back<T: bytemuck::Pod>(&self, out: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
+    pub(crate) fn read_back<T: bytemuck::Pod>(
+        &self,
+        out: &wgpu::Buffer,
+    ) -> Result<Vec<T>, GpuError> {
         let d = &self.device;
         let size = out.size();
         let staging = d.create_buffer(&wgpu::BufferDescriptor {

@@ -440,11 +440,46 @@ impl GpuFrame {
     /// once; [`Gpu::wait`] or [`GpuFrame::image`] waits). In the real-time
     /// mode the pass is a whole new frame of `count` samples per pixel.
     pub fn run(&mut self, gpu: &Gpu, count: u32) {
+        self.run_with(gpu, count, false);
+    }
+
+    /// [`GpuFrame::run`] with GPU timestamps at the start of the pass's
+    /// first dispatch and the end of its last, where the adapter offers
+    /// them; [`GpuFrame::gpu_time`] reads them.
+    pub fn run_timed(&mut self, gpu: &Gpu, count: u32) {
+        self.run_with(gpu, count, true);
+    }
+
+    /// The GPU's own time of the last [`GpuFrame::run_timed`] pass, in
+    /// seconds (waits for the queue); `None` where the adapter offers no
+    /// timestamps. Its difference to the wall time around `run_timed` and
+    /// [`Gpu::wait`] is what the host, the driver and the queue cost.
+    pub fn gpu_time(&self, gpu: &Gpu) -> Result<Option<f64>, GpuError> {
+        let Some(ts) = gpu.timestamps.as_ref() else {
+            return Ok(None);
+        };
+        let ticks: Vec<u64> = gpu.read_back(&ts.resolve)?;
+        Ok(Some(
+            ticks[1].wrapping_sub(ticks[0]) as f64 * ts.period * 1e-9,
+        ))
+    }
+
+    fn run_with(&mut self, gpu: &Gpu, count: u32, timed: bool) {
         if count == 0 {
             return;
         }
         if self.realtime {
-            self.realtime_frame(gpu, count);
+            self.dispatch_samples(
+                gpu,
+                gpu.render_pipeline(true, self.wave),
+                0,
+                count,
+                count,
+                timed,
+            );
+            self.params.pass_info[0] = 0;
+            self.params.pass_info[1] = count;
+            self.samples = count;
             return;
         }
         // One dispatch per sample, all in one submission: a kernel
@@ -457,6 +492,7 @@ impl GpuFrame {
             self.samples,
             count,
             1,
+            timed,
         );
         self.samples += count;
     }
@@ -466,6 +502,8 @@ impl GpuFrame {
     /// dispatch's parameters are copied into the parameter buffer from a staging
     /// buffer inside the command stream, so no submission waits on a
     /// `write_buffer` (on an H100 four submissions cost about 2 ms).
+    /// `timed`: timestamps at the start of the first dispatch and the end of
+    /// the last, resolved for [`GpuFrame::run_timed`].
     fn dispatch_samples(
         &self,
         gpu: &Gpu,
@@ -473,7 +511,9 @@ impl GpuFrame {
         first: u32,
         count: u32,
         field: u32,
+        timed: bool,
     ) {
+        let ts = gpu.timestamps.as_ref().filter(|_| timed);
         let size = std::mem::size_of::<GpuParams>() as u64;
         let blocks: Vec<GpuParams> = (0..count)
             .map(|s| {
@@ -497,9 +537,17 @@ impl GpuFrame {
             });
         for s in 0..count as u64 {
             enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
+            let (first, last) = (s == 0, s + 1 == count as u64);
+            let writes = ts
+                .filter(|_| first || last)
+                .map(|ts| wgpu::ComputePassTimestampWrites {
+                    query_set: &ts.set,
+                    beginning_of_pass_write_index: first.then_some(0),
+                    end_of_pass_write_index: last.then_some(1),
+                });
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("sample"),
-                timestamp_writes: None,
+                timestamp_writes: writes,
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
@@ -509,19 +557,10 @@ impl GpuFrame {
                 1,
             );
         }
+        if let Some(ts) = ts {
+            enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
+        }
         gpu.queue.submit(Some(enc.finish()));
-    }
-
-    /// A real-time frame of `count` samples per pixel: one dispatch per
-    /// sample (see `realtime.wgsl`), all in one submission. Each
-    /// dispatch's parameters are copied into the parameter buffer from a staging
-    /// buffer inside the command stream, so no submission waits on a
-    /// `write_buffer` (on an H100 four submissions cost about 2 ms).
-    fn realtime_frame(&mut self, gpu: &Gpu, count: u32) {
-        self.dispatch_samples(gpu, gpu.render_pipeline(true, self.wave), 0, count, count);
-        self.params.pass_info[0] = 0;
-        self.params.pass_info[1] = count;
-        self.samples = count;
     }
 
     /// The AOVs of the first hit over the samples taken so far (at the
@@ -541,7 +580,7 @@ impl GpuFrame {
             });
         enc.clear_buffer(buf, 0, None);
         gpu.queue.submit(Some(enc.finish()));
-        self.dispatch_samples(gpu, gpu.aov_pipeline(self.wave), 0, count, 1);
+        self.dispatch_samples(gpu, gpu.aov_pipeline(self.wave), 0, count, 1, false);
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();

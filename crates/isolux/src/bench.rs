@@ -414,9 +414,12 @@ fn wave(repeat: u32) -> Result<()> {
 /// `bench gpu`: per scene, ms per frame at `width x height` of the GPU's
 /// real-time mode (4 spp, `isolux_render::realtime`), its path tracer (16
 /// spp, the scene's depth) and of direct light only (4 spp, depth 1), and
-/// the same work on the CPU path with all cores. Materials not on the GPU
-/// yet are replaced by a grey diffuse, on both sides, and named in the
-/// output.
+/// the same work on the CPU path with all cores. The GPU column is wall
+/// time from queueing a frame to the idle queue; "GPU kernels" is the
+/// GPU's own time of the same frame from timestamps (where the adapter
+/// offers them), so the two differ by what the host and the driver cost.
+/// Materials not on the GPU yet are replaced by a grey diffuse, on both
+/// sides, and named in the output.
 fn gpu(a: &BenchArgs) -> Result<()> {
     use isolux_gpu::Precision;
     use isolux_render::{render, RenderOptions};
@@ -441,11 +444,11 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         gpu.adapter, a.width, a.height, a.repeat
     );
     if a.f64 {
-        println!("| scene | mode | spp | GPU (ms/frame) | GPU f64 (ms/frame) | f64 / f32 | CPU (ms/frame) | CPU / GPU |");
-        println!("|---|---|---:|---:|---:|---:|---:|---:|");
+        println!("| scene | mode | spp | GPU (ms/frame) | GPU kernels (ms) | GPU f64 (ms/frame) | f64 / f32 | CPU (ms/frame) | CPU / GPU |");
+        println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
     } else {
-        println!("| scene | mode | spp | GPU (ms/frame) | CPU (ms/frame) | CPU / GPU |");
-        println!("|---|---|---:|---:|---:|---:|");
+        println!("| scene | mode | spp | GPU (ms/frame) | GPU kernels (ms) | CPU (ms/frame) | CPU / GPU |");
+        println!("|---|---|---:|---:|---:|---:|---:|");
     }
     for path in &scenes {
         let mut scene = isolux_scene::load(path)?;
@@ -467,38 +470,46 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             } else {
                 gpu.prepare(&scene)?
             };
-            let mut time = |gpu: &isolux_gpu::Gpu| -> Result<f64> {
+            // Wall time from queueing the frame to the idle queue, and the
+            // GPU's own time of the same frames (timestamps), best of each.
+            let mut time = |gpu: &isolux_gpu::Gpu| -> Result<(f64, Option<f64>)> {
                 // Warm-up: compiles the kernel, touches the buffers, and
-                // gives the GPU half a second to raise its clocks (an idle
-                // H100 starts at 345 MHz: a cold first mode measured 3x
-                // slow).
+                // gives the GPU two seconds to raise its clocks (an idle
+                // H100 starts at 345 MHz: after half a second's warm-up
+                // the first mode of a run still measured 3-4x slow, 22 ms
+                // against 6.9 ms for the real-time frame, 2026-11-24).
                 let warm = Instant::now();
-                while warm.elapsed().as_secs_f64() < 0.5 {
+                while warm.elapsed().as_secs_f64() < 2.0 {
                     frame.reset(gpu);
                     frame.run(gpu, spp);
                     gpu.wait()?;
                 }
                 let mut g = f64::INFINITY;
+                let mut k: Option<f64> = None;
                 for _ in 0..a.repeat.max(1) {
                     frame.reset(gpu);
                     gpu.wait()?;
                     let t = Instant::now();
-                    frame.run(gpu, spp);
+                    frame.run_timed(gpu, spp);
                     gpu.wait()?;
                     g = g.min(t.elapsed().as_secs_f64());
+                    if let Some(kt) = frame.gpu_time(gpu)? {
+                        k = Some(k.map_or(kt, |k| k.min(kt)));
+                    }
                 }
                 let (img, _) = frame.image(gpu)?;
                 if img.rgb.iter().flatten().any(|c| !c.is_finite()) {
                     bail!("{name}: the GPU image has non-finite pixels");
                 }
-                Ok(g)
+                Ok((g, k))
             };
-            let g = time(&gpu)?;
+            let (g, kernels) = time(&gpu)?;
+            let kernels = kernels.map_or("-".to_string(), |k| format!("{:.2}", k * 1e3));
             let g64 = if a.f64 {
                 gpu.set_precision(Precision::F64)?;
                 let t = time(&gpu);
                 gpu.set_precision(Precision::F32)?;
-                Some(t?)
+                Some(t?.0)
             } else {
                 None
             };
@@ -518,13 +529,13 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             };
             match g64 {
                 Some(g64) => println!(
-                    "| {name} | {mode} | {spp} | {:.2} | {:.2} | {:.2} | {c} | {ratio} |",
+                    "| {name} | {mode} | {spp} | {:.2} | {kernels} | {:.2} | {:.2} | {c} | {ratio} |",
                     g * 1e3,
                     g64 * 1e3,
                     g64 / g
                 ),
                 None => println!(
-                    "| {name} | {mode} | {spp} | {:.2} | {c} | {ratio} |",
+                    "| {name} | {mode} | {spp} | {:.2} | {kernels} | {c} | {ratio} |",
                     g * 1e3
                 ),
             }

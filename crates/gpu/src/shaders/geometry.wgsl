@@ -223,6 +223,19 @@ fn clip_box(o: vec3<real>, d: vec3<real>, bmin: vec3<real>, bmax: vec3<real>, t0
     return vec2<real>(max(tn, t0), min(tf, t1));
 }
 
+// Whether perturbation `pi` may be active on the ray's span: a Q_i(t)
+// with a negative leading coefficient is active only between its roots.
+fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack: real) -> bool {
+    let qa = q_along(perturbations[pi].q, o, d);
+    if (qa.x < 0.0) {
+        let r = roots(qa);
+        if (r.y >= NO_ROOT || r.y < span.x - slack || r.x > span.y + slack) {
+            return false;
+        }
+    }
+    return true;
+}
+
 // First hit of object `oi` on [t0, t1]: (t, outward normal), t < 0 if none.
 fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4<real> {
     let obj = objects[oi];
@@ -243,7 +256,15 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
     var nc = 0u;
     var all = false;
     let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
-    if (obj.range.w != NO_NODE) {
+    if (obj.range.w != NO_NODE && count <= LINEAR_CULL) {
+        // A few supports: the same test on each, no traversal.
+        for (var k = 0u; k < count; k++) {
+            if (keeps_support(first + k, o, d, span, slack)) {
+                cand[nc] = first + k;
+                nc++;
+            }
+        }
+    } else if (obj.range.w != NO_NODE) {
         var stack: array<u32, BVH_STACK>;
         var sp = 0u;
         var node = obj.range.w;
@@ -262,12 +283,8 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
                 } else {
                     for (var k = 0u; k < nd.link.y; k++) {
                         let pi = select(nd.link.z, nd.link.w, k == 1u);
-                        let qa = q_along(perturbations[pi].q, o, d);
-                        if (qa.x < 0.0) {
-                            let r = roots(qa);
-                            if (r.y >= NO_ROOT || r.y < span.x - slack || r.x > span.y + slack) {
-                                continue;
-                            }
+                        if (!keeps_support(pi, o, d, span, slack)) {
+                            continue;
                         }
                         if (nc < MAX_CANDIDATES) {
                             cand[nc] = pi;
