@@ -137,10 +137,6 @@ fn wave_window(m: Material) -> WaveWindow {
     return WaveWindow(i0, i1, j0, j1, u - vec2<f32>(f32(i0), f32(j0)), radius);
 }
 
-fn wave_wrap(i: i32, n: i32) -> i32 {
-    return wrap_index(i, n);
-}
-
 // exp(-i 2 pi c) for a phase of c cycles, reduced first.
 fn wave_cis_cycles(c: f32) -> vec2<f32> {
     let a = 2.0 * PI * (c - round(c));
@@ -184,7 +180,7 @@ fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, k: f32) -> 
         let hx = sqrt(h2) / l;
         let ia = max(win.i0 + i32(ceil(win.o.x - 0.5 - hx)), win.i0);
         let ib = min(win.i0 + i32(floor(win.o.x - 0.5 + hx)), win.i1);
-        let r = wave_wrap(j, hgt);
+        let r = wrap_index(j, hgt);
         let row = m.idx.x + 3u * u32(r * w);
         let yc = y * psi.y;
         var i = ia;
@@ -192,7 +188,7 @@ fn wave_spectrum(m: Material, wi: vec3<f32>, wo: vec3<f32>, k0: f32, k: f32) -> 
             if (i > ib) {
                 break;
             }
-            let c = wave_wrap(i, w);
+            let c = wrap_index(i, w);
             let end = min(ib, i + min(WAVE_LEAF - c % WAVE_LEAF, w - c) - 1);
             var skip = false;
             if (cull) {
@@ -347,8 +343,8 @@ fn wave_sample_dir(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> vec4<f3
     // uc picks the row, its remainder the column (Wave::sample).
     let jy = wave_pick(win.j1 - win.j0 + 1, win.o.y, l, m.e.z, uc);
     let ix = wave_pick(win.i1 - win.i0 + 1, win.o.x, l, m.e.z, fract(uc * 4096.0));
-    let r = wave_wrap(win.j0 + jy, i32(m.c.y));
-    let c = wave_wrap(win.i0 + ix, i32(m.c.x));
+    let r = wrap_index(win.j0 + jy, i32(m.c.y));
+    let c = wrap_index(win.i0 + ix, i32(m.c.x));
     let at = m.idx.x + 3u * u32(r * i32(m.c.x) + c);
     let g = vec2<f32>(material_data[at + 1u], material_data[at + 2u]);
     let c3 = select(2.0 * wo.z, 2.0, (m.tag.w & 1u) != 0u);
@@ -399,10 +395,10 @@ fn wave_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     for (var j = win.j0; j <= win.j1; j++) {
         let wy2 = wave_w2(j - win.j0, win.o.y, l, sigma);
         sy += wy2;
-        let row = m.idx.x + 3u * u32(wave_wrap(j, hgt) * w);
+        let row = m.idx.x + 3u * u32(wrap_index(j, hgt) * w);
         var acc = 0.0;
         for (var i = win.i0; i <= win.i1; i++) {
-            let at = row + 3u * u32(wave_wrap(i, w));
+            let at = row + 3u * u32(wrap_index(i, w));
             let d = u + mk * vec2<f32>(material_data[at + 1u], material_data[at + 2u]);
             let d2 = dot(d, d);
             acc += wave_w2(i - win.i0, win.o.x, l, sigma) * (na * exp(-d2 * ia) + nb * exp(-d2 * ib));
