@@ -425,12 +425,23 @@ fn setup_lanes_body(
     }
 }
 
+mod solo;
+
+#[cfg(test)]
+thread_local! {
+    /// Lanes given to `solo::walk`, and those it sent back, for the tests.
+    static SOLO_LANES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    static SOLO_SLOW: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
 thread_local! {
     /// [`Object::intersect_tile`]'s support roots (per culled support,
     /// the two roots for every lane), kept between calls so that no tile
     /// pays for clearing or allocating them.
-    static ROOTS: std::cell::RefCell<Vec<[[f64; TILE_RAYS]; 2]>> =
-        const { std::cell::RefCell::new(Vec::new()) };
+    /// With the lanes of `solo::walk`, likewise kept.
+    #[allow(clippy::type_complexity)]
+    static ROOTS: std::cell::RefCell<(Vec<[[f64; TILE_RAYS]; 2]>, Box<solo::Solo>)> =
+        std::cell::RefCell::new((Vec::new(), Box::new(solo::Solo::new())));
 }
 
 /// Most rays that one [`Object::intersect_tile`] call takes.
@@ -801,7 +812,7 @@ impl Object {
             odd: [false; TILE_RAYS],
             raise: [0.0; TILE_RAYS],
         };
-        ROOTS.with_borrow_mut(|scratch| {
+        ROOTS.with_borrow_mut(|(scratch, lanes_solo)| {
             if scratch.len() < spheres.len() {
                 scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
             }
@@ -812,7 +823,13 @@ impl Object {
                 &mut scratch[..spheres.len()],
             );
             let Filtered { keep, odd, raise } = filtered;
+            let scratch = &*scratch;
             let mut raw = [false; TILE_RAYS];
+            // Rays that meet one raising support on their first phase and
+            // enter the base there go to the lanes of `solo::walk`; those
+            // in `alone` walk on their own.
+            let (mut alone, mut n_solo) = (0u64, 0);
+            let mut solo_ray = [(0u8, 0u8); TILE_RAYS];
             for (r, ray) in rays.iter().enumerate() {
                 if bl.t0[r].is_nan() {
                     hits[r] = None;
@@ -835,25 +852,82 @@ impl Object {
                     hits[r] = None;
                     continue;
                 }
+                let j = keep[r].trailing_zeros() as usize;
+                let enters = bl.two[r] && bl.r0[r] > bl.t0[r] && bl.r0[r] < bl.t1[r];
+                if keep[r] == 0 && enters {
+                    // No support on the first phase, which ends where the
+                    // ray enters the base: the walk's answer is that
+                    // crossing.
+                    hits[r] = Some(self.base_hit(ray, bl.r0[r]));
+                    continue;
+                }
+                if keep[r].count_ones() != 1 || !enters || spheres[j].3 <= 0.0 {
+                    alone |= 1 << r;
+                    continue;
+                }
+                let (centre, k, c0, f) = spheres[j];
+                let l = n_solo;
+                n_solo += 1;
+                solo_ray[l] = (r as u8, j as u8);
+                for x in 0..3 {
+                    lanes_solo.o[x][l] = ray.origin[x];
+                    lanes_solo.d[x][l] = ray.dir[x];
+                    lanes_solo.bq[x][l] = bl.q[x][r];
+                }
+                lanes_solo.r0[l] = bl.r0[r];
+                lanes_solo.r1[l] = bl.r1[r];
+                lanes_solo.t0[l] = bl.t0[r];
+                // `Along::along`, operation for operation.
+                let v = ray.origin - centre;
+                lanes_solo.cq[0][l] = c0 - k * v.length_squared();
+                lanes_solo.cq[1][l] = -2.0 * k * ray.dir.dot(v);
+                lanes_solo.cq[2][l] = -k * ray.dir.length_squared();
+                lanes_solo.clo[l] = scratch[j][0][r];
+                lanes_solo.chi[l] = scratch[j][1][r];
+                lanes_solo.f[l] = f;
+            }
+            if n_solo > 0 {
+                lanes_solo.n = n_solo;
+                #[cfg(test)]
+                SOLO_LANES.with(|c| c.set(c.get() + n_solo));
+                let mut out = [solo::Outcome::Slow; TILE_RAYS];
+                let sphere = solo::BaseSphere {
+                    centre: base.0.to_array(),
+                    k: base.1,
+                    c0: base.2,
+                };
+                solo::walk(lanes_solo, sphere, &mut out);
+                for (&(r, j), out) in solo_ray.iter().zip(&out).take(n_solo) {
+                    let (r, j) = (r as usize, j as usize);
+                    let ray = &rays[r];
+                    hits[r] = match *out {
+                        solo::Outcome::Base(t) => Some(self.base_hit(ray, t)),
+                        solo::Outcome::Raw(t) => {
+                            raw[r] = true;
+                            let c = self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]);
+                            Some(self.hit_at_raw(ray, t, &[c]))
+                        }
+                        solo::Outcome::Slow => {
+                            #[cfg(test)]
+                            SOLO_SLOW.with(|c| c.set(c.get() + 1));
+                            alone |= 1 << r;
+                            continue;
+                        }
+                    };
+                }
+            }
+            // The rest, ray by ray (`intersect_culled`, with the first
+            // phase's supports taken from the filter).
+            while alone != 0 {
+                let r = alone.trailing_zeros() as usize;
+                alone &= alone - 1;
+                let ray = &rays[r];
                 let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
                 let mut bits = keep[r];
                 while bits != 0 {
                     let j = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    let item = culled[j];
-                    let i = self.bounded[item as usize];
-                    let p = &self.perturbations[i as usize];
-                    let q = self.along[item as usize].along(&p.quadric, ray);
-                    // Kept: the discriminant is positive, so `two_roots` has
-                    // both roots, computed above for all lanes at once.
-                    cands.push(Candidate {
-                        index: i,
-                        item,
-                        factor: p.factor,
-                        q,
-                        lo: scratch[j][0][r],
-                        hi: scratch[j][1][r],
-                    });
+                    cands.push(self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]));
                 }
                 let (t0, t1) = (bl.t0[r], bl.t1[r]);
                 let (base_q, base_roots) = base_of(r);
@@ -874,6 +948,22 @@ impl Object {
                 }
             }
         });
+    }
+
+    /// The candidate of the kept support `item` on `ray`, with its
+    /// roots `lo < hi` (computed for all lanes by the filter).
+    #[inline(always)]
+    fn kept(&self, ray: &Ray, item: u32, lo: f64, hi: f64) -> Candidate {
+        let i = self.bounded[item as usize];
+        let p = &self.perturbations[i as usize];
+        Candidate {
+            index: i,
+            item,
+            factor: p.factor,
+            q: self.along[item as usize].along(&p.quadric, ray),
+            lo,
+            hi,
+        }
     }
 
     fn intersect_in(&self, ray: &Ray, t_min: f64, t_max: f64, items: Items) -> Option<Hit> {
@@ -1424,6 +1514,88 @@ fn poly2(q: [f64; 3], t: f64) -> f64 {
 mod tests {
     use super::*;
     use isolux_core::DMat3;
+
+    /// The lanes of `solo::walk` answer most rays of bumpy spheres (random
+    /// parallel and perspective tiles; bumps that raise, carve, or barely
+    /// rise; directions of any length; open and finite intervals), and
+    /// their answers are the per-ray walk's to the last bit, with every
+    /// instruction set.
+    #[test]
+    fn solo_lanes_match_the_per_ray_walk() {
+        for level in [0, 1, 2] {
+            solo::FORCE.with(|f| f.set(level));
+            solo_lanes_match(41 + level as u64);
+        }
+        solo::FORCE.with(|f| f.set(0));
+    }
+
+    fn solo_lanes_match(seed: u64) {
+        let mut rng = isolux_core::Pcg32::new(seed, 0);
+        let (lanes0, slow0) = (SOLO_LANES.with(|c| c.get()), SOLO_SLOW.with(|c| c.get()));
+        let (mut rays_cast, mut hits) = (0, 0);
+        for scene in 0..16 {
+            let bumps = [1, 3, 16, 40][scene % 4];
+            let perts = crate::samples::fibonacci_sphere(bumps, 0.6)
+                .into_iter()
+                .map(|c| {
+                    let factor = match rng.next_below(6) {
+                        0 => -300.0,
+                        1 => 1e-3,
+                        _ => 1000.0 * (0.2 + 2.0 * rng.next_f64()),
+                    };
+                    let radius = 0.1 + 0.2 * rng.next_f64();
+                    Perturbation {
+                        quadric: Quadric::sphere(c, radius),
+                        factor,
+                    }
+                })
+                .collect();
+            let obj = Object::new(Quadric::sphere(DVec3::ZERO, 0.6), perts, None).unwrap();
+            let culled: Vec<u32> = (0..bumps as u32).collect();
+            for _ in 0..60 {
+                let axis = isolux_core::sampling::uniform_sphere(rng.next_2d());
+                let target = 0.6 * isolux_core::sampling::uniform_sphere(rng.next_2d())
+                    + 0.1 * (rng.next_f64() - 0.5) * axis;
+                let (u, v) = axis.any_orthonormal_pair();
+                let pitch = 10f64.powf(-3.0 + 2.0 * rng.next_f64());
+                let length = 0.5 + 2.0 * rng.next_f64();
+                let eye = target - 2.0 * axis;
+                let perspective = rng.next_below(2) == 0;
+                let rays: Vec<Ray> = (0..TILE_RAYS)
+                    .map(|k| {
+                        let (x, y) = ((k % 8) as f64 - 3.5, (k / 8) as f64 - 3.5);
+                        let off = pitch * (x * u + y * v);
+                        if perspective {
+                            Ray::new(eye, (2.0 * axis + off) * length)
+                        } else {
+                            Ray::new(eye + off, axis * length)
+                        }
+                    })
+                    .collect();
+                let (t_min, t_max) = if rng.next_below(3) == 0 {
+                    (0.3 * rng.next_f64(), 1.0 + 2.0 * rng.next_f64())
+                } else {
+                    (0.0, f64::INFINITY)
+                };
+                let mut got = vec![None; rays.len()];
+                obj.intersect_tile(&rays, t_min, t_max, &culled, &mut got);
+                for (ray, got) in rays.iter().zip(&got) {
+                    let want = obj.intersect_culled(ray, t_min, t_max, &culled);
+                    assert_eq!(*got, want, "{ray:?} on [{t_min}, {t_max}]");
+                    rays_cast += 1;
+                    hits += got.is_some() as usize;
+                }
+            }
+        }
+        let lanes = SOLO_LANES.with(|c| c.get()) - lanes0;
+        let slow = SOLO_SLOW.with(|c| c.get()) - slow0;
+        eprintln!("{rays_cast} rays, {hits} hits, {lanes} solo lanes, {slow} sent back");
+        assert!(hits > rays_cast / 4, "{hits} of {rays_cast}");
+        assert!(
+            lanes > rays_cast / 8 && slow < lanes / 20,
+            "{lanes} lanes, {slow} slow"
+        );
+    }
 
     #[test]
     fn plain_sphere_hit() {

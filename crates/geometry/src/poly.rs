@@ -335,7 +335,7 @@ const fn binom(n: usize, k: usize) -> u64 {
 }
 
 /// Power-to-Bernstein weights `C(k, j) / C(n, j)`, indexed `[n][k][j]`.
-const BERNSTEIN: [[[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DEGREE + 1] = {
+pub(crate) const BERNSTEIN: [[[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DEGREE + 1] = {
     let mut t = [[[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DEGREE + 1];
     let mut n = 0;
     while n <= MAX_DEGREE {

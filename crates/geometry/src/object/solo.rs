@@ -1,0 +1,585 @@
+//! The segment walk of [`Object::intersect_tile`](super::Object::intersect_tile)
+//! for the rays that meet exactly one support, carried through for many
+//! rays at once in vector lanes.
+//!
+//! With few perturbations (16 benchmark bumps) nearly every ray of a tile
+//! that meets a support meets just one, and its walk is always the same
+//! short program: the reach (where the bump can first lift `F'` to zero),
+//! at most three segments (before the support, on it, after it), one
+//! degree-6 polynomial on the segment where the support is active, its
+//! Bernstein signs and, with one sign change, Halley's iteration. Ray by
+//! ray that program is a few hundred instructions spread over many small
+//! functions; here it runs on [`W`] rays at once, as straight-line code on
+//! lane vectors ([`V`], arrays whose element-wise operations the compiler
+//! turns into vector instructions) with selects for branches: AVX-512 or
+//! AVX2 where the processor has them (chosen at run time), SSE2 otherwise.
+//!
+//! **Every value is the scalar walk's to the last bit.** Each lane performs
+//! the scalar code's operations in the scalar code's order (`reach`,
+//! `sign_is_fixed`, `range2`, `shift`, `Poly::add_cube`, the Bernstein
+//! weights, `Poly::first_crossing`'s first step and `Poly::refine_from`'s
+//! Halley iteration, written again on lanes), IEEE operations are
+//! exact whatever the vector width, and Rust never contracts `a * b + c`
+//! into a fused multiply-add. A lane whose walk leaves the common program
+//! (a second gathering phase, a polynomial with several sign changes or a
+//! zero Bernstein coefficient, a reach that needs the quadratic's roots)
+//! is marked [`Outcome::Slow`] and walked ray by ray instead;
+//! `tile_batches_find_the_per_ray_hits` checks the equality bit for bit.
+
+use super::TILE_RAYS;
+use crate::poly::{BERNSTEIN, MAX_DEGREE};
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
+
+/// Lanes per vector: one AVX-512 register of doubles, two AVX2 ones.
+const W: usize = 8;
+
+/// What a lane's walk found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Outcome {
+    /// The walk left the common program: walk the ray on its own.
+    Slow,
+    /// The base quadric's own crossing at `t` (an `Object::base_hit`).
+    Base(f64),
+    /// A crossing of `F'` at `t` (an `Object::hit_at_raw` with the lane's
+    /// support).
+    Raw(f64),
+}
+
+/// The rays that meet one support on their first phase, packed: lane `l`
+/// of every array for the `l`-th such ray.
+pub(super) struct Solo {
+    /// Lanes in use.
+    pub n: usize,
+    /// Ray origins and directions.
+    pub o: [[f64; TILE_RAYS]; 3],
+    pub d: [[f64; TILE_RAYS]; 3],
+    /// The base quadric along the ray (ascending powers), its two roots
+    /// `r0 < r1` (`r0` is the split: the ray enters the base inside
+    /// `(t0, t1)`), and the clipped start `t0`.
+    pub bq: [[f64; TILE_RAYS]; 3],
+    pub r0: [f64; TILE_RAYS],
+    pub r1: [f64; TILE_RAYS],
+    pub t0: [f64; TILE_RAYS],
+    /// The support's `Q(t)` (ascending powers), its roots `clo < chi`,
+    /// and its factor `f > 0`.
+    pub cq: [[f64; TILE_RAYS]; 3],
+    pub clo: [f64; TILE_RAYS],
+    pub chi: [f64; TILE_RAYS],
+    pub f: [f64; TILE_RAYS],
+}
+
+impl Solo {
+    pub fn new() -> Self {
+        let z = [0.0; TILE_RAYS];
+        Solo {
+            n: 0,
+            o: [z; 3],
+            d: [z; 3],
+            bq: [z; 3],
+            r0: z,
+            r1: z,
+            t0: z,
+            cq: [z; 3],
+            clo: z,
+            chi: z,
+            f: z,
+        }
+    }
+}
+
+/// The base sphere `F = c0 - k |p - centre|^2`.
+#[derive(Clone, Copy)]
+pub(super) struct BaseSphere {
+    pub centre: [f64; 3],
+    pub k: f64,
+    pub c0: f64,
+}
+
+/// Walks the first `solo.n` lanes; `out[l]` for lane `l`.
+pub(super) fn walk(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+    #[cfg(test)]
+    let level = FORCE.with(|f| f.get());
+    #[cfg(not(test))]
+    let level = 0;
+    #[cfg(target_arch = "x86_64")]
+    {
+        if level == 0 && std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F, checked just above.
+            return unsafe { walk_avx512(solo, base, out) };
+        }
+        if level != 1 && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { walk_avx2(solo, base, out) };
+        }
+    }
+    walk_lanes(solo, base, out)
+}
+
+#[cfg(test)]
+thread_local! {
+    /// For the tests: 0 the best instruction set, 1 the baseline, 2 at
+    /// most AVX2.
+    pub(super) static FORCE: std::cell::Cell<u8> = const { std::cell::Cell::new(0) };
+}
+
+/// [`walk`] compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn walk_avx512(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+    walk_lanes(solo, base, out)
+}
+
+/// [`walk`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn walk_avx2(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+    walk_lanes(solo, base, out)
+}
+
+/// [`W`] doubles, one per lane.
+#[derive(Clone, Copy)]
+struct V([f64; W]);
+
+/// [`W`] booleans, one per lane, as all-ones or all-zeros words (the
+/// form of a vector comparison's result, so that masks stay in vector
+/// registers).
+#[derive(Clone, Copy)]
+struct M([u64; W]);
+
+#[inline(always)]
+fn splat(x: f64) -> V {
+    V([x; W])
+}
+
+#[inline(always)]
+fn map2(a: V, b: V, f: impl Fn(f64, f64) -> f64) -> V {
+    V(std::array::from_fn(|i| f(a.0[i], b.0[i])))
+}
+
+#[inline(always)]
+fn cmp(a: V, b: V, f: impl Fn(f64, f64) -> bool) -> M {
+    M(std::array::from_fn(|i| {
+        (f(a.0[i], b.0[i]) as u64).wrapping_neg()
+    }))
+}
+
+macro_rules! arith {
+    ($tr:ident, $f:ident, $op:tt) => {
+        impl $tr for V {
+            type Output = V;
+            #[inline(always)]
+            fn $f(self, o: V) -> V {
+                map2(self, o, |a, b| a $op b)
+            }
+        }
+        impl $tr<f64> for V {
+            type Output = V;
+            #[inline(always)]
+            fn $f(self, o: f64) -> V {
+                map2(self, splat(o), |a, b| a $op b)
+            }
+        }
+        impl $tr<V> for f64 {
+            type Output = V;
+            #[inline(always)]
+            fn $f(self, o: V) -> V {
+                map2(splat(self), o, |a, b| a $op b)
+            }
+        }
+    };
+}
+arith!(Add, add, +);
+arith!(Sub, sub, -);
+arith!(Mul, mul, *);
+arith!(Div, div, /);
+
+impl V {
+    #[inline(always)]
+    fn abs(self) -> V {
+        let mut r = self.0;
+        for x in &mut r {
+            *x = x.abs();
+        }
+        V(r)
+    }
+    #[inline(always)]
+    fn lt(self, o: impl Into<V>) -> M {
+        cmp(self, o.into(), |a, b| a < b)
+    }
+    #[inline(always)]
+    fn gt(self, o: impl Into<V>) -> M {
+        cmp(self, o.into(), |a, b| a > b)
+    }
+    #[inline(always)]
+    fn le(self, o: impl Into<V>) -> M {
+        cmp(self, o.into(), |a, b| a <= b)
+    }
+    #[inline(always)]
+    fn ge(self, o: impl Into<V>) -> M {
+        cmp(self, o.into(), |a, b| a >= b)
+    }
+    #[inline(always)]
+    fn eq(self, o: impl Into<V>) -> M {
+        cmp(self, o.into(), |a, b| a == b)
+    }
+    #[inline(always)]
+    fn ne(self, o: impl Into<V>) -> M {
+        cmp(self, o.into(), |a, b| a != b)
+    }
+    /// Lanes `l * W ..` of `a`.
+    #[inline(always)]
+    fn load(a: &[f64; TILE_RAYS], chunk: usize) -> V {
+        let mut r = [0.0; W];
+        r.copy_from_slice(&a[chunk * W..chunk * W + W]);
+        V(r)
+    }
+}
+
+impl From<f64> for V {
+    #[inline(always)]
+    fn from(x: f64) -> V {
+        splat(x)
+    }
+}
+
+impl BitAnd for M {
+    type Output = M;
+    #[inline(always)]
+    fn bitand(self, o: M) -> M {
+        M(std::array::from_fn(|i| self.0[i] & o.0[i]))
+    }
+}
+
+impl BitOr for M {
+    type Output = M;
+    #[inline(always)]
+    fn bitor(self, o: M) -> M {
+        M(std::array::from_fn(|i| self.0[i] | o.0[i]))
+    }
+}
+
+impl Not for M {
+    type Output = M;
+    #[inline(always)]
+    fn not(self) -> M {
+        M(std::array::from_fn(|i| !self.0[i]))
+    }
+}
+
+impl M {
+    #[inline(always)]
+    fn any(self) -> bool {
+        self.0.iter().fold(0, |a, &x| a | x) != 0
+    }
+    /// Whether lane `i` is set.
+    #[inline(always)]
+    fn at(self, i: usize) -> bool {
+        self.0[i] != 0
+    }
+    #[inline(always)]
+    fn all(x: bool) -> M {
+        M([(x as u64).wrapping_neg(); W])
+    }
+    /// Lanes where `self` and `o` agree.
+    #[inline(always)]
+    fn same(self, o: M) -> M {
+        M(std::array::from_fn(|i| !(self.0[i] ^ o.0[i])))
+    }
+}
+
+/// `a` where `m`, else `b`.
+#[inline(always)]
+fn sel(m: M, a: impl Into<V>, b: impl Into<V>) -> V {
+    let (a, b) = (a.into(), b.into());
+    V(std::array::from_fn(|i| {
+        let m = m.0[i];
+        f64::from_bits((a.0[i].to_bits() & m) | (b.0[i].to_bits() & !m))
+    }))
+}
+
+/// `poly::fmin`: `a` where `a < b`, else `b`.
+#[inline(always)]
+fn fmin(a: V, b: V) -> V {
+    sel(a.lt(b), a, b)
+}
+
+/// `poly::fmax`: `a` where `a > b`, else `b`.
+#[inline(always)]
+fn fmax(a: V, b: V) -> V {
+    sel(a.gt(b), a, b)
+}
+
+/// `poly::sign`.
+#[inline(always)]
+fn sign(x: V) -> V {
+    sel(x.gt(0.0), 1.0, sel(x.lt(0.0), -1.0, 0.0))
+}
+
+/// `object::poly2`: `(q2 t + q1) t + q0`.
+#[inline(always)]
+fn poly2(q: [V; 3], t: V) -> V {
+    (q[2] * t + q[1]) * t + q[0]
+}
+
+/// `object::shift`: `q(a + s len)` as a quadratic in `s`.
+#[inline(always)]
+fn shift(q: [V; 3], a: V, len: V) -> [V; 3] {
+    let [c0, c1, c2] = q;
+    [
+        (c2 * a + c1) * a + c0,
+        (2.0 * c2 * a + c1) * len,
+        c2 * len * len,
+    ]
+}
+
+/// `object::range2`: the range of `q` on `[a, b]`.
+#[inline(always)]
+fn range2(q: [V; 3], a: V, b: V) -> (V, V) {
+    let (va, vb) = (poly2(q, a), poly2(q, b));
+    let (lo, hi) = (fmin(va, vb), fmax(va, vb));
+    let (da, db) = (2.0 * q[2] * a + q[1], 2.0 * q[2] * b + q[1]);
+    let turns = da.lt(0.0).same(db.lt(0.0)).not() & q[2].ne(0.0);
+    let v = q[0] - q[1] * q[1] / (4.0 * q[2]);
+    (sel(turns, fmin(lo, v), lo), sel(turns, fmax(hi, v), hi))
+}
+
+/// The lane state of the segment walk.
+struct Walk {
+    /// Still walking (no hit, not slow).
+    live: M,
+    /// The sign of `F'` just before `a` (the walk's `before`).
+    before: V,
+    /// The current position.
+    a: V,
+    /// The answer: `kind` 1 base crossing, 2 crossing of `F'`, 0 none yet.
+    kind: V,
+    t: V,
+}
+
+impl Walk {
+    /// A segment `[a, b]` on which the support is not active, on the lanes
+    /// `run`, as `Object::segment_root` and the walk answer it: the base's
+    /// crossing when one lies in `[a, b]`, else a hit at `a` where `F'`
+    /// changed sign across the breakpoint.
+    #[inline(always)]
+    fn plain(&mut self, run: M, b: V, q: [V; 3], (r0, r1): (V, V)) {
+        let a = self.a;
+        let in0 = r0.ge(a) & r0.le(b);
+        let in1 = r1.ge(a) & r1.le(b);
+        let base = run & (in0 | in1);
+        let clear = run & !(in0 | in1);
+        let raw = clear & (self.before * sign(poly2(q, a))).lt(0.0);
+        self.t = sel(base, sel(in0, r0, r1), sel(raw, a, self.t));
+        self.kind = sel(base, 1.0, sel(raw, 2.0, self.kind));
+        self.before = sel(clear, sign(poly2(q, b)), self.before);
+        self.live = self.live & !(base | raw);
+        self.a = sel(run, b, a);
+    }
+}
+
+/// The walk of [`W`] lanes at a time (see the module's doc).
+#[inline(always)]
+fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+    for chunk in 0..solo.n.div_ceil(W) {
+        let ld = |a: &[f64; TILE_RAYS]| V::load(a, chunk);
+        let valid = M(std::array::from_fn(|i| {
+            ((chunk * W + i < solo.n) as u64).wrapping_neg()
+        }));
+        let q = [ld(&solo.bq[0]), ld(&solo.bq[1]), ld(&solo.bq[2])];
+        let c = [ld(&solo.cq[0]), ld(&solo.cq[1]), ld(&solo.cq[2])];
+        let (lo, hi, r1) = (ld(&solo.t0), ld(&solo.r0), ld(&solo.r1));
+        let roots = (hi, r1);
+        let (clo, chi, f) = (ld(&solo.clo), ld(&solo.chi), ld(&solo.f));
+        // `reach(base_q, [c], lo, hi, entering = true)` with `f > 0`.
+        let (ca, cb) = (fmax(clo, lo), fmin(chi, hi));
+        let qmax = fmax(poly2(c, fmin(fmax(0.5 * (clo + chi), ca), cb)), splat(0.0));
+        let bound = sel(ca.lt(cb), 0.0 + f * qmax * qmax * qmax, 0.0);
+        let flo = poly2(q, lo);
+        let scale = q[0].abs() + (q[1] * hi).abs() + (q[2] * hi * hi).abs() + bound;
+        let bound = bound + 1e-10 * scale;
+        let at_once = (flo + bound).lt(0.0).not();
+        let slope = q[1] + 2.0 * q[2] * hi;
+        let tangent = q[2].lt(0.0) & slope.gt(0.0);
+        let line = fmax(fmin(hi - (bound + poly2(q, hi)) / slope, hi), lo);
+        let start = sel(at_once, lo, line);
+        // A reach through the quadratic's roots is walked ray by ray.
+        let mut w = Walk {
+            live: valid & (at_once | tangent),
+            before: sel(start.gt(lo), -1.0, 0.0),
+            a: start,
+            kind: splat(0.0),
+            t: splat(0.0),
+        };
+        // The breaks (in order) and the split: the segments before the
+        // active one.
+        let ends = [clo, chi, hi];
+        let pushed = [
+            clo.gt(start) & clo.lt(hi),
+            chi.gt(start) & chi.lt(hi),
+            M::all(true),
+        ];
+        let mut pending = M::all(false);
+        let (mut sa, mut sb) = (splat(0.0), splat(0.0));
+        let mut slot = splat(3.0);
+        for s in 0..3 {
+            let (a, b) = (w.a, ends[s]);
+            let run = w.live & !pending & pushed[s] & b.gt(a);
+            let mid = 0.5 * (a + b);
+            let active = clo.lt(mid) & mid.lt(chi);
+            let here = run & active;
+            slot = sel(here, s as f64, slot);
+            sa = sel(here, a, sa);
+            sb = sel(here, b, sb);
+            pending = pending | here;
+            w.plain(run & !active, b, q, roots);
+        }
+        // The active segment: `sign_is_fixed`, then `segment_root`'s
+        // polynomial and `first_crossing`.
+        let go = w.live & pending;
+        let (a, b) = (sa, sb);
+        let (base_min, base_max) = range2(q, a, b);
+        let scale = base_min.abs() + base_max.abs() + q[0].abs();
+        let qmin = fmax(fmin(poly2(c, a), poly2(c, b)), splat(0.0));
+        let qmax = fmax(poly2(c, fmin(fmax(0.5 * (clo + chi), a), b)), splat(0.0));
+        let (rmin, rmax) = (f * qmin * qmin * qmin, f * qmax * qmax * qmax);
+        let (flo, fhi) = (base_min + rmin, base_max + rmax);
+        let scale = scale + (rmin.abs() + rmax.abs());
+        let margin = 1e-10 * scale;
+        let neg = fhi.lt(0.0 - margin);
+        let pos = !neg & flo.gt(margin);
+        let len = b - a;
+        let s = shift(q, a, len);
+        let v = [0, 1, 2].map(|x| ld(&solo.o[x]) + a * ld(&solo.d[x]) - base.centre[x]);
+        let s0 = base.c0 - base.k * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        // `Poly::quadratic([s0, s[1], s[2]])` plus `add_cube(f, ...)`.
+        let [a0, a1, a2] = shift(c, a, len);
+        let (p0, p1, p2) = (a0 * a0, 2.0 * a0 * a1, a1 * a1 + 2.0 * a0 * a2);
+        let (p3, p4) = (2.0 * a1 * a2, a2 * a2);
+        let cf = [
+            s0 + f * (p0 * a0),
+            s[1] + f * (p0 * a1 + p1 * a0),
+            s[2] + f * (p0 * a2 + p1 * a1 + p2 * a0),
+            0.0 + f * (p1 * a2 + p2 * a1 + p3 * a0),
+            0.0 + f * (p2 * a2 + p3 * a1 + p4 * a0),
+            0.0 + f * (p3 * a2 + p4 * a1),
+            0.0 + f * (p4 * a2),
+        ];
+        // Bernstein coefficients (`bernstein6`, the same sums in order).
+        let wt = &BERNSTEIN[MAX_DEGREE];
+        let bz: [V; 7] = std::array::from_fn(|k| {
+            let mut acc = wt[k][0] * cf[0];
+            for j in 1..=k {
+                acc = acc + wt[k][j] * cf[j];
+            }
+            acc
+        });
+        let mut nonzero = M::all(true);
+        let mut changes = splat(0.0);
+        for b in &bz {
+            nonzero = nonzero & b.ne(0.0);
+        }
+        for k in 0..6 {
+            changes = changes + sel(bz[k].lt(0.0).same(bz[k + 1].lt(0.0)), 0.0, 1.0);
+        }
+        let polynomial = go & !neg & !pos;
+        let none = polynomial & nonzero & changes.eq(0.0);
+        let one = polynomial & nonzero & changes.eq(1.0);
+        w.live = w.live & !(polynomial & !none & !one);
+        let clear_start = sel(neg, -1.0, sel(pos, 1.0, sign(bz[0])));
+        let clear_end = sel(neg, -1.0, sel(pos, 1.0, sign(bz[6])));
+        // Halley's first step from the better end.
+        let nf = 6.0;
+        let (f0, d0, e0) = (
+            bz[0],
+            nf * (bz[1] - bz[0]),
+            nf * (nf - 1.0) * (bz[2] - 2.0 * bz[1] + bz[0]),
+        );
+        let (f1, d1, e1) = (
+            bz[6],
+            nf * (bz[6] - bz[5]),
+            nf * (nf - 1.0) * (bz[6] - 2.0 * bz[5] + bz[4]),
+        );
+        let from0 = -2.0 * f0 * d0 / (2.0 * d0 * d0 - f0 * e0);
+        let from1 = 1.0 - 2.0 * f1 * d1 / (2.0 * d1 * d1 - f1 * e1);
+        let guess = sel((f0 * d1).abs().lt((f1 * d0).abs()), from0, from1);
+        // `refine_from(0, 1, b0, b6, guess)`.
+        let root = if (one & w.live).any() {
+            halley(&cf, one & w.live, f0, f1, guess)
+        } else {
+            splat(0.0)
+        };
+        let crossing = w.live & one;
+        let cleared = w.live & go & !one;
+        let raw = cleared & (w.before * clear_start).lt(0.0);
+        w.t = sel(crossing, a + root * len, sel(raw, a, w.t));
+        w.kind = sel(crossing | raw, 2.0, w.kind);
+        w.before = sel(cleared, clear_end, w.before);
+        w.live = w.live & !(crossing | raw);
+        w.a = sel(go, b, w.a);
+        // The segments after the active one.
+        for s in 0..3 {
+            let run = w.live & go & slot.lt(s as f64) & pushed[s] & ends[s].gt(w.a);
+            w.plain(run, ends[s], q, roots);
+        }
+        for i in 0..W {
+            let l = chunk * W + i;
+            if l < solo.n {
+                // Still walking after the first phase: the second phase
+                // gathers again, ray by ray.
+                out[l] = match (w.live.at(i), w.kind.0[i]) {
+                    (false, 1.0) => Outcome::Base(w.t.0[i]),
+                    (false, 2.0) => Outcome::Raw(w.t.0[i]),
+                    _ => Outcome::Slow,
+                };
+            }
+        }
+    }
+}
+
+/// Safeguarded Halley iteration on `[0, 1]` for the lanes `going`
+/// (`Poly::refine_from(0, 1, fa, fb, start)` operation for operation),
+/// all of them together until each has returned.
+#[inline(always)]
+fn halley(c: &[V; 7], mut going: M, fa: V, fb: V, start: V) -> V {
+    let neg_left = fa.lt(0.0);
+    let x = sel(
+        start.gt(0.0) & start.lt(1.0),
+        start,
+        0.0 + (1.0 - 0.0) * (fa / (fa - fb)),
+    );
+    let mut s = sel((x.gt(0.0) & x.lt(1.0)).not(), 0.5 * (0.0 + 1.0), x);
+    let (mut lo, mut hi) = (splat(0.0), splat(1.0));
+    let mut root = s;
+    for _ in 0..100 {
+        // `Poly::eval_d2`, degree 6.
+        let p = c[6];
+        let (d, p) = (p, p * s + c[5]);
+        let (d2, d, p) = (d, d * s + p, p * s + c[4]);
+        let (d2, d, p) = (d2 * s + d, d * s + p, p * s + c[3]);
+        let (d2, d, p) = (d2 * s + d, d * s + p, p * s + c[2]);
+        let (d2, d, p) = (d2 * s + d, d * s + p, p * s + c[1]);
+        let (d2, d, fx) = (d2 * s + d, d * s + p, p * s + c[0]);
+        let d2 = 2.0 * d2;
+        let zero = fx.eq(0.0);
+        let left = fx.lt(0.0).same(neg_left);
+        let (nlo, nhi) = (sel(left, s, lo), sel(left, hi, s));
+        let denom = 2.0 * d * d - fx * d2;
+        let step = 2.0 * fx * d / denom;
+        let newton = s - step;
+        let ok = denom.ne(0.0) & newton.gt(nlo) & newton.lt(nhi);
+        let conv = ok & step.abs().le(1e-6 * fmax(newton.abs(), splat(1e-300)));
+        let next = sel(ok, newton, 0.5 * (nlo + nhi));
+        let tight = (nhi - nlo).le(2.0 * f64::EPSILON * nhi.abs());
+        root = sel(going, sel(zero, s, sel(conv, newton, next)), root);
+        let cont = going & !(zero | conv | tight);
+        s = sel(cont, next, s);
+        lo = sel(cont, nlo, lo);
+        hi = sel(cont, nhi, hi);
+        going = cont;
+        if !going.any() {
+            return root;
+        }
+    }
+    // Still going after 100 steps: the last point, as `refine_from`.
+    sel(going, s, root)
+}
