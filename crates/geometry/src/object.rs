@@ -219,10 +219,28 @@ fn filter_supports(
     roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor has AVX2, checked just above.
-        return unsafe { filter_supports_avx2(lanes, spheres, out, roots) };
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F, checked just above.
+            return unsafe { filter_supports_avx512(lanes, spheres, out, roots) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { filter_supports_avx2(lanes, spheres, out, roots) };
+        }
     }
+    filter_supports_lanes(lanes, spheres, out, roots)
+}
+
+/// [`filter_supports`] compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn filter_supports_avx512(
+    lanes: &Lanes,
+    spheres: &[(DVec3, f64, f64, f64)],
+    out: &mut Filtered,
+    roots: &mut [[[f64; TILE_RAYS]; 2]],
+) {
     filter_supports_lanes(lanes, spheres, out, roots)
 }
 
@@ -331,11 +349,32 @@ fn setup_lanes(
     out: &mut BaseLanes,
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor has AVX2, checked just above.
-        return unsafe { setup_lanes_avx2(lanes, bbox, (t_min, t_max), (centre, k, c0), out) };
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F, checked just above.
+            return unsafe {
+                setup_lanes_avx512(lanes, bbox, (t_min, t_max), (centre, k, c0), out)
+            };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { setup_lanes_avx2(lanes, bbox, (t_min, t_max), (centre, k, c0), out) };
+        }
     }
     setup_lanes_body(lanes, bbox, (t_min, t_max), (centre, k, c0), out)
+}
+
+/// [`setup_lanes`] compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn setup_lanes_avx512(
+    lanes: &mut Lanes,
+    bbox: &Aabb,
+    ends: (f64, f64),
+    sphere: (DVec3, f64, f64),
+    out: &mut BaseLanes,
+) {
+    setup_lanes_body(lanes, bbox, ends, sphere, out)
 }
 
 /// [`setup_lanes`] compiled for AVX2.
@@ -434,14 +473,39 @@ thread_local! {
     static SOLO_SLOW: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
+/// [`Object::intersect_tile`]'s arrays, kept between calls in a thread's
+/// [`SCRATCH`] so that no tile pays for clearing or allocating them (their
+/// initialization had been a tenth of a 16-bump cast): the rays and their
+/// base as lanes, the support roots (per culled support, the two roots for
+/// every lane) and the lanes of `solo::walk`.
+struct Scratch {
+    lanes: Lanes,
+    bl: BaseLanes,
+    roots: Vec<[[f64; TILE_RAYS]; 2]>,
+    solo: solo::Solo,
+}
+
 thread_local! {
-    /// [`Object::intersect_tile`]'s support roots (per culled support,
-    /// the two roots for every lane), kept between calls so that no tile
-    /// pays for clearing or allocating them.
-    /// With the lanes of `solo::walk`, likewise kept.
-    #[allow(clippy::type_complexity)]
-    static ROOTS: std::cell::RefCell<(Vec<[[f64; TILE_RAYS]; 2]>, Box<solo::Solo>)> =
-        std::cell::RefCell::new((Vec::new(), Box::new(solo::Solo::new())));
+    static SCRATCH: std::cell::RefCell<Box<Scratch>> = std::cell::RefCell::new(Box::new(Scratch {
+        lanes: Lanes {
+            o: [[0.0; TILE_RAYS]; 3],
+            d: [[0.0; TILE_RAYS]; 3],
+            dd: [0.0; TILE_RAYS],
+            lo: [f64::NAN; TILE_RAYS],
+            hi: [f64::NAN; TILE_RAYS],
+        },
+        bl: BaseLanes {
+            t0: [f64::NAN; TILE_RAYS],
+            t1: [f64::NAN; TILE_RAYS],
+            q: [[0.0; TILE_RAYS]; 3],
+            r0: [0.0; TILE_RAYS],
+            r1: [0.0; TILE_RAYS],
+            two: [false; TILE_RAYS],
+            slow: [false; TILE_RAYS],
+        },
+        roots: Vec::new(),
+        solo: solo::Solo::new(),
+    }));
 }
 
 /// Most rays that one [`Object::intersect_tile`] call takes.
@@ -733,218 +797,226 @@ impl Object {
         // `[t0, split]`, all rays together (`setup_lanes`). Dead lanes
         // (rays missing the box, and the lanes past the rays) carry NaN
         // ends, which every test below rejects.
-        let mut lanes = Lanes {
-            o: [[0.0; TILE_RAYS]; 3],
-            d: [[0.0; TILE_RAYS]; 3],
-            dd: [0.0; TILE_RAYS],
-            lo: [f64::NAN; TILE_RAYS],
-            hi: [f64::NAN; TILE_RAYS],
-        };
-        for (k, ray) in rays.iter().enumerate() {
-            for a in 0..3 {
-                lanes.o[a][k] = ray.origin[a];
-                lanes.d[a][k] = ray.dir[a];
+        // Per-tile arrays, kept between calls (see `Scratch`): every lane
+        // that is read is written first.
+        SCRATCH.with_borrow_mut(|sc| {
+            let Scratch {
+                lanes,
+                bl,
+                roots: scratch,
+                solo: lanes_solo,
+            } = &mut **sc;
+            for (k, ray) in rays.iter().enumerate() {
+                for a in 0..3 {
+                    lanes.o[a][k] = ray.origin[a];
+                    lanes.d[a][k] = ray.dir[a];
+                }
+                lanes.dd[k] = ray.dir.length_squared();
             }
-            lanes.dd[k] = ray.dir.length_squared();
-        }
-        let mut bl = BaseLanes {
-            t0: [f64::NAN; TILE_RAYS],
-            t1: [f64::NAN; TILE_RAYS],
-            q: [[0.0; TILE_RAYS]; 3],
-            r0: [0.0; TILE_RAYS],
-            r1: [0.0; TILE_RAYS],
-            two: [false; TILE_RAYS],
-            slow: [false; TILE_RAYS],
-        };
-        setup_lanes(&mut lanes, &self.bbox, (t_min, t_max), base, &mut bl);
-        // Lanes past the rays: zero directions, never read, kept dead.
-        for r in rays.len()..TILE_RAYS {
-            (lanes.lo[r], lanes.hi[r]) = (f64::NAN, f64::NAN);
-        }
-        let base_of = |r: usize| {
-            let q = [bl.q[0][r], bl.q[1][r], bl.q[2][r]];
-            let roots = if bl.two[r] {
-                Crossings::two(bl.r0[r], bl.r1[r])
-            } else {
-                Crossings::default()
-            };
-            (q, roots)
-        };
-        if culled.is_empty() {
-            // No support meets the tile: the base alone, in closed form,
-            // as `intersect_in` answers it.
-            for (r, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
-                let (t0, t1) = (bl.t0[r], bl.t1[r]);
-                *hit = if bl.slow[r] {
-                    self.intersect_culled(ray, t_min, t_max, culled)
-                } else if t0.is_nan() {
-                    None
+            setup_lanes(lanes, &self.bbox, (t_min, t_max), base, bl);
+            // Lanes past the rays: zero directions, never read, kept dead.
+            for r in rays.len()..TILE_RAYS {
+                (lanes.lo[r], lanes.hi[r]) = (f64::NAN, f64::NAN);
+            }
+            let base_of = |r: usize| {
+                let q = [bl.q[0][r], bl.q[1][r], bl.q[2][r]];
+                let roots = if bl.two[r] {
+                    Crossings::two(bl.r0[r], bl.r1[r])
                 } else {
-                    base_of(r)
-                        .1
-                        .into_iter()
-                        .find(|&x| x >= t0 && x <= t1)
-                        .map(|t| self.base_hit(ray, t))
+                    Crossings::default()
                 };
-            }
-            return;
-        }
-        let hi = lanes.hi;
-        // Candidate by candidate, all rays: does the support meet the
-        // ray on its first phase `[t0, split]`? The arithmetic is
-        // `Along::along` and `positive_on` operation for operation, so the
-        // answers are those of `gather` to the last bit. `q2 >= 0` (a
-        // zero direction) is no sphere's ray: such a ray falls back.
-        let spheres: SmallVec<[(DVec3, f64, f64, f64); 64]> = culled
-            .iter()
-            .map(|&item| match self.along[item as usize] {
-                Along::Sphere { centre, k, c0, .. } => (
-                    centre,
-                    k,
-                    c0,
-                    self.perturbations[self.bounded[item as usize] as usize].factor,
-                ),
-                Along::General => unreachable!("checked above"),
-            })
-            .collect();
-        let mut filtered = Filtered {
-            keep: [0; TILE_RAYS],
-            odd: [false; TILE_RAYS],
-            raise: [0.0; TILE_RAYS],
-        };
-        ROOTS.with_borrow_mut(|(scratch, lanes_solo)| {
-            if scratch.len() < spheres.len() {
-                scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
-            }
-            filter_supports(
-                &lanes,
-                &spheres,
-                &mut filtered,
-                &mut scratch[..spheres.len()],
-            );
-            let Filtered { keep, odd, raise } = filtered;
-            let scratch = &*scratch;
-            let mut raw = [false; TILE_RAYS];
-            // Rays that meet one raising support on their first phase and
-            // enter the base there go to the lanes of `solo::walk`; those
-            // in `alone` walk on their own.
-            let (mut alone, mut n_solo) = (0u64, 0);
-            let mut solo_ray = [(0u8, 0u8); TILE_RAYS];
-            for (r, ray) in rays.iter().enumerate() {
-                if bl.t0[r].is_nan() {
-                    hits[r] = None;
-                    continue;
-                }
-                if odd[r] || bl.slow[r] {
-                    hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
-                    continue;
-                }
-                // `F' <= F + raise` along the ray: where even that stays
-                // negative (the concave base's quadratic shifted up by
-                // `raise` has no real root, by a margin of `1e-9` of its
-                // discriminant's terms for rounding), the ray passes above
-                // every bump and meets nothing. (`F'` has no other terms:
-                // the kept supports are all those active on the ray, which
-                // does not enter the base.)
-                let (c, b, a) = (bl.q[0][r], bl.q[1][r], bl.q[2][r]);
-                let (bb, ac) = (b * b, 4.0 * a * (c + raise[r]));
-                if keep[r] != 0 && bb - ac < -1e-9 * (bb + ac.abs()) {
-                    hits[r] = None;
-                    continue;
-                }
-                let j = keep[r].trailing_zeros() as usize;
-                let enters = bl.two[r] && bl.r0[r] > bl.t0[r] && bl.r0[r] < bl.t1[r];
-                if keep[r] == 0 && enters {
-                    // No support on the first phase, which ends where the
-                    // ray enters the base: the walk's answer is that
-                    // crossing.
-                    hits[r] = Some(self.base_hit(ray, bl.r0[r]));
-                    continue;
-                }
-                if keep[r].count_ones() != 1 || !enters || spheres[j].3 <= 0.0 {
-                    alone |= 1 << r;
-                    continue;
-                }
-                let (centre, k, c0, f) = spheres[j];
-                let l = n_solo;
-                n_solo += 1;
-                solo_ray[l] = (r as u8, j as u8);
-                for x in 0..3 {
-                    lanes_solo.o[x][l] = ray.origin[x];
-                    lanes_solo.d[x][l] = ray.dir[x];
-                    lanes_solo.bq[x][l] = bl.q[x][r];
-                }
-                lanes_solo.r0[l] = bl.r0[r];
-                lanes_solo.r1[l] = bl.r1[r];
-                lanes_solo.t0[l] = bl.t0[r];
-                // `Along::along`, operation for operation.
-                let v = ray.origin - centre;
-                lanes_solo.cq[0][l] = c0 - k * v.length_squared();
-                lanes_solo.cq[1][l] = -2.0 * k * ray.dir.dot(v);
-                lanes_solo.cq[2][l] = -k * ray.dir.length_squared();
-                lanes_solo.clo[l] = scratch[j][0][r];
-                lanes_solo.chi[l] = scratch[j][1][r];
-                lanes_solo.f[l] = f;
-            }
-            if n_solo > 0 {
-                lanes_solo.n = n_solo;
-                #[cfg(test)]
-                SOLO_LANES.with(|c| c.set(c.get() + n_solo));
-                let mut out = [solo::Outcome::Slow; TILE_RAYS];
-                let sphere = solo::BaseSphere {
-                    centre: base.0.to_array(),
-                    k: base.1,
-                    c0: base.2,
-                };
-                solo::walk(lanes_solo, sphere, &mut out);
-                for (&(r, j), out) in solo_ray.iter().zip(&out).take(n_solo) {
-                    let (r, j) = (r as usize, j as usize);
-                    let ray = &rays[r];
-                    hits[r] = match *out {
-                        solo::Outcome::Base(t) => Some(self.base_hit(ray, t)),
-                        solo::Outcome::Raw(t) => {
-                            raw[r] = true;
-                            let c = self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]);
-                            Some(self.hit_at_raw(ray, t, &[c]))
-                        }
-                        solo::Outcome::Slow => {
-                            #[cfg(test)]
-                            SOLO_SLOW.with(|c| c.set(c.get() + 1));
-                            alone |= 1 << r;
-                            continue;
-                        }
+                (q, roots)
+            };
+            if culled.is_empty() {
+                // No support meets the tile: the base alone, in closed form,
+                // as `intersect_in` answers it.
+                for (r, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
+                    let (t0, t1) = (bl.t0[r], bl.t1[r]);
+                    *hit = if bl.slow[r] {
+                        self.intersect_culled(ray, t_min, t_max, culled)
+                    } else if t0.is_nan() {
+                        None
+                    } else {
+                        base_of(r)
+                            .1
+                            .into_iter()
+                            .find(|&x| x >= t0 && x <= t1)
+                            .map(|t| self.base_hit(ray, t))
                     };
                 }
+                return;
             }
-            // The rest, ray by ray (`intersect_culled`, with the first
-            // phase's supports taken from the filter).
-            while alone != 0 {
-                let r = alone.trailing_zeros() as usize;
-                alone &= alone - 1;
-                let ray = &rays[r];
-                let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
-                let mut bits = keep[r];
-                while bits != 0 {
-                    let j = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    cands.push(self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]));
+            let hi = lanes.hi;
+            // Candidate by candidate, all rays: does the support meet the
+            // ray on its first phase `[t0, split]`? The arithmetic is
+            // `Along::along` and `positive_on` operation for operation, so the
+            // answers are those of `gather` to the last bit. `q2 >= 0` (a
+            // zero direction) is no sphere's ray: such a ray falls back.
+            let spheres: SmallVec<[(DVec3, f64, f64, f64); 64]> = culled
+                .iter()
+                .map(|&item| match self.along[item as usize] {
+                    Along::Sphere { centre, k, c0, .. } => (
+                        centre,
+                        k,
+                        c0,
+                        self.perturbations[self.bounded[item as usize] as usize].factor,
+                    ),
+                    Along::General => unreachable!("checked above"),
+                })
+                .collect();
+            let mut filtered = Filtered {
+                keep: [0; TILE_RAYS],
+                odd: [false; TILE_RAYS],
+                raise: [0.0; TILE_RAYS],
+            };
+            {
+                if scratch.len() < spheres.len() {
+                    scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
                 }
-                let (t0, t1) = (bl.t0[r], bl.t1[r]);
-                let (base_q, base_roots) = base_of(r);
-                hits[r] = self.walk::<true>(
-                    ray,
-                    (t0, t1),
-                    (base_q, base_roots, hi[r]),
-                    Items::Only(culled),
-                    &mut cands,
-                    &mut raw[r],
+                filter_supports(
+                    &lanes,
+                    &spheres,
+                    &mut filtered,
+                    &mut scratch[..spheres.len()],
                 );
-            }
-            // The normals, all together: each is a square root and a division
-            // that the loop's independent iterations overlap.
-            for ((hit, ray), raw) in hits.iter_mut().zip(rays).zip(raw) {
-                if let (Some(h), true) = (hit, raw) {
-                    h.n = unit_normal(h.n, ray);
+                let Filtered { keep, odd, raise } = filtered;
+                let scratch = &*scratch;
+                let mut raw = [false; TILE_RAYS];
+                // Rays that meet one raising support on their first phase,
+                // and either enter the base there or have no second phase,
+                // go to the lanes of `solo::walk`; those in `alone` walk on
+                // their own.
+                let (mut alone, mut n_solo) = (0u64, 0);
+                let mut solo_ray = [(0u8, 0u8); TILE_RAYS];
+                for (r, ray) in rays.iter().enumerate() {
+                    if bl.t0[r].is_nan() {
+                        hits[r] = None;
+                        continue;
+                    }
+                    if odd[r] || bl.slow[r] {
+                        hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
+                        continue;
+                    }
+                    // `F' <= F + raise` along the ray: where even that stays
+                    // negative (the concave base's quadratic shifted up by
+                    // `raise` has no real root, by a margin of `1e-9` of its
+                    // discriminant's terms for rounding), the ray passes above
+                    // every bump and meets nothing. (`F'` has no other terms:
+                    // the kept supports are all those active on the ray, which
+                    // does not enter the base.)
+                    let (c, b, a) = (bl.q[0][r], bl.q[1][r], bl.q[2][r]);
+                    let (bb, ac) = (b * b, 4.0 * a * (c + raise[r]));
+                    if keep[r] != 0 && bb - ac < -1e-9 * (bb + ac.abs()) {
+                        hits[r] = None;
+                        continue;
+                    }
+                    let j = keep[r].trailing_zeros() as usize;
+                    let enters = bl.two[r] && bl.r0[r] > bl.t0[r] && bl.r0[r] < bl.t1[r];
+                    if keep[r] == 0 && enters {
+                        // No support on the first phase, which ends where the
+                        // ray enters the base: the walk's answer is that
+                        // crossing.
+                        hits[r] = Some(self.base_hit(ray, bl.r0[r]));
+                        continue;
+                    }
+                    // Or where no base crossing lies inside `(t0, t1)`: the
+                    // first phase is the whole interval.
+                    let inside = |x: f64| x > bl.t0[r] && x < bl.t1[r];
+                    let whole = !(bl.two[r] && (inside(bl.r0[r]) || inside(bl.r1[r])));
+                    let phase = bl.t0[r] < bl.t1[r] && bl.t1[r].is_finite();
+                    if keep[r].count_ones() != 1
+                        || !(enters || (whole && phase))
+                        || spheres[j].3 <= 0.0
+                    {
+                        alone |= 1 << r;
+                        continue;
+                    }
+                    let (centre, k, c0, f) = spheres[j];
+                    let l = n_solo;
+                    n_solo += 1;
+                    solo_ray[l] = (r as u8, j as u8);
+                    for x in 0..3 {
+                        lanes_solo.o[x][l] = ray.origin[x];
+                        lanes_solo.d[x][l] = ray.dir[x];
+                        lanes_solo.bq[x][l] = bl.q[x][r];
+                    }
+                    let nan = f64::NAN;
+                    lanes_solo.r0[l] = if bl.two[r] { bl.r0[r] } else { nan };
+                    lanes_solo.r1[l] = if bl.two[r] { bl.r1[r] } else { nan };
+                    lanes_solo.t0[l] = bl.t0[r];
+                    lanes_solo.hi[l] = if enters { bl.r0[r] } else { bl.t1[r] };
+                    lanes_solo.enter[l] = if enters { 1.0 } else { 0.0 };
+                    // `Along::along`, operation for operation.
+                    let v = ray.origin - centre;
+                    lanes_solo.cq[0][l] = c0 - k * v.length_squared();
+                    lanes_solo.cq[1][l] = -2.0 * k * ray.dir.dot(v);
+                    lanes_solo.cq[2][l] = -k * ray.dir.length_squared();
+                    lanes_solo.clo[l] = scratch[j][0][r];
+                    lanes_solo.chi[l] = scratch[j][1][r];
+                    lanes_solo.f[l] = f;
+                }
+                if n_solo > 0 {
+                    lanes_solo.n = n_solo;
+                    #[cfg(test)]
+                    SOLO_LANES.with(|c| c.set(c.get() + n_solo));
+                    let mut out = [solo::Outcome::Slow; TILE_RAYS];
+                    let sphere = solo::BaseSphere {
+                        centre: base.0.to_array(),
+                        k: base.1,
+                        c0: base.2,
+                    };
+                    solo::walk(lanes_solo, sphere, &mut out);
+                    for (&(r, j), out) in solo_ray.iter().zip(&out).take(n_solo) {
+                        let (r, j) = (r as usize, j as usize);
+                        let ray = &rays[r];
+                        hits[r] = match *out {
+                            solo::Outcome::Miss => None,
+                            solo::Outcome::Base(t) => Some(self.base_hit(ray, t)),
+                            solo::Outcome::Raw(t) => {
+                                raw[r] = true;
+                                let c =
+                                    self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]);
+                                Some(self.hit_at_raw(ray, t, &[c]))
+                            }
+                            solo::Outcome::Slow => {
+                                #[cfg(test)]
+                                SOLO_SLOW.with(|c| c.set(c.get() + 1));
+                                alone |= 1 << r;
+                                continue;
+                            }
+                        };
+                    }
+                }
+                // The rest, ray by ray (`intersect_culled`, with the first
+                // phase's supports taken from the filter).
+                while alone != 0 {
+                    let r = alone.trailing_zeros() as usize;
+                    alone &= alone - 1;
+                    let ray = &rays[r];
+                    let mut cands: SmallVec<[Candidate; 16]> = SmallVec::new();
+                    let mut bits = keep[r];
+                    while bits != 0 {
+                        let j = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        cands.push(self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]));
+                    }
+                    let (t0, t1) = (bl.t0[r], bl.t1[r]);
+                    let (base_q, base_roots) = base_of(r);
+                    hits[r] = self.walk::<true>(
+                        ray,
+                        (t0, t1),
+                        (base_q, base_roots, hi[r]),
+                        Items::Only(culled),
+                        &mut cands,
+                        &mut raw[r],
+                    );
+                }
+                // The normals, all together: each is a square root and a division
+                // that the loop's independent iterations overlap.
+                for ((hit, ray), raw) in hits.iter_mut().zip(rays).zip(raw) {
+                    if let (Some(h), true) = (hit, raw) {
+                        h.n = unit_normal(h.n, ray);
+                    }
                 }
             }
         });

@@ -38,6 +38,8 @@ const W: usize = 8;
 pub(super) enum Outcome {
     /// The walk left the common program: walk the ray on its own.
     Slow,
+    /// No crossing.
+    Miss,
     /// The base quadric's own crossing at `t` (an `Object::base_hit`).
     Base(f64),
     /// A crossing of `F'` at `t` (an `Object::hit_at_raw` with the lane's
@@ -54,12 +56,16 @@ pub(super) struct Solo {
     pub o: [[f64; TILE_RAYS]; 3],
     pub d: [[f64; TILE_RAYS]; 3],
     /// The base quadric along the ray (ascending powers), its two roots
-    /// `r0 < r1` (`r0` is the split: the ray enters the base inside
-    /// `(t0, t1)`), and the clipped start `t0`.
+    /// `r0 < r1` (NaN without), the clipped start `t0`, and the end of
+    /// the first phase: the split `r0` where the ray enters the base
+    /// inside `(t0, t1)` (`enter` 1), else the clipped end `t1` (`enter`
+    /// 0; the split is `t1` and there is no second phase).
     pub bq: [[f64; TILE_RAYS]; 3],
     pub r0: [f64; TILE_RAYS],
     pub r1: [f64; TILE_RAYS],
     pub t0: [f64; TILE_RAYS],
+    pub hi: [f64; TILE_RAYS],
+    pub enter: [f64; TILE_RAYS],
     /// The support's `Q(t)` (ascending powers), its roots `clo < chi`,
     /// and its factor `f > 0`.
     pub cq: [[f64; TILE_RAYS]; 3],
@@ -79,6 +85,8 @@ impl Solo {
             r0: z,
             r1: z,
             t0: z,
+            hi: z,
+            enter: z,
             cq: [z; 3],
             clo: z,
             chi: z,
@@ -387,10 +395,11 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         }));
         let q = [ld(&solo.bq[0]), ld(&solo.bq[1]), ld(&solo.bq[2])];
         let c = [ld(&solo.cq[0]), ld(&solo.cq[1]), ld(&solo.cq[2])];
-        let (lo, hi, r1) = (ld(&solo.t0), ld(&solo.r0), ld(&solo.r1));
-        let roots = (hi, r1);
+        let (lo, hi) = (ld(&solo.t0), ld(&solo.hi));
+        let roots = (ld(&solo.r0), ld(&solo.r1));
+        let enter = ld(&solo.enter).ne(0.0);
         let (clo, chi, f) = (ld(&solo.clo), ld(&solo.chi), ld(&solo.f));
-        // `reach(base_q, [c], lo, hi, entering = true)` with `f > 0`.
+        // `reach(base_q, [c], lo, hi, enter)` with `f > 0`.
         let (ca, cb) = (fmax(clo, lo), fmin(chi, hi));
         let qmax = fmax(poly2(c, fmin(fmax(0.5 * (clo + chi), ca), cb)), splat(0.0));
         let bound = sel(ca.lt(cb), 0.0 + f * qmax * qmax * qmax, 0.0);
@@ -399,15 +408,33 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         let bound = bound + 1e-10 * scale;
         let at_once = (flo + bound).lt(0.0).not();
         let slope = q[1] + 2.0 * q[2] * hi;
-        let tangent = q[2].lt(0.0) & slope.gt(0.0);
+        let tangent = !at_once & enter & q[2].lt(0.0) & slope.gt(0.0);
         let line = fmax(fmin(hi - (bound + poly2(q, hi)) / slope, hi), lo);
-        let start = sel(at_once, lo, line);
-        // A reach through the quadratic's roots is walked ray by ray.
+        // Otherwise the first root in `(lo, hi]` of the base shifted up by
+        // `bound` (`quadratic_crossings`; its degenerate cases, a zero or
+        // nearly linear quadratic and `h == 0`, are walked ray by ray).
+        let roots_of = !at_once & !tangent;
+        let c0 = q[0] + bound;
+        let qscale = fmax(fmax(q[2].abs(), q[1].abs()), c0.abs());
+        let linear = qscale.eq(0.0) | q[2].abs().le(1e-15 * qscale);
+        let disc = q[1] * q[1] - 4.0 * q[2] * c0;
+        let two = disc.gt(0.0);
+        let sq = V(disc.0.map(f64::sqrt));
+        let h = -0.5 * (q[1] + V(std::array::from_fn(|i| sq.0[i].copysign(q[1].0[i]))));
+        let (x0, x1) = (h / q[2], c0 / h);
+        let (x0, x1) = (fmin(x0, x1), fmax(x0, x1));
+        let first0 = two & x0.gt(lo) & x0.le(hi);
+        let first1 = two & !first0 & x1.gt(lo) & x1.le(hi);
+        let degenerate = roots_of & (linear | (two & h.eq(0.0)));
+        let unreached = roots_of & !degenerate & !(first0 | first1);
+        let start = sel(at_once, lo, sel(tangent, line, sel(first0, x0, x1)));
+        // Unreached: `F' < 0` on all of the first phase. Without a second
+        // phase the ray misses (`kind` 3); with one, it is walked alone.
         let mut w = Walk {
-            live: valid & (at_once | tangent),
+            live: valid & !degenerate & !unreached,
             before: sel(start.gt(lo), -1.0, 0.0),
             a: start,
-            kind: splat(0.0),
+            kind: sel(unreached & !enter, 3.0, 0.0),
             t: splat(0.0),
         };
         // The breaks (in order) and the split: the segments before the
@@ -484,7 +511,24 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         let polynomial = go & !neg & !pos;
         let none = polynomial & nonzero & changes.eq(0.0);
         let one = polynomial & nonzero & changes.eq(1.0);
-        w.live = w.live & !(polynomial & !none & !one);
+        // Two sign changes (a ray through a bump's rim, in and out): the
+        // first level of `Poly::isolate`, de Casteljau's halves at 1/2,
+        // left first. Anything deeper is walked ray by ray.
+        let two = polynomial & nonzero & changes.eq(2.0);
+        let (left, right) = if two.any() {
+            de_casteljau_half(&bz)
+        } else {
+            ([splat(0.0); 7], [splat(0.0); 7])
+        };
+        let (ch_left, ch_right) = (sign_changes(&left), sign_changes(&right));
+        let left_one = two & ch_left.eq(1.0) & (left[0] * left[6]).lt(0.0);
+        let left_none = two & ch_left.eq(0.0);
+        let right_open = left_none & right[0].ne(0.0);
+        let right_one = right_open & ch_right.eq(1.0) & (right[0] * right[6]).lt(0.0);
+        let right_none = right_open & ch_right.eq(0.0);
+        let found = one | left_one | right_one;
+        let none = none | right_none;
+        w.live = w.live & !(polynomial & !none & !found);
         let clear_start = sel(neg, -1.0, sel(pos, 1.0, sign(bz[0])));
         let clear_end = sel(neg, -1.0, sel(pos, 1.0, sign(bz[6])));
         // Halley's first step from the better end.
@@ -502,14 +546,25 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         let from0 = -2.0 * f0 * d0 / (2.0 * d0 * d0 - f0 * e0);
         let from1 = 1.0 - 2.0 * f1 * d1 / (2.0 * d1 * d1 - f1 * e1);
         let guess = sel((f0 * d1).abs().lt((f1 * d0).abs()), from0, from1);
-        // `refine_from(0, 1, b0, b6, guess)`.
-        let root = if (one & w.live).any() {
-            halley(&cf, one & w.live, f0, f1, guess)
+        // `refine_from(0, 1, b0, b6, guess)`, or `refine` on the half.
+        let half = |l: V, r: V, one: V| sel(left_one, l, sel(right_one, r, one));
+        let nan = splat(f64::NAN);
+        let root = if (found & w.live).any() {
+            halley(
+                &cf,
+                found & w.live,
+                (
+                    half(splat(0.0), splat(0.5), splat(0.0)),
+                    half(splat(0.5), splat(1.0), splat(1.0)),
+                ),
+                (half(left[0], right[0], f0), half(left[6], right[6], f1)),
+                half(nan, nan, guess),
+            )
         } else {
             splat(0.0)
         };
-        let crossing = w.live & one;
-        let cleared = w.live & go & !one;
+        let crossing = w.live & found;
+        let cleared = w.live & go & !found;
         let raw = cleared & (w.before * clear_start).lt(0.0);
         w.t = sel(crossing, a + root * len, sel(raw, a, w.t));
         w.kind = sel(crossing | raw, 2.0, w.kind);
@@ -521,14 +576,16 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
             let run = w.live & go & slot.lt(s as f64) & pushed[s] & ends[s].gt(w.a);
             w.plain(run, ends[s], q, roots);
         }
+        // Still walking after the first phase: a miss without a second
+        // phase, else the second phase gathers again, ray by ray.
+        w.kind = sel(w.live & !enter, 3.0, w.kind);
         for i in 0..W {
             let l = chunk * W + i;
             if l < solo.n {
-                // Still walking after the first phase: the second phase
-                // gathers again, ray by ray.
-                out[l] = match (w.live.at(i), w.kind.0[i]) {
+                out[l] = match (w.live.at(i) & (w.kind.0[i] != 3.0), w.kind.0[i]) {
                     (false, 1.0) => Outcome::Base(w.t.0[i]),
                     (false, 2.0) => Outcome::Raw(w.t.0[i]),
+                    (false, 3.0) => Outcome::Miss,
                     _ => Outcome::Slow,
                 };
             }
@@ -536,19 +593,49 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
     }
 }
 
-/// Safeguarded Halley iteration on `[0, 1]` for the lanes `going`
-/// (`Poly::refine_from(0, 1, fa, fb, start)` operation for operation),
-/// all of them together until each has returned.
+/// `poly::sign_changes`: sign changes among the non-zero entries.
 #[inline(always)]
-fn halley(c: &[V; 7], mut going: M, fa: V, fb: V, start: V) -> V {
+fn sign_changes(b: &[V; 7]) -> V {
+    let (mut count, mut prev) = (splat(0.0), splat(0.0));
+    for &x in b {
+        let nz = x.ne(0.0);
+        let change = nz & prev.ne(0.0) & x.lt(0.0).same(prev.lt(0.0)).not();
+        count = count + sel(change, 1.0, 0.0);
+        prev = sel(nz, x, prev);
+    }
+    count
+}
+
+/// `poly::de_casteljau_half` for degree 6: the Bernstein coefficients of
+/// the halves `[0, 1/2]` and `[1/2, 1]`.
+#[inline(always)]
+fn de_casteljau_half(b: &[V; 7]) -> ([V; 7], [V; 7]) {
+    let mut work = *b;
+    let (mut left, mut right) = ([splat(0.0); 7], [splat(0.0); 7]);
+    left[0] = work[0];
+    right[6] = work[6];
+    for level in 1..=6 {
+        for i in 0..=(6 - level) {
+            work[i] = 0.5 * (work[i] + work[i + 1]);
+        }
+        left[level] = work[0];
+        right[6 - level] = work[6 - level];
+    }
+    (left, right)
+}
+
+/// Safeguarded Halley iteration on the bracket `[lo, hi]` for the lanes
+/// `going` (`Poly::refine_from(lo, hi, fa, fb, start)` operation for
+/// operation), all of them together until each has returned.
+#[inline(always)]
+fn halley(c: &[V; 7], mut going: M, (mut lo, mut hi): (V, V), (fa, fb): (V, V), start: V) -> V {
     let neg_left = fa.lt(0.0);
     let x = sel(
-        start.gt(0.0) & start.lt(1.0),
+        start.gt(lo) & start.lt(hi),
         start,
-        0.0 + (1.0 - 0.0) * (fa / (fa - fb)),
+        lo + (hi - lo) * (fa / (fa - fb)),
     );
-    let mut s = sel((x.gt(0.0) & x.lt(1.0)).not(), 0.5 * (0.0 + 1.0), x);
-    let (mut lo, mut hi) = (splat(0.0), splat(1.0));
+    let mut s = sel((x.gt(lo) & x.lt(hi)).not(), 0.5 * (lo + hi), x);
     let mut root = s;
     for _ in 0..100 {
         // `Poly::eval_d2`, degree 6.
