@@ -874,7 +874,7 @@ impl Object {
                     scratch.resize(spheres.len(), [[0.0; TILE_RAYS]; 2]);
                 }
                 filter_supports(
-                    &lanes,
+                    lanes,
                     &spheres,
                     &mut filtered,
                     &mut scratch[..spheres.len()],
