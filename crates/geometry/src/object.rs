@@ -782,6 +782,10 @@ impl Object {
             && culled
                 .iter()
                 .all(|&item| matches!(self.along[item as usize], Along::Sphere { .. }));
+        let inv_radius = match self.base_along {
+            Along::Sphere { inv_radius, .. } => inv_radius,
+            Along::General => 0.0,
+        };
         let base = match self.base_along {
             Along::Sphere { centre, k, c0, .. } => Some((centre, k, c0)),
             Along::General => None,
@@ -887,7 +891,7 @@ impl Object {
                 // go to the lanes of `solo::walk`; those in `alone` walk on
                 // their own.
                 let (mut alone, mut n_solo) = (0u64, 0);
-                let mut solo_ray = [(0u8, 0u8); TILE_RAYS];
+                let mut solo_ray = [0u8; TILE_RAYS];
                 for (r, ray) in rays.iter().enumerate() {
                     if bl.t0[r].is_nan() {
                         hits[r] = None;
@@ -925,6 +929,7 @@ impl Object {
                     let whole = !(bl.two[r] && (inside(bl.r0[r]) || inside(bl.r1[r])));
                     let phase = bl.t0[r] < bl.t1[r] && bl.t1[r].is_finite();
                     if keep[r].count_ones() != 1
+                        || !(inv_radius > 0.0)
                         || !(enters || (whole && phase))
                         || spheres[j].3 <= 0.0
                     {
@@ -934,7 +939,7 @@ impl Object {
                     let (centre, k, c0, f) = spheres[j];
                     let l = n_solo;
                     n_solo += 1;
-                    solo_ray[l] = (r as u8, j as u8);
+                    solo_ray[l] = r as u8;
                     for x in 0..3 {
                         lanes_solo.o[x][l] = ray.origin[x];
                         lanes_solo.d[x][l] = ray.dir[x];
@@ -954,6 +959,11 @@ impl Object {
                     lanes_solo.clo[l] = scratch[j][0][r];
                     lanes_solo.chi[l] = scratch[j][1][r];
                     lanes_solo.f[l] = f;
+                    for x in 0..3 {
+                        lanes_solo.sc[x][l] = centre[x];
+                    }
+                    lanes_solo.sk[l] = k;
+                    lanes_solo.sc0[l] = c0;
                 }
                 if n_solo > 0 {
                     lanes_solo.n = n_solo;
@@ -964,19 +974,26 @@ impl Object {
                         centre: base.0.to_array(),
                         k: base.1,
                         c0: base.2,
+                        inv_radius,
                     };
                     solo::walk(lanes_solo, sphere, &mut out);
-                    for (&(r, j), out) in solo_ray.iter().zip(&out).take(n_solo) {
-                        let (r, j) = (r as usize, j as usize);
-                        let ray = &rays[r];
+                    solo::hits(lanes_solo, sphere);
+                    for (l, (&r, out)) in solo_ray.iter().zip(&out).take(n_solo).enumerate() {
+                        let r = r as usize;
+                        let s = &*lanes_solo;
+                        let at = |t| {
+                            Some(Hit {
+                                t,
+                                p: DVec3::new(s.p[0][l], s.p[1][l], s.p[2][l]),
+                                n: DVec3::new(s.nrm[0][l], s.nrm[1][l], s.nrm[2][l]),
+                            })
+                        };
                         hits[r] = match *out {
                             solo::Outcome::Miss => None,
-                            solo::Outcome::Base(t) => Some(self.base_hit(ray, t)),
+                            solo::Outcome::Base(t) => at(t),
                             solo::Outcome::Raw(t) => {
-                                raw[r] = true;
-                                let c =
-                                    self.kept(ray, culled[j], scratch[j][0][r], scratch[j][1][r]);
-                                Some(self.hit_at_raw(ray, t, &[c]))
+                                raw[r] = !s.unit[l];
+                                at(t)
                             }
                             solo::Outcome::Slow => {
                                 #[cfg(test)]

@@ -26,6 +26,10 @@
 //! is marked [`Outcome::Slow`] and walked ray by ray instead;
 //! `tile_batches_find_the_per_ray_hits` checks the equality bit for bit.
 
+// Index loops over the lanes, not iterators or `array::from_fn`: the
+// latter's closures were left out of line (calls per lane operation).
+#![allow(clippy::needless_range_loop)]
+
 use super::TILE_RAYS;
 use crate::poly::{BERNSTEIN, MAX_DEGREE};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
@@ -72,6 +76,19 @@ pub(super) struct Solo {
     pub clo: [f64; TILE_RAYS],
     pub chi: [f64; TILE_RAYS],
     pub f: [f64; TILE_RAYS],
+    /// The support `Q = sc0 - sk |p - sc|^2`.
+    pub sc: [[f64; TILE_RAYS]; 3],
+    pub sk: [f64; TILE_RAYS],
+    pub sc0: [f64; TILE_RAYS],
+    /// Out, for the lanes with a hit: its point and normal, unit where
+    /// `unit` is set (`Object::hit_at` or `Object::base_hit`), else
+    /// `-grad F'` for the caller's `unit_normal` (a vanishing gradient).
+    pub p: [[f64; TILE_RAYS]; 3],
+    pub nrm: [[f64; TILE_RAYS]; 3],
+    pub unit: [bool; TILE_RAYS],
+    /// Out: the hit's `t`, and whether it is the base's own crossing.
+    pub t: [f64; TILE_RAYS],
+    pub base: [bool; TILE_RAYS],
 }
 
 impl Solo {
@@ -91,6 +108,14 @@ impl Solo {
             clo: z,
             chi: z,
             f: z,
+            sc: [z; 3],
+            sk: z,
+            sc0: z,
+            p: [z; 3],
+            nrm: [z; 3],
+            unit: [false; TILE_RAYS],
+            t: z,
+            base: [false; TILE_RAYS],
         }
     }
 }
@@ -101,10 +126,12 @@ pub(super) struct BaseSphere {
     pub centre: [f64; 3],
     pub k: f64,
     pub c0: f64,
+    /// `1 / radius`, positive.
+    pub inv_radius: f64,
 }
 
 /// Walks the first `solo.n` lanes; `out[l]` for lane `l`.
-pub(super) fn walk(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+pub(super) fn walk(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
     #[cfg(test)]
     let level = FORCE.with(|f| f.get());
     #[cfg(not(test))]
@@ -133,14 +160,14 @@ thread_local! {
 /// [`walk`] compiled for AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn walk_avx512(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+unsafe fn walk_avx512(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
     walk_lanes(solo, base, out)
 }
 
 /// [`walk`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn walk_avx2(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+unsafe fn walk_avx2(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
     walk_lanes(solo, base, out)
 }
 
@@ -161,14 +188,20 @@ fn splat(x: f64) -> V {
 
 #[inline(always)]
 fn map2(a: V, b: V, f: impl Fn(f64, f64) -> f64) -> V {
-    V(std::array::from_fn(|i| f(a.0[i], b.0[i])))
+    let mut r = [0.0; W];
+    for i in 0..W {
+        r[i] = f(a.0[i], b.0[i]);
+    }
+    V(r)
 }
 
 #[inline(always)]
 fn cmp(a: V, b: V, f: impl Fn(f64, f64) -> bool) -> M {
-    M(std::array::from_fn(|i| {
-        (f(a.0[i], b.0[i]) as u64).wrapping_neg()
-    }))
+    let mut r = [0; W];
+    for i in 0..W {
+        r[i] = (f(a.0[i], b.0[i]) as u64).wrapping_neg();
+    }
+    M(r)
 }
 
 macro_rules! arith {
@@ -254,7 +287,11 @@ impl BitAnd for M {
     type Output = M;
     #[inline(always)]
     fn bitand(self, o: M) -> M {
-        M(std::array::from_fn(|i| self.0[i] & o.0[i]))
+        let mut r = [0; W];
+        for i in 0..W {
+            r[i] = self.0[i] & o.0[i];
+        }
+        M(r)
     }
 }
 
@@ -262,7 +299,11 @@ impl BitOr for M {
     type Output = M;
     #[inline(always)]
     fn bitor(self, o: M) -> M {
-        M(std::array::from_fn(|i| self.0[i] | o.0[i]))
+        let mut r = [0; W];
+        for i in 0..W {
+            r[i] = self.0[i] | o.0[i];
+        }
+        M(r)
     }
 }
 
@@ -270,7 +311,11 @@ impl Not for M {
     type Output = M;
     #[inline(always)]
     fn not(self) -> M {
-        M(std::array::from_fn(|i| !self.0[i]))
+        let mut r = self.0;
+        for x in &mut r {
+            *x = !*x;
+        }
+        M(r)
     }
 }
 
@@ -291,7 +336,11 @@ impl M {
     /// Lanes where `self` and `o` agree.
     #[inline(always)]
     fn same(self, o: M) -> M {
-        M(std::array::from_fn(|i| !(self.0[i] ^ o.0[i])))
+        let mut r = [0; W];
+        for i in 0..W {
+            r[i] = !(self.0[i] ^ o.0[i]);
+        }
+        M(r)
     }
 }
 
@@ -299,10 +348,12 @@ impl M {
 #[inline(always)]
 fn sel(m: M, a: impl Into<V>, b: impl Into<V>) -> V {
     let (a, b) = (a.into(), b.into());
-    V(std::array::from_fn(|i| {
+    let mut r = [0.0; W];
+    for i in 0..W {
         let m = m.0[i];
-        f64::from_bits((a.0[i].to_bits() & m) | (b.0[i].to_bits() & !m))
-    }))
+        r[i] = f64::from_bits((a.0[i].to_bits() & m) | (b.0[i].to_bits() & !m));
+    }
+    V(r)
 }
 
 /// `poly::fmin`: `a` where `a < b`, else `b`.
@@ -387,12 +438,13 @@ impl Walk {
 
 /// The walk of [`W`] lanes at a time (see the module's doc).
 #[inline(always)]
-fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+fn walk_lanes(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
     for chunk in 0..solo.n.div_ceil(W) {
         let ld = |a: &[f64; TILE_RAYS]| V::load(a, chunk);
-        let valid = M(std::array::from_fn(|i| {
-            ((chunk * W + i < solo.n) as u64).wrapping_neg()
-        }));
+        let mut valid = M::all(false);
+        for i in 0..W {
+            valid.0[i] = ((chunk * W + i < solo.n) as u64).wrapping_neg();
+        }
         let q = [ld(&solo.bq[0]), ld(&solo.bq[1]), ld(&solo.bq[2])];
         let c = [ld(&solo.cq[0]), ld(&solo.cq[1]), ld(&solo.cq[2])];
         let (lo, hi) = (ld(&solo.t0), ld(&solo.hi));
@@ -419,8 +471,11 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         let linear = qscale.eq(0.0) | q[2].abs().le(1e-15 * qscale);
         let disc = q[1] * q[1] - 4.0 * q[2] * c0;
         let two = disc.gt(0.0);
-        let sq = V(disc.0.map(f64::sqrt));
-        let h = -0.5 * (q[1] + V(std::array::from_fn(|i| sq.0[i].copysign(q[1].0[i]))));
+        let mut sq = disc;
+        for i in 0..W {
+            sq.0[i] = sq.0[i].sqrt().copysign(q[1].0[i]);
+        }
+        let h = -0.5 * (q[1] + sq);
         let (x0, x1) = (h / q[2], c0 / h);
         let (x0, x1) = (fmin(x0, x1), fmax(x0, x1));
         let first0 = two & x0.gt(lo) & x0.le(hi);
@@ -476,7 +531,11 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         let pos = !neg & flo.gt(margin);
         let len = b - a;
         let s = shift(q, a, len);
-        let v = [0, 1, 2].map(|x| ld(&solo.o[x]) + a * ld(&solo.d[x]) - base.centre[x]);
+        let v = [
+            ld(&solo.o[0]) + a * ld(&solo.d[0]) - base.centre[0],
+            ld(&solo.o[1]) + a * ld(&solo.d[1]) - base.centre[1],
+            ld(&solo.o[2]) + a * ld(&solo.d[2]) - base.centre[2],
+        ];
         let s0 = base.c0 - base.k * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
         // `Poly::quadratic([s0, s[1], s[2]])` plus `add_cube(f, ...)`.
         let [a0, a1, a2] = shift(c, a, len);
@@ -493,13 +552,14 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         ];
         // Bernstein coefficients (`bernstein6`, the same sums in order).
         let wt = &BERNSTEIN[MAX_DEGREE];
-        let bz: [V; 7] = std::array::from_fn(|k| {
+        let mut bz = [splat(0.0); 7];
+        for k in 0..7 {
             let mut acc = wt[k][0] * cf[0];
             for j in 1..=k {
                 acc = acc + wt[k][j] * cf[j];
             }
-            acc
-        });
+            bz[k] = acc;
+        }
         let mut nonzero = M::all(true);
         let mut changes = splat(0.0);
         for b in &bz {
@@ -582,6 +642,8 @@ fn walk_lanes(solo: &Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
         for i in 0..W {
             let l = chunk * W + i;
             if l < solo.n {
+                solo.t[l] = w.t.0[i];
+                solo.base[l] = w.kind.0[i] == 1.0;
                 out[l] = match (w.live.at(i) & (w.kind.0[i] != 3.0), w.kind.0[i]) {
                     (false, 1.0) => Outcome::Base(w.t.0[i]),
                     (false, 2.0) => Outcome::Raw(w.t.0[i]),
@@ -669,4 +731,95 @@ fn halley(c: &[V; 7], mut going: M, (mut lo, mut hi): (V, V), (fa, fb): (V, V), 
     }
     // Still going after 100 steps: the last point, as `refine_from`.
     sel(going, s, root)
+}
+
+/// The hit points and normals of the first `solo.n` lanes (read where
+/// [`walk`] found a hit): `ray.at(t)`, and the normal of `Object::base_hit`
+/// (the base sphere's) or of `Object::hit_at` (`-grad F'` with the
+/// support's term where `Q > 0`, then `unit_normal`), operation for
+/// operation. A loop over the lanes without branches, which the compiler
+/// vectorizes (instruction set chosen at run time, as for [`walk`]).
+pub(super) fn hits(solo: &mut Solo, base: BaseSphere) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F, checked just above.
+            return unsafe { hits_avx512(solo, base) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { hits_avx2(solo, base) };
+        }
+    }
+    hits_lanes(solo, base)
+}
+
+/// [`hits`] compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn hits_avx512(solo: &mut Solo, base: BaseSphere) {
+    hits_lanes(solo, base)
+}
+
+/// [`hits`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn hits_avx2(solo: &mut Solo, base: BaseSphere) {
+    hits_lanes(solo, base)
+}
+
+#[inline(always)]
+fn hits_lanes(solo: &mut Solo, base: BaseSphere) {
+    let n = solo.n;
+    let Solo {
+        o,
+        d,
+        f,
+        sc,
+        sk,
+        sc0,
+        p,
+        nrm,
+        unit,
+        t,
+        base: is_base,
+        ..
+    } = solo;
+    for l in 0..n {
+        let t = t[l];
+        let q = [
+            o[0][l] + t * d[0][l],
+            o[1][l] + t * d[1][l],
+            o[2][l] + t * d[2][l],
+        ];
+        let vb = [
+            q[0] - base.centre[0],
+            q[1] - base.centre[1],
+            q[2] - base.centre[2],
+        ];
+        let vc = [q[0] - sc[0][l], q[1] - sc[1][l], q[2] - sc[2][l]];
+        let xq = sc0[l] - sk[l] * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
+        let (kb, kc) = (-2.0 * base.k, -2.0 * sk[l]);
+        let up = xq > 0.0;
+        let s = 3.0 * f[l] * xq * xq;
+        let mut m = [0.0; 3];
+        for x in 0..3 {
+            let g = kb * vb[x];
+            m[x] = -(if up { g + s * (kc * vc[x]) } else { g });
+        }
+        let rcp = 1.0 / (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+        let ok = rcp.is_finite() & (rcp > 0.0);
+        let on_base = is_base[l];
+        for x in 0..3 {
+            p[x][l] = q[x];
+            nrm[x][l] = if on_base {
+                vb[x] * base.inv_radius
+            } else if ok {
+                m[x] * rcp
+            } else {
+                m[x]
+            };
+        }
+        unit[l] = on_base | ok;
+    }
 }
