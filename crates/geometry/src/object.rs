@@ -332,6 +332,12 @@ struct BaseLanes {
     /// Lanes that the closed form below does not cover (a degenerate
     /// quadratic, a zero direction): computed ray by ray instead.
     slow: [bool; TILE_RAYS],
+    /// The closed form's hit where no perturbation is met (NaN `t`: none),
+    /// its point and the base sphere's normal (`Object::base_hit`, read
+    /// only when the sphere's `1 / radius` is positive).
+    t: [f64; TILE_RAYS],
+    p: [[f64; TILE_RAYS]; 3],
+    n: [[f64; TILE_RAYS]; 3],
 }
 
 /// For every lane of `lanes` (its `o`, `d`, `dd`; `lo` and `hi` are
@@ -345,7 +351,7 @@ fn setup_lanes(
     lanes: &mut Lanes,
     bbox: &Aabb,
     (t_min, t_max): (f64, f64),
-    (centre, k, c0): (DVec3, f64, f64),
+    (centre, k, c0, inv_radius): (DVec3, f64, f64, f64),
     out: &mut BaseLanes,
 ) {
     #[cfg(target_arch = "x86_64")]
@@ -353,15 +359,35 @@ fn setup_lanes(
         if std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the processor has AVX-512F, checked just above.
             return unsafe {
-                setup_lanes_avx512(lanes, bbox, (t_min, t_max), (centre, k, c0), out)
+                setup_lanes_avx512(
+                    lanes,
+                    bbox,
+                    (t_min, t_max),
+                    (centre, k, c0, inv_radius),
+                    out,
+                )
             };
         }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has AVX2, checked just above.
-            return unsafe { setup_lanes_avx2(lanes, bbox, (t_min, t_max), (centre, k, c0), out) };
+            return unsafe {
+                setup_lanes_avx2(
+                    lanes,
+                    bbox,
+                    (t_min, t_max),
+                    (centre, k, c0, inv_radius),
+                    out,
+                )
+            };
         }
     }
-    setup_lanes_body(lanes, bbox, (t_min, t_max), (centre, k, c0), out)
+    setup_lanes_body(
+        lanes,
+        bbox,
+        (t_min, t_max),
+        (centre, k, c0, inv_radius),
+        out,
+    )
 }
 
 /// [`setup_lanes`] compiled for AVX-512.
@@ -371,7 +397,7 @@ unsafe fn setup_lanes_avx512(
     lanes: &mut Lanes,
     bbox: &Aabb,
     ends: (f64, f64),
-    sphere: (DVec3, f64, f64),
+    sphere: (DVec3, f64, f64, f64),
     out: &mut BaseLanes,
 ) {
     setup_lanes_body(lanes, bbox, ends, sphere, out)
@@ -384,7 +410,7 @@ unsafe fn setup_lanes_avx2(
     lanes: &mut Lanes,
     bbox: &Aabb,
     ends: (f64, f64),
-    sphere: (DVec3, f64, f64),
+    sphere: (DVec3, f64, f64, f64),
     out: &mut BaseLanes,
 ) {
     setup_lanes_body(lanes, bbox, ends, sphere, out)
@@ -396,7 +422,7 @@ fn setup_lanes_body(
     lanes: &mut Lanes,
     bbox: &Aabb,
     (t_min, t_max): (f64, f64),
-    (centre, k, c0): (DVec3, f64, f64),
+    (centre, k, c0, inv_radius): (DVec3, f64, f64, f64),
     out: &mut BaseLanes,
 ) {
     let Lanes { o, d, dd, lo, hi } = lanes;
@@ -462,6 +488,28 @@ fn setup_lanes_body(
         out.r1[r] = r1;
         out.two[r] = two;
     }
+    // The closed form's hit (`intersect_in` without perturbations): the
+    // first root in `[t0, t1]`, and `base_hit` there.
+    let (cx, cy, cz) = (centre.x, centre.y, centre.z);
+    for r in 0..TILE_RAYS {
+        let (t0, t1) = (out.t0[r], out.t1[r]);
+        let (r0, r1, two) = (out.r0[r], out.r1[r], out.two[r]);
+        let in0 = two & (r0 >= t0) & (r0 <= t1);
+        let in1 = two & (r1 >= t0) & (r1 <= t1);
+        let t = sel(in0, r0, sel(in1, r1, f64::NAN));
+        out.t[r] = t;
+        let (px, py, pz) = (
+            o[0][r] + t * d[0][r],
+            o[1][r] + t * d[1][r],
+            o[2][r] + t * d[2][r],
+        );
+        out.p[0][r] = px;
+        out.p[1][r] = py;
+        out.p[2][r] = pz;
+        out.n[0][r] = (px - cx) * inv_radius;
+        out.n[1][r] = (py - cy) * inv_radius;
+        out.n[2][r] = (pz - cz) * inv_radius;
+    }
 }
 
 mod solo;
@@ -502,6 +550,9 @@ thread_local! {
             r1: [0.0; TILE_RAYS],
             two: [false; TILE_RAYS],
             slow: [false; TILE_RAYS],
+            t: [f64::NAN; TILE_RAYS],
+            p: [[0.0; TILE_RAYS]; 3],
+            n: [[0.0; TILE_RAYS]; 3],
         },
         roots: Vec::new(),
         solo: solo::Solo::new(),
@@ -817,7 +868,18 @@ impl Object {
                 }
                 lanes.dd[k] = ray.dir.length_squared();
             }
-            setup_lanes(lanes, &self.bbox, (t_min, t_max), base, bl);
+            let sphere = (base.0, base.1, base.2, inv_radius);
+            setup_lanes(lanes, &self.bbox, (t_min, t_max), sphere, bl);
+            // The closed form's hit of lane `r`, as `base_hit` gives it.
+            let closed = |r: usize| {
+                let t = bl.t[r];
+                (!t.is_nan()).then(|| Hit {
+                    t,
+                    p: DVec3::new(bl.p[0][r], bl.p[1][r], bl.p[2][r]),
+                    n: DVec3::new(bl.n[0][r], bl.n[1][r], bl.n[2][r]),
+                })
+            };
+            let sphere_normals = inv_radius > 0.0;
             // Lanes past the rays: zero directions, never read, kept dead.
             for r in rays.len()..TILE_RAYS {
                 (lanes.lo[r], lanes.hi[r]) = (f64::NAN, f64::NAN);
@@ -838,6 +900,8 @@ impl Object {
                     let (t0, t1) = (bl.t0[r], bl.t1[r]);
                     *hit = if bl.slow[r] {
                         self.intersect_culled(ray, t_min, t_max, culled)
+                    } else if sphere_normals {
+                        closed(r)
                     } else if t0.is_nan() {
                         None
                     } else {
@@ -920,7 +984,11 @@ impl Object {
                         // No support on the first phase, which ends where the
                         // ray enters the base: the walk's answer is that
                         // crossing.
-                        hits[r] = Some(self.base_hit(ray, bl.r0[r]));
+                        hits[r] = if sphere_normals {
+                            closed(r)
+                        } else {
+                            Some(self.base_hit(ray, bl.r0[r]))
+                        };
                         continue;
                     }
                     // Or where no base crossing lies inside `(t0, t1)`: the
