@@ -518,6 +518,7 @@ mod solo;
 thread_local! {
     /// Lanes given to `solo::walk`, and those it sent back, for the tests.
     static SOLO_LANES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    static SOLO_PAIRS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
     static SOLO_SLOW: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
@@ -530,7 +531,111 @@ struct Scratch {
     lanes: Lanes,
     bl: BaseLanes,
     roots: Vec<[[f64; TILE_RAYS]; 2]>,
-    solo: solo::Solo,
+    solo1: solo::Lanes<1>,
+    solo2: solo::Lanes<2>,
+    solo3: solo::Lanes<3>,
+}
+
+/// What [`PackFrom::into`] copies into the lanes of `solo::walk`: ray
+/// `r` of a tile, its base (`bl`), whether it enters the base on its
+/// first phase, and the culled spheres and their roots per lane.
+struct PackFrom<'a> {
+    ray: &'a Ray,
+    bl: &'a BaseLanes,
+    r: usize,
+    enters: bool,
+    spheres: &'a [(DVec3, f64, f64, f64)],
+    roots: &'a [[[f64; TILE_RAYS]; 2]],
+}
+
+impl PackFrom<'_> {
+    /// Fills lane `l` of `lanes` with the ray, its base and the supports
+    /// `js` (culled indices, ascending: the walk's order).
+    #[inline(always)]
+    fn into<const K: usize>(self, lanes: &mut solo::Lanes<K>, l: usize, js: [usize; K]) {
+        let Self {
+            ray,
+            bl,
+            r,
+            enters,
+            spheres,
+            roots,
+        } = self;
+        for x in 0..3 {
+            lanes.o[x][l] = ray.origin[x];
+            lanes.d[x][l] = ray.dir[x];
+            lanes.bq[x][l] = bl.q[x][r];
+        }
+        let nan = f64::NAN;
+        lanes.r0[l] = if bl.two[r] { bl.r0[r] } else { nan };
+        lanes.r1[l] = if bl.two[r] { bl.r1[r] } else { nan };
+        lanes.t0[l] = bl.t0[r];
+        lanes.hi[l] = if enters { bl.r0[r] } else { bl.t1[r] };
+        lanes.enter[l] = if enters { 1.0 } else { 0.0 };
+        for (k, &j) in js.iter().enumerate() {
+            let (centre, kk, c0, f) = spheres[j];
+            // `Along::along`, operation for operation.
+            let v = ray.origin - centre;
+            lanes.cq[k][0][l] = c0 - kk * v.length_squared();
+            lanes.cq[k][1][l] = -2.0 * kk * ray.dir.dot(v);
+            lanes.cq[k][2][l] = -kk * ray.dir.length_squared();
+            lanes.clo[k][l] = roots[j][0][r];
+            lanes.chi[k][l] = roots[j][1][r];
+            lanes.f[k][l] = f;
+            for x in 0..3 {
+                lanes.sc[k][x][l] = centre[x];
+            }
+            lanes.sk[k][l] = kk;
+            lanes.sc0[k][l] = c0;
+        }
+    }
+}
+
+/// Walks the lanes (`solo::walk`) and writes the hits of the rays
+/// `rays[..lanes.n]` into `hits` (with `raw` where a normal is left to
+/// normalize); returns the rays sent back, to walk on their own.
+fn walk_lanes<const K: usize>(
+    lanes: &mut solo::Lanes<K>,
+    sphere: solo::BaseSphere,
+    rays: &[u8; TILE_RAYS],
+    hits: &mut [Option<Hit>],
+    raw: &mut [bool; TILE_RAYS],
+) -> u64 {
+    let n = lanes.n;
+    if n == 0 {
+        return 0;
+    }
+    #[cfg(test)]
+    {
+        SOLO_LANES.with(|c| c.set(c.get() + n));
+        if K == 2 {
+            SOLO_PAIRS.with(|c| c.set(c.get() + n));
+        }
+    }
+    let mut out = [solo::Outcome::Slow; TILE_RAYS];
+    solo::walk(lanes, sphere, &mut out);
+    let mut alone = 0;
+    for (l, (&r, out)) in rays.iter().zip(&out).take(n).enumerate() {
+        let r = r as usize;
+        hits[r] = match *out {
+            solo::Outcome::Miss => None,
+            solo::Outcome::Hit(t) => {
+                raw[r] = !lanes.unit[l];
+                Some(Hit {
+                    t,
+                    p: DVec3::new(lanes.p[0][l], lanes.p[1][l], lanes.p[2][l]),
+                    n: DVec3::new(lanes.nrm[0][l], lanes.nrm[1][l], lanes.nrm[2][l]),
+                })
+            }
+            solo::Outcome::Slow => {
+                #[cfg(test)]
+                SOLO_SLOW.with(|c| c.set(c.get() + 1));
+                alone |= 1 << r;
+                continue;
+            }
+        };
+    }
+    alone
 }
 
 thread_local! {
@@ -555,7 +660,9 @@ thread_local! {
             n: [[0.0; TILE_RAYS]; 3],
         },
         roots: Vec::new(),
-        solo: solo::Solo::new(),
+        solo1: solo::Lanes::new(),
+        solo2: solo::Lanes::new(),
+        solo3: solo::Lanes::new(),
     }));
 }
 
@@ -859,7 +966,9 @@ impl Object {
                 lanes,
                 bl,
                 roots: scratch,
-                solo: lanes_solo,
+                solo1: lanes_solo1,
+                solo2: lanes_solo2,
+                solo3: lanes_solo3,
             } = &mut **sc;
             for (k, ray) in rays.iter().enumerate() {
                 for a in 0..3 {
@@ -954,8 +1063,10 @@ impl Object {
                 // and either enter the base there or have no second phase,
                 // go to the lanes of `solo::walk`; those in `alone` walk on
                 // their own.
-                let (mut alone, mut n_solo) = (0u64, 0);
-                let mut solo_ray = [0u8; TILE_RAYS];
+                let mut alone = 0u64;
+                let (mut n1, mut n2, mut n3) = (0, 0, 0);
+                let (mut rays1, mut rays2) = ([0u8; TILE_RAYS], [0u8; TILE_RAYS]);
+                let mut rays3 = [0u8; TILE_RAYS];
                 for (r, ray) in rays.iter().enumerate() {
                     if bl.t0[r].is_nan() {
                         hits[r] = None;
@@ -978,7 +1089,6 @@ impl Object {
                         hits[r] = None;
                         continue;
                     }
-                    let j = keep[r].trailing_zeros() as usize;
                     let enters = bl.two[r] && bl.r0[r] > bl.t0[r] && bl.r0[r] < bl.t1[r];
                     if keep[r] == 0 && enters {
                         // No support on the first phase, which ends where the
@@ -991,87 +1101,65 @@ impl Object {
                         };
                         continue;
                     }
-                    // Or where no base crossing lies inside `(t0, t1)`: the
-                    // first phase is the whole interval.
+                    // Rays that meet one to three raising supports on their
+                    // first phase, and either enter the base there or have
+                    // no second phase (no base crossing inside `(t0, t1)`:
+                    // the first phase is the whole interval), go to the
+                    // lanes of `solo::walk`; those in `alone` walk on their
+                    // own.
                     let inside = |x: f64| x > bl.t0[r] && x < bl.t1[r];
                     let whole = !(bl.two[r] && (inside(bl.r0[r]) || inside(bl.r1[r])));
                     let phase = bl.t0[r] < bl.t1[r] && bl.t1[r].is_finite();
-                    if keep[r].count_ones() != 1
-                        || !(inv_radius > 0.0)
-                        || !(enters || (whole && phase))
-                        || spheres[j].3 <= 0.0
-                    {
-                        alone |= 1 << r;
-                        continue;
+                    let fits = sphere_normals && (enters || (whole && phase));
+                    let bits = keep[r].count_ones() as usize;
+                    let mut js = [0usize; 3];
+                    let mut rest = keep[r];
+                    for j in js.iter_mut().take(bits) {
+                        *j = rest.trailing_zeros() as usize;
+                        rest &= rest.wrapping_sub(1);
                     }
-                    let (centre, k, c0, f) = spheres[j];
-                    let l = n_solo;
-                    n_solo += 1;
-                    solo_ray[l] = r as u8;
-                    for x in 0..3 {
-                        lanes_solo.o[x][l] = ray.origin[x];
-                        lanes_solo.d[x][l] = ray.dir[x];
-                        lanes_solo.bq[x][l] = bl.q[x][r];
-                    }
-                    let nan = f64::NAN;
-                    lanes_solo.r0[l] = if bl.two[r] { bl.r0[r] } else { nan };
-                    lanes_solo.r1[l] = if bl.two[r] { bl.r1[r] } else { nan };
-                    lanes_solo.t0[l] = bl.t0[r];
-                    lanes_solo.hi[l] = if enters { bl.r0[r] } else { bl.t1[r] };
-                    lanes_solo.enter[l] = if enters { 1.0 } else { 0.0 };
-                    // `Along::along`, operation for operation.
-                    let v = ray.origin - centre;
-                    lanes_solo.cq[0][l] = c0 - k * v.length_squared();
-                    lanes_solo.cq[1][l] = -2.0 * k * ray.dir.dot(v);
-                    lanes_solo.cq[2][l] = -k * ray.dir.length_squared();
-                    lanes_solo.clo[l] = scratch[j][0][r];
-                    lanes_solo.chi[l] = scratch[j][1][r];
-                    lanes_solo.f[l] = f;
-                    for x in 0..3 {
-                        lanes_solo.sc[x][l] = centre[x];
-                    }
-                    lanes_solo.sk[l] = k;
-                    lanes_solo.sc0[l] = c0;
-                }
-                if n_solo > 0 {
-                    lanes_solo.n = n_solo;
-                    #[cfg(test)]
-                    SOLO_LANES.with(|c| c.set(c.get() + n_solo));
-                    let mut out = [solo::Outcome::Slow; TILE_RAYS];
-                    let sphere = solo::BaseSphere {
-                        centre: base.0.to_array(),
-                        k: base.1,
-                        c0: base.2,
-                        inv_radius,
+                    let fits = fits
+                        && (1..=3).contains(&bits)
+                        && js[..bits].iter().all(|&j| spheres[j].3 > 0.0);
+                    let pack = PackFrom {
+                        ray,
+                        bl,
+                        r,
+                        enters,
+                        spheres: &spheres,
+                        roots: scratch,
                     };
-                    solo::walk(lanes_solo, sphere, &mut out);
-                    solo::hits(lanes_solo, sphere);
-                    for (l, (&r, out)) in solo_ray.iter().zip(&out).take(n_solo).enumerate() {
-                        let r = r as usize;
-                        let s = &*lanes_solo;
-                        let at = |t| {
-                            Some(Hit {
-                                t,
-                                p: DVec3::new(s.p[0][l], s.p[1][l], s.p[2][l]),
-                                n: DVec3::new(s.nrm[0][l], s.nrm[1][l], s.nrm[2][l]),
-                            })
-                        };
-                        hits[r] = match *out {
-                            solo::Outcome::Miss => None,
-                            solo::Outcome::Base(t) => at(t),
-                            solo::Outcome::Raw(t) => {
-                                raw[r] = !s.unit[l];
-                                at(t)
-                            }
-                            solo::Outcome::Slow => {
-                                #[cfg(test)]
-                                SOLO_SLOW.with(|c| c.set(c.get() + 1));
-                                alone |= 1 << r;
-                                continue;
-                            }
-                        };
+                    match bits {
+                        1 if fits => {
+                            pack.into(lanes_solo1, n1, [js[0]]);
+                            rays1[n1] = r as u8;
+                            n1 += 1;
+                        }
+                        2 if fits => {
+                            pack.into(lanes_solo2, n2, [js[0], js[1]]);
+                            rays2[n2] = r as u8;
+                            n2 += 1;
+                        }
+                        3 if fits => {
+                            pack.into(lanes_solo3, n3, js);
+                            rays3[n3] = r as u8;
+                            n3 += 1;
+                        }
+                        _ => alone |= 1 << r,
                     }
                 }
+                let sphere = solo::BaseSphere {
+                    centre: base.0.to_array(),
+                    k: base.1,
+                    c0: base.2,
+                    inv_radius,
+                };
+                lanes_solo1.n = n1;
+                lanes_solo2.n = n2;
+                lanes_solo3.n = n3;
+                alone |= walk_lanes(lanes_solo1, sphere, &rays1, hits, &mut raw);
+                alone |= walk_lanes(lanes_solo2, sphere, &rays2, hits, &mut raw);
+                alone |= walk_lanes(lanes_solo3, sphere, &rays3, hits, &mut raw);
                 // The rest, ray by ray (`intersect_culled`, with the first
                 // phase's supports taken from the filter).
                 while alone != 0 {
@@ -1672,7 +1760,8 @@ mod tests {
     use super::*;
     use isolux_core::DMat3;
 
-    /// The lanes of `solo::walk` answer most rays of bumpy spheres (random
+    /// The lanes of `solo::walk` (one or two supports) answer most rays of
+    /// bumpy spheres (random
     /// parallel and perspective tiles; bumps that raise, carve, or barely
     /// rise; directions of any length; open and finite intervals), and
     /// their answers are the per-ray walk's to the last bit, with every
@@ -1689,6 +1778,7 @@ mod tests {
     fn solo_lanes_match(seed: u64) {
         let mut rng = isolux_core::Pcg32::new(seed, 0);
         let (lanes0, slow0) = (SOLO_LANES.with(|c| c.get()), SOLO_SLOW.with(|c| c.get()));
+        let pairs0 = SOLO_PAIRS.with(|c| c.get());
         let (mut rays_cast, mut hits) = (0, 0);
         for scene in 0..16 {
             let bumps = [1, 3, 16, 40][scene % 4];
@@ -1746,7 +1836,11 @@ mod tests {
         }
         let lanes = SOLO_LANES.with(|c| c.get()) - lanes0;
         let slow = SOLO_SLOW.with(|c| c.get()) - slow0;
-        eprintln!("{rays_cast} rays, {hits} hits, {lanes} solo lanes, {slow} sent back");
+        let pairs = SOLO_PAIRS.with(|c| c.get()) - pairs0;
+        eprintln!(
+            "{rays_cast} rays, {hits} hits, {lanes} lanes ({pairs} with two supports), {slow} sent back"
+        );
+        assert!(pairs > rays_cast / 50, "{pairs} lanes with two supports");
         assert!(hits > rays_cast / 4, "{hits} of {rays_cast}");
         assert!(
             lanes > rays_cast / 8 && slow < lanes / 20,

@@ -1,30 +1,35 @@
 //! The segment walk of [`Object::intersect_tile`](super::Object::intersect_tile)
-//! for the rays that meet exactly one support, carried through for many
+//! for the rays that meet one or a few supports, carried through for many
 //! rays at once in vector lanes.
 //!
 //! With few perturbations (16 benchmark bumps) nearly every ray of a tile
-//! that meets a support meets just one, and its walk is always the same
-//! short program: the reach (where the bump can first lift `F'` to zero),
-//! at most three segments (before the support, on it, after it), one
-//! degree-6 polynomial on the segment where the support is active, its
-//! Bernstein signs and, with one sign change, Halley's iteration. Ray by
-//! ray that program is a few hundred instructions spread over many small
-//! functions; here it runs on [`W`] rays at once, as straight-line code on
-//! lane vectors ([`V`], arrays whose element-wise operations the compiler
-//! turns into vector instructions) with selects for branches: AVX-512 or
-//! AVX2 where the processor has them (chosen at run time), SSE2 otherwise.
+//! that meets a support meets just one, and with 64 most meet one or two;
+//! their walk is always the same short program: the reach (where the bumps
+//! can first lift `F'` to zero), at most `2K + 1` segments between the
+//! supports' ends, the degree-6 polynomial of each segment where a support
+//! is active, its Bernstein signs and, with one sign change (or two, split
+//! once), Halley's iteration. Ray by ray that program is a few hundred
+//! instructions spread over many small functions; here it runs on [`W`]
+//! rays at once, as straight-line code on lane vectors ([`V`], arrays whose
+//! element-wise operations the compiler turns into vector instructions)
+//! with selects for branches: AVX-512 or AVX2 where the processor has them
+//! (chosen at run time), SSE2 otherwise. A stage that no lane of a vector
+//! needs (a segment's polynomial, Halley's iteration) is skipped.
 //!
 //! **Every value is the scalar walk's to the last bit.** Each lane performs
 //! the scalar code's operations in the scalar code's order (`reach`,
 //! `sign_is_fixed`, `range2`, `shift`, `Poly::add_cube`, the Bernstein
-//! weights, `Poly::first_crossing`'s first step and `Poly::refine_from`'s
-//! Halley iteration, written again on lanes), IEEE operations are
-//! exact whatever the vector width, and Rust never contracts `a * b + c`
-//! into a fused multiply-add. A lane whose walk leaves the common program
-//! (a second gathering phase, a polynomial with several sign changes or a
-//! zero Bernstein coefficient, a reach that needs the quadratic's roots)
-//! is marked [`Outcome::Slow`] and walked ray by ray instead;
-//! `tile_batches_find_the_per_ray_hits` checks the equality bit for bit.
+//! weights, `Poly::first_crossing`'s first step, `Poly::isolate`'s first
+//! split and `Poly::refine_from`'s Halley iteration, written again on
+//! lanes; an inactive support's term is selected away, never added), IEEE
+//! operations are exact whatever the vector width, and Rust never
+//! contracts `a * b + c` into a fused multiply-add. A lane whose walk
+//! leaves the common program (a second gathering phase, a polynomial that
+//! needs deeper subdivision or has a zero Bernstein coefficient, a
+//! degenerate reach) is marked [`Outcome::Slow`] and walked ray by ray
+//! instead. `tile_batches_find_the_per_ray_hits` and
+//! `solo_lanes_match_the_per_ray_walk` check the equality bit for bit, the
+//! latter with every instruction set.
 
 // Index loops over the lanes, not iterators or `array::from_fn`: the
 // latter's closures were left out of line (calls per lane operation).
@@ -44,16 +49,15 @@ pub(super) enum Outcome {
     Slow,
     /// No crossing.
     Miss,
-    /// The base quadric's own crossing at `t` (an `Object::base_hit`).
-    Base(f64),
-    /// A crossing of `F'` at `t` (an `Object::hit_at_raw` with the lane's
-    /// support).
-    Raw(f64),
+    /// A hit: the base quadric's own crossing (an `Object::base_hit`) or a
+    /// crossing of `F'` (an `Object::hit_at`); its point and normal are
+    /// in [`Lanes::p`] and [`Lanes::nrm`].
+    Hit(f64),
 }
 
-/// The rays that meet one support on their first phase, packed: lane `l`
+/// The rays that meet `K` supports on their first phase, packed: lane `l`
 /// of every array for the `l`-th such ray.
-pub(super) struct Solo {
+pub(super) struct Lanes<const K: usize> {
     /// Lanes in use.
     pub n: usize,
     /// Ray origins and directions.
@@ -70,16 +74,16 @@ pub(super) struct Solo {
     pub t0: [f64; TILE_RAYS],
     pub hi: [f64; TILE_RAYS],
     pub enter: [f64; TILE_RAYS],
-    /// The support's `Q(t)` (ascending powers), its roots `clo < chi`,
-    /// and its factor `f > 0`.
-    pub cq: [[f64; TILE_RAYS]; 3],
-    pub clo: [f64; TILE_RAYS],
-    pub chi: [f64; TILE_RAYS],
-    pub f: [f64; TILE_RAYS],
-    /// The support `Q = sc0 - sk |p - sc|^2`.
-    pub sc: [[f64; TILE_RAYS]; 3],
-    pub sk: [f64; TILE_RAYS],
-    pub sc0: [f64; TILE_RAYS],
+    /// Per support, in the walk's order: `Q(t)` (ascending powers), its
+    /// roots `clo < chi`, its factor `f > 0`, and the sphere `Q = sc0 -
+    /// sk |p - sc|^2`.
+    pub cq: [[[f64; TILE_RAYS]; 3]; K],
+    pub clo: [[f64; TILE_RAYS]; K],
+    pub chi: [[f64; TILE_RAYS]; K],
+    pub f: [[f64; TILE_RAYS]; K],
+    pub sc: [[[f64; TILE_RAYS]; 3]; K],
+    pub sk: [[f64; TILE_RAYS]; K],
+    pub sc0: [[f64; TILE_RAYS]; K],
     /// Out, for the lanes with a hit: its point and normal, unit where
     /// `unit` is set (`Object::hit_at` or `Object::base_hit`), else
     /// `-grad F'` for the caller's `unit_normal` (a vanishing gradient).
@@ -91,10 +95,10 @@ pub(super) struct Solo {
     pub base: [bool; TILE_RAYS],
 }
 
-impl Solo {
+impl<const K: usize> Lanes<K> {
     pub fn new() -> Self {
         let z = [0.0; TILE_RAYS];
-        Solo {
+        Lanes {
             n: 0,
             o: [z; 3],
             d: [z; 3],
@@ -104,13 +108,13 @@ impl Solo {
             t0: z,
             hi: z,
             enter: z,
-            cq: [z; 3],
-            clo: z,
-            chi: z,
-            f: z,
-            sc: [z; 3],
-            sk: z,
-            sc0: z,
+            cq: [[z; 3]; K],
+            clo: [z; K],
+            chi: [z; K],
+            f: [z; K],
+            sc: [[z; 3]; K],
+            sk: [z; K],
+            sc0: [z; K],
             p: [z; 3],
             nrm: [z; 3],
             unit: [false; TILE_RAYS],
@@ -130,8 +134,20 @@ pub(super) struct BaseSphere {
     pub inv_radius: f64,
 }
 
-/// Walks the first `solo.n` lanes; `out[l]` for lane `l`.
-pub(super) fn walk(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
+#[cfg(test)]
+thread_local! {
+    /// For the tests: 0 the best instruction set, 1 the baseline, 2 at
+    /// most AVX2.
+    pub(super) static FORCE: std::cell::Cell<u8> = const { std::cell::Cell::new(0) };
+}
+
+/// Walks the first `lanes.n` lanes, `out[l]` for lane `l`, and computes
+/// their hits' points and normals.
+pub(super) fn walk<const K: usize>(
+    lanes: &mut Lanes<K>,
+    base: BaseSphere,
+    out: &mut [Outcome; TILE_RAYS],
+) {
     #[cfg(test)]
     let level = FORCE.with(|f| f.get());
     #[cfg(not(test))]
@@ -140,35 +156,39 @@ pub(super) fn walk(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_R
     {
         if level == 0 && std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the processor has AVX-512F, checked just above.
-            return unsafe { walk_avx512(solo, base, out) };
+            return unsafe { walk_avx512(lanes, base, out) };
         }
         if level != 1 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has AVX2, checked just above.
-            return unsafe { walk_avx2(solo, base, out) };
+            return unsafe { walk_avx2(lanes, base, out) };
         }
     }
-    walk_lanes(solo, base, out)
-}
-
-#[cfg(test)]
-thread_local! {
-    /// For the tests: 0 the best instruction set, 1 the baseline, 2 at
-    /// most AVX2.
-    pub(super) static FORCE: std::cell::Cell<u8> = const { std::cell::Cell::new(0) };
+    walk_lanes(lanes, base, out);
+    hits(lanes, base);
 }
 
 /// [`walk`] compiled for AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn walk_avx512(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
-    walk_lanes(solo, base, out)
+unsafe fn walk_avx512<const K: usize>(
+    lanes: &mut Lanes<K>,
+    base: BaseSphere,
+    out: &mut [Outcome; TILE_RAYS],
+) {
+    walk_lanes(lanes, base, out);
+    hits(lanes, base);
 }
 
 /// [`walk`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn walk_avx2(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
-    walk_lanes(solo, base, out)
+unsafe fn walk_avx2<const K: usize>(
+    lanes: &mut Lanes<K>,
+    base: BaseSphere,
+    out: &mut [Outcome; TILE_RAYS],
+) {
+    walk_lanes(lanes, base, out);
+    hits(lanes, base);
 }
 
 /// [`W`] doubles, one per lane.
@@ -416,8 +436,8 @@ struct Walk {
 }
 
 impl Walk {
-    /// A segment `[a, b]` on which the support is not active, on the lanes
-    /// `run`, as `Object::segment_root` and the walk answer it: the base's
+    /// The segment `[a, b]` on the lanes `run` where no support is active,
+    /// as `Object::segment_root` and the walk answer it: the base's
     /// crossing when one lies in `[a, b]`, else a hit at `a` where `F'`
     /// changed sign across the breakpoint.
     #[inline(always)]
@@ -432,29 +452,190 @@ impl Walk {
         self.kind = sel(base, 1.0, sel(raw, 2.0, self.kind));
         self.before = sel(clear, sign(poly2(q, b)), self.before);
         self.live = self.live & !(base | raw);
-        self.a = sel(run, b, a);
+    }
+
+    /// The segment `[a, b]` on the lanes `run` where the supports `act`
+    /// are active: `sign_is_fixed`, then `segment_root`'s polynomial and
+    /// `Poly::first_crossing` (its first subdivision level at most; lanes
+    /// that need more leave the walk).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn active<const K: usize>(
+        &mut self,
+        run: M,
+        b: V,
+        q: [V; 3],
+        c: &[[V; 3]; K],
+        (clo, chi, f): (&[V; K], &[V; K], &[V; K]),
+        act: &[M; K],
+        f_at_a: V,
+    ) {
+        let a = self.a;
+        // `sign_is_fixed(base_q, active, a, b)`.
+        let (base_min, base_max) = range2(q, a, b);
+        let (mut flo, mut fhi) = (base_min, base_max);
+        let mut scale = base_min.abs() + base_max.abs() + q[0].abs();
+        for k in 0..K {
+            let qmin = fmax(fmin(poly2(c[k], a), poly2(c[k], b)), splat(0.0));
+            let at = fmin(fmax(0.5 * (clo[k] + chi[k]), a), b);
+            let qmax = fmax(poly2(c[k], at), splat(0.0));
+            let (rmin, rmax) = (f[k] * qmin * qmin * qmin, f[k] * qmax * qmax * qmax);
+            flo = sel(act[k], flo + rmin, flo);
+            fhi = sel(act[k], fhi + rmax, fhi);
+            scale = sel(act[k], scale + (rmin.abs() + rmax.abs()), scale);
+        }
+        let margin = 1e-10 * scale;
+        let neg = fhi.lt(0.0 - margin);
+        let pos = !neg & flo.gt(margin);
+        // `segment_root`'s polynomial on `[a, b]`: `Poly::quadratic` of
+        // the shifted base (its value at `a` recomputed, `f_at_a`) plus
+        // `add_cube` for each active support.
+        let len = b - a;
+        let s = shift(q, a, len);
+        let mut cf = [
+            f_at_a,
+            s[1],
+            s[2],
+            splat(0.0),
+            splat(0.0),
+            splat(0.0),
+            splat(0.0),
+        ];
+        for k in 0..K {
+            let [a0, a1, a2] = shift(c[k], a, len);
+            let (p0, p1, p2) = (a0 * a0, 2.0 * a0 * a1, a1 * a1 + 2.0 * a0 * a2);
+            let (p3, p4) = (2.0 * a1 * a2, a2 * a2);
+            let terms = [
+                p0 * a0,
+                p0 * a1 + p1 * a0,
+                p0 * a2 + p1 * a1 + p2 * a0,
+                p1 * a2 + p2 * a1 + p3 * a0,
+                p2 * a2 + p3 * a1 + p4 * a0,
+                p3 * a2 + p4 * a1,
+                p4 * a2,
+            ];
+            for i in 0..7 {
+                cf[i] = sel(act[k], cf[i] + f[k] * terms[i], cf[i]);
+            }
+        }
+        // Bernstein coefficients (`bernstein6`, the same sums in order).
+        let wt = &BERNSTEIN[MAX_DEGREE];
+        let mut bz = [splat(0.0); 7];
+        for k in 0..7 {
+            let mut acc = wt[k][0] * cf[0];
+            for j in 1..=k {
+                acc = acc + wt[k][j] * cf[j];
+            }
+            bz[k] = acc;
+        }
+        let mut nonzero = M::all(true);
+        let mut changes = splat(0.0);
+        for x in &bz {
+            nonzero = nonzero & x.ne(0.0);
+        }
+        for k in 0..6 {
+            changes = changes + sel(bz[k].lt(0.0).same(bz[k + 1].lt(0.0)), 0.0, 1.0);
+        }
+        let polynomial = run & !neg & !pos;
+        let none = polynomial & nonzero & changes.eq(0.0);
+        let one = polynomial & nonzero & changes.eq(1.0);
+        // Two sign changes (a ray through a bump's rim, in and out): the
+        // first level of `Poly::isolate`, de Casteljau's halves at 1/2,
+        // left first.
+        let two = polynomial & nonzero & changes.eq(2.0);
+        let (left, right) = if two.any() {
+            de_casteljau_half(&bz)
+        } else {
+            ([splat(0.0); 7], [splat(0.0); 7])
+        };
+        let (ch_left, ch_right) = (sign_changes(&left), sign_changes(&right));
+        let left_one = two & ch_left.eq(1.0) & (left[0] * left[6]).lt(0.0);
+        let left_none = two & ch_left.eq(0.0);
+        let right_open = left_none & right[0].ne(0.0);
+        let right_one = right_open & ch_right.eq(1.0) & (right[0] * right[6]).lt(0.0);
+        let right_none = right_open & ch_right.eq(0.0);
+        let found = one | left_one | right_one;
+        let none = none | right_none;
+        self.live = self.live & !(polynomial & !none & !found);
+        let clear_start = sel(neg, -1.0, sel(pos, 1.0, sign(bz[0])));
+        let clear_end = sel(neg, -1.0, sel(pos, 1.0, sign(bz[6])));
+        // Halley's first step from the better end.
+        let nf = 6.0;
+        let (f0, d0, e0) = (
+            bz[0],
+            nf * (bz[1] - bz[0]),
+            nf * (nf - 1.0) * (bz[2] - 2.0 * bz[1] + bz[0]),
+        );
+        let (f1, d1, e1) = (
+            bz[6],
+            nf * (bz[6] - bz[5]),
+            nf * (nf - 1.0) * (bz[6] - 2.0 * bz[5] + bz[4]),
+        );
+        let from0 = -2.0 * f0 * d0 / (2.0 * d0 * d0 - f0 * e0);
+        let from1 = 1.0 - 2.0 * f1 * d1 / (2.0 * d1 * d1 - f1 * e1);
+        let guess = sel((f0 * d1).abs().lt((f1 * d0).abs()), from0, from1);
+        // `refine_from(0, 1, b0, b6, guess)`, or `refine` on the half.
+        let half = |l: V, r: V, one: V| sel(left_one, l, sel(right_one, r, one));
+        let nan = splat(f64::NAN);
+        let found = found & self.live;
+        let root = if found.any() {
+            halley(
+                &cf,
+                found,
+                (
+                    half(splat(0.0), splat(0.5), splat(0.0)),
+                    half(splat(0.5), splat(1.0), splat(1.0)),
+                ),
+                (half(left[0], right[0], f0), half(left[6], right[6], f1)),
+                half(nan, nan, guess),
+            )
+        } else {
+            splat(0.0)
+        };
+        let cleared = self.live & run & !found;
+        let raw = cleared & (self.before * clear_start).lt(0.0);
+        self.t = sel(found, a + root * len, sel(raw, a, self.t));
+        self.kind = sel(found | raw, 2.0, self.kind);
+        self.before = sel(cleared, clear_end, self.before);
+        self.live = self.live & !(found | raw);
     }
 }
 
 /// The walk of [`W`] lanes at a time (see the module's doc).
 #[inline(always)]
-fn walk_lanes(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS]) {
-    for chunk in 0..solo.n.div_ceil(W) {
+fn walk_lanes<const K: usize>(
+    lanes: &mut Lanes<K>,
+    base: BaseSphere,
+    out: &mut [Outcome; TILE_RAYS],
+) {
+    for chunk in 0..lanes.n.div_ceil(W) {
         let ld = |a: &[f64; TILE_RAYS]| V::load(a, chunk);
         let mut valid = M::all(false);
         for i in 0..W {
-            valid.0[i] = ((chunk * W + i < solo.n) as u64).wrapping_neg();
+            valid.0[i] = ((chunk * W + i < lanes.n) as u64).wrapping_neg();
         }
-        let q = [ld(&solo.bq[0]), ld(&solo.bq[1]), ld(&solo.bq[2])];
-        let c = [ld(&solo.cq[0]), ld(&solo.cq[1]), ld(&solo.cq[2])];
-        let (lo, hi) = (ld(&solo.t0), ld(&solo.hi));
-        let roots = (ld(&solo.r0), ld(&solo.r1));
-        let enter = ld(&solo.enter).ne(0.0);
-        let (clo, chi, f) = (ld(&solo.clo), ld(&solo.chi), ld(&solo.f));
-        // `reach(base_q, [c], lo, hi, enter)` with `f > 0`.
-        let (ca, cb) = (fmax(clo, lo), fmin(chi, hi));
-        let qmax = fmax(poly2(c, fmin(fmax(0.5 * (clo + chi), ca), cb)), splat(0.0));
-        let bound = sel(ca.lt(cb), 0.0 + f * qmax * qmax * qmax, 0.0);
+        let q = [ld(&lanes.bq[0]), ld(&lanes.bq[1]), ld(&lanes.bq[2])];
+        let (lo, hi) = (ld(&lanes.t0), ld(&lanes.hi));
+        let roots = (ld(&lanes.r0), ld(&lanes.r1));
+        let enter = ld(&lanes.enter).ne(0.0);
+        let mut c = [[splat(0.0); 3]; K];
+        let (mut clo, mut chi, mut f) = ([splat(0.0); K], [splat(0.0); K], [splat(0.0); K]);
+        for k in 0..K {
+            c[k] = [
+                ld(&lanes.cq[k][0]),
+                ld(&lanes.cq[k][1]),
+                ld(&lanes.cq[k][2]),
+            ];
+            (clo[k], chi[k], f[k]) = (ld(&lanes.clo[k]), ld(&lanes.chi[k]), ld(&lanes.f[k]));
+        }
+        // `reach(base_q, cands, lo, hi, enter)`, every `f > 0`.
+        let mut bound = splat(0.0);
+        for k in 0..K {
+            let (ca, cb) = (fmax(clo[k], lo), fmin(chi[k], hi));
+            let at = fmin(fmax(0.5 * (clo[k] + chi[k]), ca), cb);
+            let qmax = fmax(poly2(c[k], at), splat(0.0));
+            bound = sel(ca.lt(cb), bound + f[k] * qmax * qmax * qmax, bound);
+        }
         let flo = poly2(q, lo);
         let scale = q[0].abs() + (q[1] * hi).abs() + (q[2] * hi * hi).abs() + bound;
         let bound = bound + 1e-10 * scale;
@@ -492,161 +673,62 @@ fn walk_lanes(solo: &mut Solo, base: BaseSphere, out: &mut [Outcome; TILE_RAYS])
             kind: sel(unreached & !enter, 3.0, 0.0),
             t: splat(0.0),
         };
-        // The breaks (in order) and the split: the segments before the
-        // active one.
-        let ends = [clo, chi, hi];
-        let pushed = [
-            clo.gt(start) & clo.lt(hi),
-            chi.gt(start) & chi.lt(hi),
-            M::all(true),
-        ];
-        let mut pending = M::all(false);
-        let (mut sa, mut sb) = (splat(0.0), splat(0.0));
-        let mut slot = splat(3.0);
-        for s in 0..3 {
-            let (a, b) = (w.a, ends[s]);
-            let run = w.live & !pending & pushed[s] & b.gt(a);
-            let mid = 0.5 * (a + b);
-            let active = clo.lt(mid) & mid.lt(chi);
-            let here = run & active;
-            slot = sel(here, s as f64, slot);
-            sa = sel(here, a, sa);
-            sb = sel(here, b, sb);
-            pending = pending | here;
-            w.plain(run & !active, b, q, roots);
-        }
-        // The active segment: `sign_is_fixed`, then `segment_root`'s
-        // polynomial and `first_crossing`.
-        let go = w.live & pending;
-        let (a, b) = (sa, sb);
-        let (base_min, base_max) = range2(q, a, b);
-        let scale = base_min.abs() + base_max.abs() + q[0].abs();
-        let qmin = fmax(fmin(poly2(c, a), poly2(c, b)), splat(0.0));
-        let qmax = fmax(poly2(c, fmin(fmax(0.5 * (clo + chi), a), b)), splat(0.0));
-        let (rmin, rmax) = (f * qmin * qmin * qmin, f * qmax * qmax * qmax);
-        let (flo, fhi) = (base_min + rmin, base_max + rmax);
-        let scale = scale + (rmin.abs() + rmax.abs());
-        let margin = 1e-10 * scale;
-        let neg = fhi.lt(0.0 - margin);
-        let pos = !neg & flo.gt(margin);
-        let len = b - a;
-        let s = shift(q, a, len);
-        let v = [
-            ld(&solo.o[0]) + a * ld(&solo.d[0]) - base.centre[0],
-            ld(&solo.o[1]) + a * ld(&solo.d[1]) - base.centre[1],
-            ld(&solo.o[2]) + a * ld(&solo.d[2]) - base.centre[2],
-        ];
-        let s0 = base.c0 - base.k * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-        // `Poly::quadratic([s0, s[1], s[2]])` plus `add_cube(f, ...)`.
-        let [a0, a1, a2] = shift(c, a, len);
-        let (p0, p1, p2) = (a0 * a0, 2.0 * a0 * a1, a1 * a1 + 2.0 * a0 * a2);
-        let (p3, p4) = (2.0 * a1 * a2, a2 * a2);
-        let cf = [
-            s0 + f * (p0 * a0),
-            s[1] + f * (p0 * a1 + p1 * a0),
-            s[2] + f * (p0 * a2 + p1 * a1 + p2 * a0),
-            0.0 + f * (p1 * a2 + p2 * a1 + p3 * a0),
-            0.0 + f * (p2 * a2 + p3 * a1 + p4 * a0),
-            0.0 + f * (p3 * a2 + p4 * a1),
-            0.0 + f * (p4 * a2),
-        ];
-        // Bernstein coefficients (`bernstein6`, the same sums in order).
-        let wt = &BERNSTEIN[MAX_DEGREE];
-        let mut bz = [splat(0.0); 7];
-        for k in 0..7 {
-            let mut acc = wt[k][0] * cf[0];
-            for j in 1..=k {
-                acc = acc + wt[k][j] * cf[j];
+        // The breaks inside `(start, hi)`, in order (the others at +inf),
+        // then the split.
+        let inf = splat(f64::INFINITY);
+        let mut ends = [inf; 8];
+        for k in 0..K {
+            for (e, x) in [(2 * k, clo[k]), (2 * k + 1, chi[k])] {
+                ends[e] = sel(x.gt(start) & x.lt(hi), x, inf);
             }
-            bz[k] = acc;
         }
-        let mut nonzero = M::all(true);
-        let mut changes = splat(0.0);
-        for b in &bz {
-            nonzero = nonzero & b.ne(0.0);
+        for i in 1..2 * K {
+            // Insertion by compare-exchange (2K <= 4 values).
+            for j in (0..i).rev() {
+                let (x, y) = (ends[j], ends[j + 1]);
+                (ends[j], ends[j + 1]) = (fmin(x, y), fmax(x, y));
+            }
         }
-        for k in 0..6 {
-            changes = changes + sel(bz[k].lt(0.0).same(bz[k + 1].lt(0.0)), 0.0, 1.0);
-        }
-        let polynomial = go & !neg & !pos;
-        let none = polynomial & nonzero & changes.eq(0.0);
-        let one = polynomial & nonzero & changes.eq(1.0);
-        // Two sign changes (a ray through a bump's rim, in and out): the
-        // first level of `Poly::isolate`, de Casteljau's halves at 1/2,
-        // left first. Anything deeper is walked ray by ray.
-        let two = polynomial & nonzero & changes.eq(2.0);
-        let (left, right) = if two.any() {
-            de_casteljau_half(&bz)
-        } else {
-            ([splat(0.0); 7], [splat(0.0); 7])
-        };
-        let (ch_left, ch_right) = (sign_changes(&left), sign_changes(&right));
-        let left_one = two & ch_left.eq(1.0) & (left[0] * left[6]).lt(0.0);
-        let left_none = two & ch_left.eq(0.0);
-        let right_open = left_none & right[0].ne(0.0);
-        let right_one = right_open & ch_right.eq(1.0) & (right[0] * right[6]).lt(0.0);
-        let right_none = right_open & ch_right.eq(0.0);
-        let found = one | left_one | right_one;
-        let none = none | right_none;
-        w.live = w.live & !(polynomial & !none & !found);
-        let clear_start = sel(neg, -1.0, sel(pos, 1.0, sign(bz[0])));
-        let clear_end = sel(neg, -1.0, sel(pos, 1.0, sign(bz[6])));
-        // Halley's first step from the better end.
-        let nf = 6.0;
-        let (f0, d0, e0) = (
-            bz[0],
-            nf * (bz[1] - bz[0]),
-            nf * (nf - 1.0) * (bz[2] - 2.0 * bz[1] + bz[0]),
-        );
-        let (f1, d1, e1) = (
-            bz[6],
-            nf * (bz[6] - bz[5]),
-            nf * (nf - 1.0) * (bz[6] - 2.0 * bz[5] + bz[4]),
-        );
-        let from0 = -2.0 * f0 * d0 / (2.0 * d0 * d0 - f0 * e0);
-        let from1 = 1.0 - 2.0 * f1 * d1 / (2.0 * d1 * d1 - f1 * e1);
-        let guess = sel((f0 * d1).abs().lt((f1 * d0).abs()), from0, from1);
-        // `refine_from(0, 1, b0, b6, guess)`, or `refine` on the half.
-        let half = |l: V, r: V, one: V| sel(left_one, l, sel(right_one, r, one));
-        let nan = splat(f64::NAN);
-        let root = if (found & w.live).any() {
-            halley(
-                &cf,
-                found & w.live,
-                (
-                    half(splat(0.0), splat(0.5), splat(0.0)),
-                    half(splat(0.5), splat(1.0), splat(1.0)),
-                ),
-                (half(left[0], right[0], f0), half(left[6], right[6], f1)),
-                half(nan, nan, guess),
-            )
-        } else {
-            splat(0.0)
-        };
-        let crossing = w.live & found;
-        let cleared = w.live & go & !found;
-        let raw = cleared & (w.before * clear_start).lt(0.0);
-        w.t = sel(crossing, a + root * len, sel(raw, a, w.t));
-        w.kind = sel(crossing | raw, 2.0, w.kind);
-        w.before = sel(cleared, clear_end, w.before);
-        w.live = w.live & !(crossing | raw);
-        w.a = sel(go, b, w.a);
-        // The segments after the active one.
-        for s in 0..3 {
-            let run = w.live & go & slot.lt(s as f64) & pushed[s] & ends[s].gt(w.a);
-            w.plain(run, ends[s], q, roots);
+        ends[2 * K] = hi;
+        let o = [ld(&lanes.o[0]), ld(&lanes.o[1]), ld(&lanes.o[2])];
+        let d = [ld(&lanes.d[0]), ld(&lanes.d[1]), ld(&lanes.d[2])];
+        for e in ends.iter().take(2 * K + 1) {
+            let (a, b) = (w.a, *e);
+            let run = w.live & b.lt(f64::INFINITY) & b.gt(a);
+            if !run.any() {
+                continue;
+            }
+            let mid = 0.5 * (a + b);
+            let mut act = [M::all(false); K];
+            let mut any = M::all(false);
+            for k in 0..K {
+                act[k] = clo[k].lt(mid) & mid.lt(chi[k]);
+                any = any | act[k];
+            }
+            w.plain(run & !any, b, q, roots);
+            let busy = run & any;
+            if busy.any() {
+                // The base's value at `a`, recomputed from the point.
+                let v = [
+                    o[0] + a * d[0] - base.centre[0],
+                    o[1] + a * d[1] - base.centre[1],
+                    o[2] + a * d[2] - base.centre[2],
+                ];
+                let f_at_a = base.c0 - base.k * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+                w.active(busy, b, q, &c, (&clo, &chi, &f), &act, f_at_a);
+            }
+            w.a = sel(run, b, a);
         }
         // Still walking after the first phase: a miss without a second
         // phase, else the second phase gathers again, ray by ray.
         w.kind = sel(w.live & !enter, 3.0, w.kind);
         for i in 0..W {
             let l = chunk * W + i;
-            if l < solo.n {
-                solo.t[l] = w.t.0[i];
-                solo.base[l] = w.kind.0[i] == 1.0;
+            if l < lanes.n {
+                lanes.t[l] = w.t.0[i];
+                lanes.base[l] = w.kind.0[i] == 1.0;
                 out[l] = match (w.live.at(i) & (w.kind.0[i] != 3.0), w.kind.0[i]) {
-                    (false, 1.0) => Outcome::Base(w.t.0[i]),
-                    (false, 2.0) => Outcome::Raw(w.t.0[i]),
+                    (false, 1.0) | (false, 2.0) => Outcome::Hit(w.t.0[i]),
                     (false, 3.0) => Outcome::Miss,
                     _ => Outcome::Slow,
                 };
@@ -733,45 +815,15 @@ fn halley(c: &[V; 7], mut going: M, (mut lo, mut hi): (V, V), (fa, fb): (V, V), 
     sel(going, s, root)
 }
 
-/// The hit points and normals of the first `solo.n` lanes (read where
+/// The hit points and normals of the first `lanes.n` lanes (read where
 /// [`walk`] found a hit): `ray.at(t)`, and the normal of `Object::base_hit`
-/// (the base sphere's) or of `Object::hit_at` (`-grad F'` with the
+/// (the base sphere's) or of `Object::hit_at` (`-grad F'` with each
 /// support's term where `Q > 0`, then `unit_normal`), operation for
-/// operation. A loop over the lanes without branches, which the compiler
-/// vectorizes (instruction set chosen at run time, as for [`walk`]).
-pub(super) fn hits(solo: &mut Solo, base: BaseSphere) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F, checked just above.
-            return unsafe { hits_avx512(solo, base) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2, checked just above.
-            return unsafe { hits_avx2(solo, base) };
-        }
-    }
-    hits_lanes(solo, base)
-}
-
-/// [`hits`] compiled for AVX-512.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn hits_avx512(solo: &mut Solo, base: BaseSphere) {
-    hits_lanes(solo, base)
-}
-
-/// [`hits`] compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn hits_avx2(solo: &mut Solo, base: BaseSphere) {
-    hits_lanes(solo, base)
-}
-
+/// operation. A loop over the lanes that the compiler vectorizes.
 #[inline(always)]
-fn hits_lanes(solo: &mut Solo, base: BaseSphere) {
-    let n = solo.n;
-    let Solo {
+fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
+    let n = lanes.n;
+    let Lanes {
         o,
         d,
         f,
@@ -784,7 +836,7 @@ fn hits_lanes(solo: &mut Solo, base: BaseSphere) {
         t,
         base: is_base,
         ..
-    } = solo;
+    } = lanes;
     for l in 0..n {
         let t = t[l];
         let q = [
@@ -797,16 +849,22 @@ fn hits_lanes(solo: &mut Solo, base: BaseSphere) {
             q[1] - base.centre[1],
             q[2] - base.centre[2],
         ];
-        let vc = [q[0] - sc[0][l], q[1] - sc[1][l], q[2] - sc[2][l]];
-        let xq = sc0[l] - sk[l] * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
-        let (kb, kc) = (-2.0 * base.k, -2.0 * sk[l]);
-        let up = xq > 0.0;
-        let s = 3.0 * f[l] * xq * xq;
-        let mut m = [0.0; 3];
-        for x in 0..3 {
-            let g = kb * vb[x];
-            m[x] = -(if up { g + s * (kc * vc[x]) } else { g });
+        let kb = -2.0 * base.k;
+        let mut g = [kb * vb[0], kb * vb[1], kb * vb[2]];
+        for k in 0..K {
+            let vc = [q[0] - sc[k][0][l], q[1] - sc[k][1][l], q[2] - sc[k][2][l]];
+            let xq = sc0[k][l] - sk[k][l] * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
+            let kc = -2.0 * sk[k][l];
+            let s = 3.0 * f[k][l] * xq * xq;
+            for x in 0..3 {
+                g[x] = if xq > 0.0 {
+                    g[x] + s * (kc * vc[x])
+                } else {
+                    g[x]
+                };
+            }
         }
+        let m = [-g[0], -g[1], -g[2]];
         let rcp = 1.0 / (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
         let ok = rcp.is_finite() & (rcp > 0.0);
         let on_base = is_base[l];
