@@ -487,6 +487,18 @@ impl Walk {
         let margin = 1e-10 * scale;
         let neg = fhi.lt(0.0 - margin);
         let pos = !neg & flo.gt(margin);
+        if !(run & !neg & !pos).any() {
+            // Every lane's sign is fixed: no polynomial (the rest below
+            // with `Clear { s, s }` only).
+            let s = sel(neg, -1.0, 1.0);
+            let cleared = self.live & run;
+            let raw = cleared & (self.before * s).lt(0.0);
+            self.t = sel(raw, a, self.t);
+            self.kind = sel(raw, 2.0, self.kind);
+            self.before = sel(cleared, s, self.before);
+            self.live = self.live & !raw;
+            return;
+        }
         // `segment_root`'s polynomial on `[a, b]`: `Poly::quadratic` of
         // the shifted base (its value at `a` recomputed, `f_at_a`) plus
         // `add_cube` for each active support.
@@ -650,15 +662,20 @@ fn walk_lanes<const K: usize>(
         let c0 = q[0] + bound;
         let qscale = fmax(fmax(q[2].abs(), q[1].abs()), c0.abs());
         let linear = qscale.eq(0.0) | q[2].abs().le(1e-15 * qscale);
-        let disc = q[1] * q[1] - 4.0 * q[2] * c0;
-        let two = disc.gt(0.0);
-        let mut sq = disc;
-        for i in 0..W {
-            sq.0[i] = sq.0[i].sqrt().copysign(q[1].0[i]);
-        }
-        let h = -0.5 * (q[1] + sq);
-        let (x0, x1) = (h / q[2], c0 / h);
-        let (x0, x1) = (fmin(x0, x1), fmax(x0, x1));
+        let (two, h, x0, x1) = if roots_of.any() {
+            let disc = q[1] * q[1] - 4.0 * q[2] * c0;
+            let mut sq = disc;
+            for i in 0..W {
+                sq.0[i] = sq.0[i].sqrt().copysign(q[1].0[i]);
+            }
+            let h = -0.5 * (q[1] + sq);
+            let (x0, x1) = (h / q[2], c0 / h);
+            (disc.gt(0.0), h, fmin(x0, x1), fmax(x0, x1))
+        } else {
+            // Read by no lane.
+            let nan = splat(f64::NAN);
+            (M::all(false), nan, nan, nan)
+        };
         let first0 = two & x0.gt(lo) & x0.le(hi);
         let first1 = two & !first0 & x1.gt(lo) & x1.le(hi);
         let degenerate = roots_of & (linear | (two & h.eq(0.0)));
