@@ -13,7 +13,9 @@
 //! beam (`Object::cull`), as fidget prunes per tile; `--per-ray` walks the
 //! BVH for every ray instead.
 //!
-//! Run: `cargo run --release -p isolux-fidget-bench [-- SIZE] [--per-ray]`.
+//! Run: `cargo run --release -p isolux-fidget-bench [-- SIZE] [--per-ray]
+//! [--repeat N]`; `ISOLUX_SIMD=avx2` caps Isolux's vector instructions at
+//! fidget's own (its x86-64 JIT requires and uses AVX2).
 
 use fidget::context::Tree;
 use fidget::jit::JitShape;
@@ -48,11 +50,25 @@ fn best(repeat: usize, mut f: impl FnMut() -> usize) -> (f64, usize) {
 }
 
 fn main() {
-    let size: u32 = std::env::args()
-        .skip(1)
-        .find_map(|s| s.parse().ok())
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    // `--repeat N`: best of N (default 3); the first other number is SIZE.
+    let repeat_at = args.iter().position(|a| a == "--repeat");
+    let repeat: usize = match repeat_at {
+        Some(i) => match args.get(i + 1).and_then(|n| n.parse().ok()) {
+            Some(n) if n > 0 => n,
+            _ => {
+                eprintln!("error: --repeat takes a positive whole number");
+                std::process::exit(2);
+            }
+        },
+        None => 3,
+    };
+    let size: u32 = args
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| repeat_at.map(|r| r + 1) != Some(*i))
+        .find_map(|(_, s)| s.parse().ok())
         .unwrap_or(1024);
-    let repeat = 3;
     // Isolux casts in tiles of TILE x TILE rays culled together (as fidget
     // prunes per tile); `--per-ray` walks the BVH for every ray instead.
     let coherent = !std::env::args().any(|a| a == "--per-ray");
@@ -64,7 +80,8 @@ fn main() {
             .unwrap(),
     );
     println!(
-        "primary rays {size}x{size}, best of {repeat}; times in ms; {threads} threads available"
+        "primary rays {size}x{size}, best of {repeat}; times in ms; {threads} threads available; isolux vector instructions {} (cap with ISOLUX_SIMD=avx2|sse2)",
+        isolux_geometry::simd::isa().name()
     );
     println!("| bumps | isolux 1T | fidget 1T | ratio 1T | isolux {threads}T | fidget {threads}T | ratio {threads}T | isolux hits | fidget hits |");
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|");

@@ -21,6 +21,7 @@ pub mod object;
 pub mod poly;
 pub mod quadric;
 pub mod samples;
+pub mod simd;
 
 pub use aggregate::{Aggregate, Culled};
 pub use beam::Beam;

@@ -48,6 +48,8 @@ use crate::beam::Beam;
 use crate::bvh::Bvh;
 use crate::poly::{fmax, fmin, quadratic_crossings, sign, two_roots, Crossings, Poly, UnitRoot};
 use crate::quadric::Quadric;
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{self, Isa};
 use isolux_core::{Aabb, DVec3, Ray};
 use smallvec::SmallVec;
 
@@ -219,15 +221,12 @@ fn filter_supports(
     roots: &mut [[[f64; TILE_RAYS]; 2]],
 ) {
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F, checked just above.
-            return unsafe { filter_supports_avx512(lanes, spheres, out, roots) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2, checked just above.
-            return unsafe { filter_supports_avx2(lanes, spheres, out, roots) };
-        }
+    match simd::isa() {
+        // SAFETY: `simd::isa` answers AVX-512 only where the processor has it.
+        Isa::Avx512 => return unsafe { filter_supports_avx512(lanes, spheres, out, roots) },
+        // SAFETY: `simd::isa` answers AVX2 only where the processor has it.
+        Isa::Avx2 => return unsafe { filter_supports_avx2(lanes, spheres, out, roots) },
+        Isa::Baseline => {}
     }
     filter_supports_lanes(lanes, spheres, out, roots)
 }
@@ -354,40 +353,18 @@ fn setup_lanes(
     (centre, k, c0, inv_radius): (DVec3, f64, f64, f64),
     out: &mut BaseLanes,
 ) {
+    let sphere = (centre, k, c0, inv_radius);
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F, checked just above.
-            return unsafe {
-                setup_lanes_avx512(
-                    lanes,
-                    bbox,
-                    (t_min, t_max),
-                    (centre, k, c0, inv_radius),
-                    out,
-                )
-            };
+    match simd::isa() {
+        // SAFETY: `simd::isa` answers AVX-512 only where the processor has it.
+        Isa::Avx512 => {
+            return unsafe { setup_lanes_avx512(lanes, bbox, (t_min, t_max), sphere, out) }
         }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2, checked just above.
-            return unsafe {
-                setup_lanes_avx2(
-                    lanes,
-                    bbox,
-                    (t_min, t_max),
-                    (centre, k, c0, inv_radius),
-                    out,
-                )
-            };
-        }
+        // SAFETY: `simd::isa` answers AVX2 only where the processor has it.
+        Isa::Avx2 => return unsafe { setup_lanes_avx2(lanes, bbox, (t_min, t_max), sphere, out) },
+        Isa::Baseline => {}
     }
-    setup_lanes_body(
-        lanes,
-        bbox,
-        (t_min, t_max),
-        (centre, k, c0, inv_radius),
-        out,
-    )
+    setup_lanes_body(lanes, bbox, (t_min, t_max), sphere, out)
 }
 
 /// [`setup_lanes`] compiled for AVX-512.
@@ -1768,11 +1745,12 @@ mod tests {
     /// instruction set.
     #[test]
     fn solo_lanes_match_the_per_ray_walk() {
-        for level in [0, 1, 2] {
-            solo::FORCE.with(|f| f.set(level));
-            solo_lanes_match(41 + level as u64);
+        use crate::simd::Isa;
+        for (seed, cap) in [(41, None), (42, Some(Isa::Baseline)), (43, Some(Isa::Avx2))] {
+            crate::simd::FORCE.with(|f| f.set(cap));
+            solo_lanes_match(seed);
         }
-        solo::FORCE.with(|f| f.set(0));
+        crate::simd::FORCE.with(|f| f.set(None));
     }
 
     fn solo_lanes_match(seed: u64) {

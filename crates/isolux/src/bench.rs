@@ -93,7 +93,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 a.size, a.size, a.repeat
             );
             println!(
-                "per ray: a BVH walk per ray; tiles: {TILE} x {TILE} rays culled together (from blocks of {BLOCK} x {BLOCK} tiles) and cast together (times in ms)"
+                "per ray: a BVH walk per ray; tiles: {TILE} x {TILE} rays culled together (from blocks of {BLOCK} x {BLOCK} tiles) and cast together, vector instructions {} (cap with ISOLUX_SIMD=avx2|sse2; times in ms)",
+                isolux_geometry::simd::isa().name()
             );
             println!("| bumps | hits | per ray, 1 thread | tiles, 1 thread | per ray, {threads} threads | tiles, {threads} threads | Mrays/s (tiles, {threads} threads) |");
             println!("|---:|---:|---:|---:|---:|---:|---:|");

@@ -134,13 +134,6 @@ pub(super) struct BaseSphere {
     pub inv_radius: f64,
 }
 
-#[cfg(test)]
-thread_local! {
-    /// For the tests: 0 the best instruction set, 1 the baseline, 2 at
-    /// most AVX2.
-    pub(super) static FORCE: std::cell::Cell<u8> = const { std::cell::Cell::new(0) };
-}
-
 /// Walks the first `lanes.n` lanes, `out[l]` for lane `l`, and computes
 /// their hits' points and normals.
 pub(super) fn walk<const K: usize>(
@@ -148,20 +141,13 @@ pub(super) fn walk<const K: usize>(
     base: BaseSphere,
     out: &mut [Outcome; TILE_RAYS],
 ) {
-    #[cfg(test)]
-    let level = FORCE.with(|f| f.get());
-    #[cfg(not(test))]
-    let level = 0;
     #[cfg(target_arch = "x86_64")]
-    {
-        if level == 0 && std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F, checked just above.
-            return unsafe { walk_avx512(lanes, base, out) };
-        }
-        if level != 1 && std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2, checked just above.
-            return unsafe { walk_avx2(lanes, base, out) };
-        }
+    match crate::simd::isa() {
+        // SAFETY: `simd::isa` answers AVX-512 only where the processor has it.
+        crate::simd::Isa::Avx512 => return unsafe { walk_avx512(lanes, base, out) },
+        // SAFETY: `simd::isa` answers AVX2 only where the processor has it.
+        crate::simd::Isa::Avx2 => return unsafe { walk_avx2(lanes, base, out) },
+        crate::simd::Isa::Baseline => {}
     }
     walk_lanes(lanes, base, out);
     hits(lanes, base);
