@@ -71,7 +71,7 @@ fn main() {
         .unwrap_or(1024);
     // Isolux casts in tiles of TILE x TILE rays culled together (as fidget
     // prunes per tile); `--per-ray` walks the BVH for every ray instead.
-    let coherent = !std::env::args().any(|a| a == "--per-ray");
+    let coherent = !args.iter().any(|a| a == "--per-ray");
     let threads = rayon::current_num_threads();
     let single = ThreadPool::Custom(
         rayon::ThreadPoolBuilder::new()

@@ -76,26 +76,33 @@ fn parse_cap(value: &str) -> Option<Isa> {
     }
 }
 
+/// The level `best` capped by an `ISOLUX_SIMD` value (`None`: unset), and
+/// the warning an unknown value earns.
+fn capped(best: Isa, value: Option<&str>) -> (Isa, Option<String>) {
+    match value.map(|v| (v, parse_cap(v))) {
+        None => (best, None),
+        Some((_, Some(cap))) => (best.min(cap), None),
+        Some((v, None)) => (
+            best,
+            Some(format!(
+                "warning: ISOLUX_SIMD={v:?} is not one of best, avx512, avx2, sse2; using {}",
+                best.name()
+            )),
+        ),
+    }
+}
+
 /// The level chosen for this process: the detected one, capped by
 /// `ISOLUX_SIMD`.
 fn chosen() -> Isa {
     static CHOSEN: OnceLock<Isa> = OnceLock::new();
     *CHOSEN.get_or_init(|| {
-        let best = detected();
-        match std::env::var("ISOLUX_SIMD") {
-            Ok(v) => match parse_cap(&v) {
-                Some(cap) => best.min(cap),
-                None => {
-                    eprintln!(
-                        "warning: ISOLUX_SIMD={v:?} is not one of best, avx512, avx2, sse2; \
-                         using {}",
-                        best.name()
-                    );
-                    best
-                }
-            },
-            Err(_) => best,
+        let value = std::env::var("ISOLUX_SIMD").ok();
+        let (isa, warning) = capped(detected(), value.as_deref());
+        if let Some(w) = warning {
+            eprintln!("{w}");
         }
+        isa
     })
 }
 
@@ -126,8 +133,15 @@ mod tests {
         assert_eq!(parse_cap("baseline"), Some(Isa::Baseline));
         assert_eq!(parse_cap("best"), Some(Isa::Avx512));
         assert_eq!(parse_cap("neon"), None);
-        // A cap never raises the level above what the processor has.
-        assert!(detected().min(Isa::Avx512) == detected());
+        // A cap lowers the level, never raises it above the processor's.
+        assert_eq!(capped(Isa::Avx512, Some("avx2")), (Isa::Avx2, None));
+        assert_eq!(capped(Isa::Avx2, Some("avx512")), (Isa::Avx2, None));
+        assert_eq!(capped(Isa::Avx2, Some("sse2")), (Isa::Baseline, None));
+        assert_eq!(capped(Isa::Avx2, None), (Isa::Avx2, None));
+        // An unknown value keeps the best level and says so, naming it.
+        let (isa, warning) = capped(Isa::Avx2, Some("neon"));
+        assert_eq!(isa, Isa::Avx2);
+        assert!(warning.is_some_and(|w| w.contains("\"neon\"") && w.contains("avx2")));
     }
 
     #[test]

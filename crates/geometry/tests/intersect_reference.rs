@@ -34,6 +34,20 @@ struct RefObject {
 }
 
 impl RefObject {
+    /// The reference of `obj` (its own coefficients, read back), searching
+    /// `region`.
+    fn of(obj: &Object, region: Aabb) -> Self {
+        RefObject {
+            base: obj.base().coefficients(),
+            perts: obj
+                .perturbations()
+                .iter()
+                .map(|p| (p.quadric.coefficients(), p.factor))
+                .collect(),
+            region,
+        }
+    }
+
     fn f(&self, p: DVec3) -> f64 {
         let mut v = q_ref(&self.base, p);
         for (q, f) in &self.perts {
@@ -176,15 +190,9 @@ fn random_object_with(rng: &mut Pcg32, spheres: f64, round: bool) -> (Object, Re
             factor: -3.0,
         });
     }
-    let obj = Object::new(base, perts.clone(), bounds).expect("valid random object");
-    let reference = RefObject {
-        base: base.coefficients(),
-        perts: perts
-            .iter()
-            .map(|p| (p.quadric.coefficients(), p.factor))
-            .collect(),
-        region: bounds.map(|b| b.intersection(&region)).unwrap_or(region),
-    };
+    let obj = Object::new(base, perts, bounds).expect("valid random object");
+    let region = bounds.map(|b| b.intersection(&region)).unwrap_or(region);
+    let reference = RefObject::of(&obj, region);
     (obj, reference)
 }
 
@@ -356,6 +364,8 @@ fn benchmark_objects_cast_in_tiles_match_brute_force() {
         })
         .collect();
     objects.push(Object::new(Quadric::sphere(DVec3::ZERO, 0.6), mixed, None).unwrap());
+    let region = Aabb::new(DVec3::splat(-1.2), DVec3::splat(1.2));
+    let references: Vec<RefObject> = objects.iter().map(|o| RefObject::of(o, region)).collect();
     let tiles: Vec<(usize, Tile, u64)> = (0..3 * 40)
         .map(|i| {
             let mut t = Tile::random(&mut rng, i % 2 == 0);
@@ -367,16 +377,7 @@ fn benchmark_objects_cast_in_tiles_match_brute_force() {
     let parts: Vec<Tally> = tiles
         .par_iter()
         .map(|(oi, tile, seed)| {
-            let obj = &objects[*oi];
-            let p = obj.perturbations();
-            let reference = RefObject {
-                base: obj.base().coefficients(),
-                perts: p
-                    .iter()
-                    .map(|p| (p.quadric.coefficients(), p.factor))
-                    .collect(),
-                region: Aabb::new(DVec3::splat(-1.2), DVec3::splat(1.2)),
-            };
+            let (obj, reference) = (&objects[*oi], &references[*oi]);
             let mut rng = Pcg32::new(*seed, 0);
             let rays: Vec<Ray> = (0..64)
                 .map(|_| tile.ray(2.0 * rng.next_f64() - 1.0, 2.0 * rng.next_f64() - 1.0))
@@ -388,7 +389,7 @@ fn benchmark_objects_cast_in_tiles_match_brute_force() {
             let mut tally = Tally::default();
             for (ray, ours) in rays.iter().zip(got) {
                 let refr = reference.first_crossing(ray, 2000);
-                tally.add(&reference, ray, ours, refr, || format!("object {oi}"));
+                tally.add(reference, ray, ours, refr, || format!("object {oi}"));
             }
             tally
         })
