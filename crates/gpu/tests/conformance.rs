@@ -136,11 +136,15 @@ fn f64_intersection_matches_the_cpu() {
     single.report("f32");
     double.report("f64");
     double.check();
-    // Measured on lavapipe: median 6.1e-8 against 7.3e-7, 99th
-    // percentile 3.4e-7 against 1.2e-5.
+    // Measured on lavapipe (Mesa 22.3, 2026-12-01): median 6.1e-8
+    // against 7.2e-7, 99th percentile 2.3e-7 against 9.5e-6, 99.9th
+    // 6.0e-7 against 2.8e-5. (Before the root refinement returned its
+    // last Illinois estimate instead of the bracket's midpoint, f64's
+    // 99.9th percentile was 2.2e-5, as large as f32's: a regula falsi
+    // that kept one end of the bracket answered half a bracket off.)
     assert!(double.quantile(0.5) < 0.25 * single.quantile(0.5));
     assert!(double.quantile(0.99) < 0.25 * single.quantile(0.99));
-    assert!(double.quantile(0.999) <= single.quantile(0.999) * 1.5 + 1e-7);
+    assert!(double.quantile(0.999) < 0.25 * single.quantile(0.999));
 }
 
 fn agreement(gpu: &isolux_gpu::Gpu) -> Agreement {

@@ -175,16 +175,24 @@ fn first_root(p: array<real, 7>) -> real {
         }
         if (iv.y - iv.x < MIN_WIDTH) {
             if (fa * fb <= 0.0) {
-                // Regula falsi on the tiny interval.
+                // Regula falsi on the tiny interval, Illinois variant: an
+                // end kept twice in a row has its value halved, so both
+                // ends move (plain regula falsi on a convex stretch keeps
+                // one end fixed and converges from one side only). The
+                // answer is the last estimate, not the bracket's midpoint,
+                // which lay up to half the bracket (2^-13 of the segment)
+                // from the root when one end stayed put.
                 var x0 = iv.x;
                 var x1 = iv.y;
                 var f0 = fa;
                 var f1 = fb;
+                var xm = 0.5 * (x0 + x1);
+                var kept = 0; // -1: x0 kept last step, 1: x1, 0: none yet
                 for (var it = 0; it < 16; it++) {
                     if (f1 == f0) {
                         break;
                     }
-                    let xm = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
+                    xm = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
                     let fm = poly_eval(p, xm);
                     if (fm == 0.0) {
                         return xm;
@@ -192,12 +200,20 @@ fn first_root(p: array<real, 7>) -> real {
                     if (f0 * fm < 0.0) {
                         x1 = xm;
                         f1 = fm;
+                        if (kept == -1) {
+                            f0 = 0.5 * f0;
+                        }
+                        kept = -1;
                     } else {
                         x0 = xm;
                         f0 = fm;
+                        if (kept == 1) {
+                            f1 = 0.5 * f1;
+                        }
+                        kept = 1;
                     }
                 }
-                return 0.5 * (x0 + x1);
+                return xm;
             }
             continue; // touches zero without crossing
         }
