@@ -185,23 +185,101 @@ pub fn render_source() -> String {
     render_source_with(Precision::F32)
 }
 
-/// The path tracer and real-time kernels, intersecting in `precision`.
+/// The path tracer and real-time kernels, intersecting in `precision`,
+/// with every scene feature compiled in ([`Features::ALL`]).
 pub fn render_source_with(precision: Precision) -> String {
-    render_source_variant(precision, true)
+    render_source_variant(precision, Features::ALL)
 }
 
-/// [`render_source_with`], with the `wave` material's code only when
-/// `wave` is set (else `wave_stub.wgsl`: scenes without it compile a much
-/// smaller kernel).
-pub fn render_source_variant(precision: Precision, wave: bool) -> String {
+/// Scene features whose code the render kernels (`render.wgsl`,
+/// `realtime.wgsl`) carry only when a scene needs them. Each combination
+/// is its own shader module and kernels, compiled on first use; a frame
+/// picks the smallest that covers its scene ([`Features::of`]).
+///
+/// Decision: specialize rather than branch at run time. NIR and NVIDIA's
+/// compiler inline every WGSL function at every call site, so code that a
+/// scene never reaches still costs compile time (minutes on lavapipe for
+/// the `wave` code) and registers for the whole kernel: on an H100 the
+/// path tracer went from 441 to 647 ms per gallery frame when the
+/// subsurface integrator joined it (c7c9a78, docs/benchmarks.md), although
+/// the gallery has no medium. `isolux bench gpu --general` times the
+/// general kernels beside the specialized ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Features {
+    /// The `wave` material's code (`wave.wgsl`; else `wave_stub.wgsl`).
+    pub wave: bool,
+    /// The subsurface integrator (`SUBSURFACE` in `render.wgsl`: free
+    /// flights and scattering in a random-walk medium, the dipole's entry
+    /// points and single scattering, a boundary's mirrored environment).
+    pub subsurface: bool,
+}
+
+impl Features {
+    /// Every feature: runs any scene the GPU supports.
+    pub const ALL: Features = Features {
+        wave: true,
+        subsurface: true,
+    };
+    /// No optional code.
+    pub const NONE: Features = Features {
+        wave: false,
+        subsurface: false,
+    };
+    /// How many combinations there are (kernel slots per entry point).
+    pub const COUNT: usize = 4;
+
+    /// What the material records of a frame need: `wave` for a `wave`
+    /// material or mix leaf, `subsurface` for a `subsurface` material.
+    pub fn of(materials: &[layout::GpuMaterial]) -> Self {
+        Features {
+            wave: materials.iter().any(|m| m.tag[0] == layout::tag::WAVE),
+            subsurface: materials
+                .iter()
+                .any(|m| m.tag[0] == layout::tag::SUBSURFACE),
+        }
+    }
+
+    /// Whether kernels built with `self` run everything `needed` asks for.
+    pub fn covers(self, needed: Features) -> bool {
+        (self.wave || !needed.wave) && (self.subsurface || !needed.subsurface)
+    }
+
+    /// The kernel slot of this combination, in `0..COUNT`.
+    pub fn index(self) -> usize {
+        self.wave as usize | (self.subsurface as usize) << 1
+    }
+}
+
+impl std::fmt::Display for Features {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<&str> = [(self.wave, "wave"), (self.subsurface, "subsurface")]
+            .iter()
+            .filter(|(on, _)| *on)
+            .map(|(_, n)| *n)
+            .collect();
+        if names.is_empty() {
+            f.write_str("none")
+        } else {
+            f.write_str(&names.join("+"))
+        }
+    }
+}
+
+/// The render kernels' source with the code of `features` only: the `wave`
+/// material's (else `wave_stub.wgsl`: scenes without it compile a much
+/// smaller kernel) and the subsurface integrator's (the constant
+/// `SUBSURFACE`, which turns its branches into dead code that the driver
+/// drops).
+pub fn render_source_variant(precision: Precision, features: Features) -> String {
     prelude()
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
-        + if wave {
+        + if features.wave {
             include_str!("shaders/wave.wgsl")
         } else {
             include_str!("shaders/wave_stub.wgsl")
         }
+        + &format!("const SUBSURFACE: bool = {};\n", features.subsurface)
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -286,12 +364,12 @@ pub struct Gpu {
     queue: wgpu::Queue,
     intersect: OnceLock<wgpu::ComputePipeline>,
     material_eval: OnceLock<wgpu::ComputePipeline>,
-    render: [OnceLock<wgpu::ComputePipeline>; 2],
-    realtime: [OnceLock<wgpu::ComputePipeline>; 2],
-    aov: [OnceLock<wgpu::ComputePipeline>; 2],
+    render: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
+    realtime: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
+    aov: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
-    /// Without and with the `wave` code ([`render_source_variant`]).
-    render_module: [OnceLock<wgpu::ShaderModule>; 2],
+    /// One per combination of [`Features`] ([`render_source_variant`]).
+    render_module: [OnceLock<wgpu::ShaderModule>; Features::COUNT],
     /// GPU timestamps around a frame's dispatches, where the adapter offers
     /// `TIMESTAMP_QUERY` (for `isolux bench gpu`).
     pub(crate) timestamps: Option<Timestamps>,
@@ -502,35 +580,35 @@ impl Gpu {
     }
 
     /// The path tracer (`realtime` false, entry `main`) or the real-time
-    /// mode (entry `realtime`) of `render.wgsl`, with the `wave` code when
-    /// `wave` is set.
-    fn render_pipeline(&self, realtime: bool, wave: bool) -> &wgpu::ComputePipeline {
+    /// mode (entry `realtime`) of `render.wgsl`, with the code of
+    /// `features`.
+    fn render_pipeline(&self, realtime: bool, features: Features) -> &wgpu::ComputePipeline {
         let (cell, entry) = if realtime {
-            (&self.realtime[wave as usize], "realtime")
+            (&self.realtime[features.index()], "realtime")
         } else {
-            (&self.render[wave as usize], "main")
+            (&self.render[features.index()], "main")
         };
-        self.render_entry(cell, entry, wave)
+        self.render_entry(cell, entry, features)
     }
 
     /// The AOV kernel (`aov_main` of `render.wgsl`).
-    fn aov_pipeline(&self, wave: bool) -> &wgpu::ComputePipeline {
-        self.render_entry(&self.aov[wave as usize], "aov_main", wave)
+    fn aov_pipeline(&self, features: Features) -> &wgpu::ComputePipeline {
+        self.render_entry(&self.aov[features.index()], "aov_main", features)
     }
 
     fn render_entry<'a>(
         &'a self,
         cell: &'a OnceLock<wgpu::ComputePipeline>,
         entry: &'static str,
-        wave: bool,
+        features: Features,
     ) -> &'a wgpu::ComputePipeline {
         cell.get_or_init(|| {
-            let module = self.render_module[wave as usize].get_or_init(|| {
+            let module = self.render_module[features.index()].get_or_init(|| {
                 self.device
                     .create_shader_module(wgpu::ShaderModuleDescriptor {
                         label: Some("render"),
                         source: wgpu::ShaderSource::Wgsl(
-                            render_source_variant(self.precision, wave).into(),
+                            render_source_variant(self.precision, features).into(),
                         ),
                     })
             });
@@ -765,6 +843,36 @@ impl Gpu {
 #[cfg(test)]
 mod tests {
     #[test]
+    fn features_cover_and_name_their_combinations() {
+        use super::Features;
+        let all: Vec<Features> = (0..Features::COUNT)
+            .map(|i| Features {
+                wave: i & 1 != 0,
+                subsurface: i & 2 != 0,
+            })
+            .collect();
+        for (i, f) in all.iter().enumerate() {
+            assert_eq!(f.index(), i);
+            assert!(Features::ALL.covers(*f));
+            assert!(f.covers(Features::NONE));
+            for g in &all {
+                let by_parts = (f.wave || !g.wave) && (f.subsurface || !g.subsurface);
+                assert_eq!(f.covers(*g), by_parts, "{f} covers {g}");
+            }
+        }
+        assert_eq!(Features::NONE.to_string(), "none");
+        assert_eq!(Features::ALL.to_string(), "wave+subsurface");
+        // The kernels differ by the constant: without the subsurface
+        // integrator its branches are dead.
+        let none = super::render_source_variant(super::Precision::F32, Features::NONE);
+        assert!(none.contains("const SUBSURFACE: bool = false;"));
+        assert!(!none.contains("fn place_wave("));
+        let full = super::render_source_variant(super::Precision::F32, Features::ALL);
+        assert!(full.contains("const SUBSURFACE: bool = true;"));
+        assert!(full.contains("fn place_wave("));
+    }
+
+    #[test]
     fn f64_variants_validate_with_naga() {
         use super::Precision::F64;
         for src in [
@@ -796,8 +904,16 @@ mod tests {
             super::intersect_source(),
             super::material_eval_source(),
             super::render_source(),
-            super::render_source_variant(super::Precision::F32, false),
-        ] {
+        ]
+        .into_iter()
+        .chain((0..super::Features::COUNT).map(|i| {
+            let f = super::Features {
+                wave: i & 1 != 0,
+                subsurface: i & 2 != 0,
+            };
+            assert_eq!(f.index(), i);
+            super::render_source_variant(super::Precision::F32, f)
+        })) {
             let module = naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
             naga::valid::Validator::new(

@@ -4,7 +4,7 @@
 //! ([`GpuFrame::image`]). [`Gpu::render`] does all three for a whole film.
 
 use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
-use crate::{Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
+use crate::{Features, Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
 use isolux_core::{Aovs, Image, Rgb, PI};
 use isolux_render::{Camera, Environment, RenderStats, Scene};
 use wgpu::util::DeviceExt;
@@ -86,9 +86,11 @@ pub struct GpuFrame {
     /// The real-time mode (each [`GpuFrame::run`] renders a whole frame)
     /// rather than the progressive path tracer.
     realtime: bool,
-    /// A `wave` material is in the scene: the kernels with its code
-    /// ([`crate::render_source_variant`]).
-    wave: bool,
+    /// The optional code the kernels carry: by default what the scene
+    /// needs ([`Features::of`]), more after [`GpuFrame::set_features`].
+    features: Features,
+    /// What the scene needs.
+    needed: Features,
     bind: wgpu::BindGroup,
     accum: wgpu::Buffer,
     params_buf: wgpu::Buffer,
@@ -380,13 +382,11 @@ impl Gpu {
             aov.as_ref().unwrap_or(&aov_stub),
             &albedos,
         ]);
-        let wave = materials
-            .materials
-            .iter()
-            .any(|m| m.tag[0] == layout::tag::WAVE);
+        let needed = Features::of(&materials.materials);
         Ok(GpuFrame {
             realtime,
-            wave,
+            features: needed,
+            needed,
             bind,
             accum,
             params_buf,
@@ -436,6 +436,27 @@ impl Gpu {
 }
 
 impl GpuFrame {
+    /// The optional code this frame's kernels carry.
+    pub fn features(&self) -> Features {
+        self.features
+    }
+
+    /// Runs this frame with the kernels of `features` from now on (for
+    /// example [`Features::ALL`], the general kernels, to compare them
+    /// with the specialized ones: `isolux bench gpu --general`). Refused
+    /// when `features` lacks code the scene needs; the image is the same
+    /// either way, within the drivers' floating-point contraction.
+    pub fn set_features(&mut self, features: Features) -> Result<(), GpuError> {
+        if !features.covers(self.needed) {
+            return Err(GpuError::Setup(format!(
+                "kernels with {features} cannot render this scene: it needs {}",
+                self.needed
+            )));
+        }
+        self.features = features;
+        Ok(())
+    }
+
     /// Queues a pass adding `count` samples to every pixel (returns at
     /// once; [`Gpu::wait`] or [`GpuFrame::image`] waits). In the real-time
     /// mode the pass is a whole new frame of `count` samples per pixel.
@@ -471,7 +492,7 @@ impl GpuFrame {
         if self.realtime {
             self.dispatch_samples(
                 gpu,
-                gpu.render_pipeline(true, self.wave),
+                gpu.render_pipeline(true, self.features),
                 0,
                 count,
                 count,
@@ -488,7 +509,7 @@ impl GpuFrame {
         // at 16 samples per dispatch came out 38% dark).
         self.dispatch_samples(
             gpu,
-            gpu.render_pipeline(false, self.wave),
+            gpu.render_pipeline(false, self.features),
             self.samples,
             count,
             1,
@@ -580,7 +601,7 @@ impl GpuFrame {
             });
         enc.clear_buffer(buf, 0, None);
         gpu.queue.submit(Some(enc.finish()));
-        self.dispatch_samples(gpu, gpu.aov_pipeline(self.wave), 0, count, 1, false);
+        self.dispatch_samples(gpu, gpu.aov_pipeline(self.features), 0, count, 1, false);
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();

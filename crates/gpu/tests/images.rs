@@ -335,3 +335,51 @@ fn gallery_matches_the_cpu_within_noise() {
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.02 * mc, "{mg} vs {mc}");
 }
+
+/// Each frame runs the kernels specialized to its scene's features
+/// (`isolux_gpu::Features`): none for the gallery, the subsurface
+/// integrator for the translucent scenes, the `wave` code for the wave
+/// scenes; a frame refuses kernels that lack a feature its scene needs and
+/// accepts the general ones. (The images of each variant are checked
+/// against the CPU by the tests above; this one compiles nothing.)
+#[test]
+fn frames_choose_the_kernels_their_scenes_need() {
+    use isolux_gpu::Features;
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    for (name, wave, subsurface) in [
+        ("gallery.toml", false, false),
+        ("furnace.toml", false, false),
+        ("translucent.toml", false, true),
+        ("translucent-random-walk.toml", false, true),
+        ("wave-grating.toml", true, false),
+    ] {
+        let needed = Features { wave, subsurface };
+        let scene = common::example(name);
+        for mut frame in [
+            gpu.prepare(&scene).unwrap(),
+            gpu.prepare_realtime(&scene).unwrap(),
+        ] {
+            assert_eq!(frame.features(), needed, "{name}");
+            for lacking in [
+                Features {
+                    wave: false,
+                    ..needed
+                },
+                Features {
+                    subsurface: false,
+                    ..needed
+                },
+            ] {
+                if lacking != needed {
+                    let e = frame.set_features(lacking).unwrap_err().to_string();
+                    assert!(e.contains(&needed.to_string()), "{name}: {e}");
+                }
+            }
+            frame.set_features(Features::ALL).unwrap();
+            assert_eq!(frame.features(), Features::ALL);
+            frame.set_features(needed).unwrap();
+        }
+    }
+}

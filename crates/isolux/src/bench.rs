@@ -54,6 +54,11 @@ pub struct BenchArgs {
     /// SHADER_F64), in a column beside f32.
     #[arg(long)]
     pub f64: bool,
+    /// `gpu`: also time the general kernels (every optional feature
+    /// compiled in: `wave` and subsurface), in a column beside the kernels
+    /// specialized to the scene, with their ratio.
+    #[arg(long)]
+    pub general: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -444,13 +449,19 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         "adapter: {}; CPU: {threads} threads; {}x{}; best of {}",
         gpu.adapter, a.width, a.height, a.repeat
     );
+    // Optional columns between the GPU kernels and the CPU.
+    let mut extra = String::new();
+    let mut rule = String::new();
     if a.f64 {
-        println!("| scene | mode | spp | GPU (ms/frame) | GPU kernels (ms) | GPU f64 (ms/frame) | f64 / f32 | CPU (ms/frame) | CPU / GPU |");
-        println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
-    } else {
-        println!("| scene | mode | spp | GPU (ms/frame) | GPU kernels (ms) | CPU (ms/frame) | CPU / GPU |");
-        println!("|---|---|---:|---:|---:|---:|---:|");
+        extra += " GPU f64 (ms/frame) | f64 / f32 |";
+        rule += "---:|---:|";
     }
+    if a.general {
+        extra += " GPU general kernels (ms/frame) | general / specialized |";
+        rule += "---:|---:|";
+    }
+    println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU |");
+    println!("|---|---|---:|---|---:|---:|{rule}---:|---:|");
     for path in &scenes {
         let mut scene = isolux_scene::load(path)?;
         let replaced = isolux_gpu::replace_unsupported(&mut scene);
@@ -473,7 +484,9 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             };
             // Wall time from queueing the frame to the idle queue, and the
             // GPU's own time of the same frames (timestamps), best of each.
-            let mut time = |gpu: &isolux_gpu::Gpu| -> Result<(f64, Option<f64>)> {
+            let time = |gpu: &isolux_gpu::Gpu,
+                        frame: &mut isolux_gpu::GpuFrame|
+             -> Result<(f64, Option<f64>)> {
                 // Warm-up: compiles the kernel, touches the buffers, and
                 // gives the GPU two seconds to raise its clocks (an idle
                 // H100 starts at 345 MHz: after half a second's warm-up
@@ -504,16 +517,23 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 }
                 Ok((g, k))
             };
-            let (g, kernels) = time(&gpu)?;
+            let (g, kernels) = time(&gpu, &mut frame)?;
             let kernels = kernels.map_or("-".to_string(), |k| format!("{:.2}", k * 1e3));
-            let g64 = if a.f64 {
+            let mut cols = String::new();
+            if a.f64 {
                 gpu.set_precision(Precision::F64)?;
-                let t = time(&gpu);
+                let t = time(&gpu, &mut frame);
                 gpu.set_precision(Precision::F32)?;
-                Some(t?.0)
-            } else {
-                None
-            };
+                let g64 = t?.0;
+                cols += &format!(" {:.2} | {:.2} |", g64 * 1e3, g64 / g);
+            }
+            let features = frame.features();
+            if a.general {
+                frame.set_features(isolux_gpu::Features::ALL)?;
+                let gg = time(&gpu, &mut frame)?.0;
+                frame.set_features(features)?;
+                cols += &format!(" {:.2} | {:.2} |", gg * 1e3, gg / g);
+            }
             let (c, ratio) = if a.skip_cpu {
                 ("-".to_string(), "-".to_string())
             } else {
@@ -528,18 +548,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 });
                 (format!("{:.1}", t * 1e3), format!("{:.1}", t / g))
             };
-            match g64 {
-                Some(g64) => println!(
-                    "| {name} | {mode} | {spp} | {:.2} | {kernels} | {:.2} | {:.2} | {c} | {ratio} |",
-                    g * 1e3,
-                    g64 * 1e3,
-                    g64 / g
-                ),
-                None => println!(
-                    "| {name} | {mode} | {spp} | {:.2} | {kernels} | {c} | {ratio} |",
-                    g * 1e3
-                ),
-            }
+            println!(
+                "| {name} | {mode} | {spp} | {features} | {:.2} | {kernels} |{cols} {c} | {ratio} |",
+                g * 1e3
+            );
         }
         if !replaced.is_empty() {
             println!(

@@ -309,6 +309,13 @@ struct Path {
 var<private> path: Path;
 
 // ---- Subsurface scattering (integrator.rs) ---------------------------------
+//
+// `SUBSURFACE` (a constant the Rust side writes before this file,
+// `render_source_variant`) is false in kernels for scenes without a
+// `subsurface` material: every branch below that only a medium reaches is
+// then dead code, which the driver drops with the functions it calls
+// (among them a third inlined copy of the intersection, in the dipole's
+// probe rays).
 
 // Henyey-Greenstein cosine for u in [0, 1), as subsurface::phase.
 fn sample_hg_cos(g: f32, u: f32) -> f32 {
@@ -511,7 +518,7 @@ fn bounce() -> bool {
     var m: Material;
     var oi = 0u;
     var mi = 0u;
-    if (entry) {
+    if (SUBSURFACE && entry) {
         p = path.o;
         ng = path.entry_n;
         wo = ng;
@@ -524,7 +531,7 @@ fn bounce() -> bool {
         // Free flight inside a medium limits the search for the surface.
         var t_max = 3.0e38;
         var st = 0.0;
-        if (path.medium != 0u) {
+        if (SUBSURFACE && path.medium != 0u) {
             let mm = materials[path.medium - 1u];
             st = (mm.b.rgb + mm.c.rgb)[path.channel];
             if (st > 0.0) {
@@ -532,7 +539,7 @@ fn bounce() -> bool {
             }
         }
         let h = scene_hit(o, d, t_max);
-        if (h.x < 0.0 && t_max < 3.0e38) {
+        if (SUBSURFACE && h.x < 0.0 && t_max < 3.0e38) {
             return medium_scatter(o + t_max * d, d, st);
         }
         if (h.x < 0.0) {
@@ -545,7 +552,7 @@ fn bounce() -> bool {
             path.l += path.beta * env_eval(d) * w;
             return false;
         }
-        if (path.depth >= params.counts.z && path.medium == 0u) {
+        if (path.depth >= params.counts.z && (!SUBSURFACE || path.medium == 0u)) {
             return false;
         }
         oi = hit_object;
@@ -577,7 +584,7 @@ fn bounce() -> bool {
     if (wo_l.z == 0.0) {
         return false;
     }
-    let is_medium = m.tag.x == MAT_SUBSURFACE;
+    let is_medium = SUBSURFACE && m.tag.x == MAT_SUBSURFACE;
     // Direct light: the material's own lobes, or for a dipole medium seen
     // from outside its single scattering at x_o; a medium's boundary lobes
     // are specular (no light sampling for them).
@@ -640,7 +647,7 @@ fn bounce() -> bool {
     path.prev_pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
     path.o = offset_origin(p, ng, wi);
     path.d = wi;
-    if (path.medium != 0u || (is_medium && transmitted)) {
+    if (SUBSURFACE && (path.medium != 0u || (is_medium && transmitted))) {
         path.events += 1u;
         if (path.events > MAX_MEDIUM_EVENTS) {
             return false;
