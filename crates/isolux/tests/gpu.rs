@@ -81,3 +81,46 @@ fn render_gpu_writes_aov_layers() {
         );
     }
 }
+
+/// `isolux bench gpu` prints its table: the adapter, one row per mode, each
+/// naming the kernel features of its frame (none for the furnace) and a
+/// positive, finite GPU time.
+#[test]
+fn bench_gpu_prints_a_table_naming_the_kernel_features() {
+    let o = run(&[
+        "bench",
+        "gpu",
+        FURNACE,
+        "--width",
+        "16",
+        "--height",
+        "8",
+        "--repeat",
+        "1",
+        "--skip-cpu",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        assert_eq!(o.status.code(), Some(1));
+        return;
+    }
+    assert!(o.status.success(), "{err}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.starts_with("adapter: "), "{out}");
+    assert!(
+        out.contains("| kernel features | GPU (ms/frame) |"),
+        "{out}"
+    );
+    let rows: Vec<&str> = out
+        .lines()
+        .filter(|l| l.starts_with("| furnace.toml |"))
+        .collect();
+    assert_eq!(rows.len(), 3, "{out}");
+    for (row, mode) in rows.iter().zip(["real-time", "path traced", "direct only"]) {
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(cells[2], mode, "{row}");
+        assert_eq!(cells[4], "none", "{row}");
+        let ms: f64 = cells[5].parse().unwrap();
+        assert!(ms.is_finite() && ms > 0.0, "{row}");
+    }
+}
