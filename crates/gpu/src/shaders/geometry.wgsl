@@ -32,6 +32,20 @@ struct BvhNode { bmin: vec4<f32>, bmax: vec4<f32>, link: vec4<u32> }
 // The object of the hit `scene_first_hit` returned.
 var<private> hit_object: u32;
 
+// The intersection's work arrays, at module scope. WGSL zero-initializes
+// every variable: naga gives a function's local variables an
+// OpConstantNull initializer, so a local array is cleared on every call,
+// and one indexed at run time lives in memory, where the driver cannot
+// prove the stores dead (on NVIDIA, 32 to 64 stores to local memory per
+// `object_hit` and `first_root` call). Private arrays are cleared once per
+// invocation. No two live calls share one (WGSL has no recursion): the
+// scene's traversal, an object's traversal, its candidate perturbations,
+// and the root isolation's intervals.
+var<private> scene_stack: array<u32, BVH_STACK>;
+var<private> object_stack: array<u32, BVH_STACK>;
+var<private> candidates: array<u32, MAX_CANDIDATES>;
+var<private> root_stack: array<vec4<real>, ROOT_STACK>;
+
 // Coefficients [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44].
 fn q_m(q: Quadric, p: vec3<real>) -> vec3<real> {
     let a = vec4<real>(q.c[0]);
@@ -147,9 +161,8 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
 // object, `images.rs`, `conformance.rs`.) The hull is the Bernstein
 // coefficients' with their ends replaced by these values.
 fn first_root(p: array<real, 7>) -> real {
-    var stack: array<vec4<real>, ROOT_STACK>;
     var top = 1;
-    stack[0] = vec4<real>(0.0, 1.0, p[0], poly_eval(p, 1.0));
+    root_stack[0] = vec4<real>(0.0, 1.0, p[0], poly_eval(p, 1.0));
     var guard = 0;
     loop {
         if (top == 0 || guard > MAX_SUBDIVISIONS) {
@@ -157,7 +170,7 @@ fn first_root(p: array<real, 7>) -> real {
         }
         guard++;
         top--;
-        let iv = stack[top];
+        let iv = root_stack[top];
         let fa = iv.z;
         let fb = iv.w;
         if (fa == 0.0) {
@@ -222,8 +235,8 @@ fn first_root(p: array<real, 7>) -> real {
         }
         let mid = 0.5 * (iv.x + iv.y);
         let fm = poly_eval(p, mid);
-        stack[top] = vec4<real>(mid, iv.y, fm, fb);
-        stack[top + 1] = vec4<real>(iv.x, mid, fa, fm);
+        root_stack[top] = vec4<real>(mid, iv.y, fm, fb);
+        root_stack[top + 1] = vec4<real>(iv.x, mid, fa, fm);
         top += 2;
     }
     return -1.0;
@@ -268,7 +281,6 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
     // support, and others along some rays) is active only between its
     // roots, and no roots, or roots outside the span, drop it. Up to
     // MAX_CANDIDATES are kept; beyond, every perturbation is used.
-    var cand: array<u32, MAX_CANDIDATES>;
     var nc = 0u;
     var all = false;
     let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
@@ -276,12 +288,11 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
         // A few supports: the same test on each, no traversal.
         for (var k = 0u; k < count; k++) {
             if (keeps_support(first + k, o, d, span, slack)) {
-                cand[nc] = first + k;
+                candidates[nc] = first + k;
                 nc++;
             }
         }
     } else if (obj.range.w != NO_NODE) {
-        var stack: array<u32, BVH_STACK>;
         var sp = 0u;
         var node = obj.range.w;
         loop {
@@ -291,7 +302,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
             if (bs.x <= bs.y) {
                 if (nd.link.y == 0u) {
                     if (sp < BVH_STACK) {
-                        stack[sp] = nd.link.x;
+                        object_stack[sp] = nd.link.x;
                         sp++;
                     }
                     node = node + 1u;
@@ -303,7 +314,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
                             continue;
                         }
                         if (nc < MAX_CANDIDATES) {
-                            cand[nc] = pi;
+                            candidates[nc] = pi;
                             nc++;
                         } else {
                             all = true;
@@ -316,7 +327,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
                     break;
                 }
                 sp--;
-                node = stack[sp];
+                node = object_stack[sp];
             }
         }
     }
@@ -332,7 +343,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
         var b = span.y;
         let eps = 1e-6 * max(1.0, abs(a));
         for (var j = 0u; j < live; j++) {
-            let pi = select(cand[j], first + j, all);
+            let pi = select(candidates[j], first + j, all);
             let r = roots(q_along(perturbations[pi].q, o, d));
             if (r.x > a + eps && r.x < b) {
                 b = r.x;
@@ -347,7 +358,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
         var p = array<real, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
         var n_active = 0u;
         for (var j = 0u; j < live; j++) {
-            let pert = perturbations[select(cand[j], first + j, all)];
+            let pert = perturbations[select(candidates[j], first + j, all)];
             let qa = q_along(pert.q, o, d);
             if (qa.z + mid * (qa.y + mid * qa.x) <= 0.0) {
                 continue;
@@ -390,7 +401,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
             let x = o + t * d;
             var g = q_grad(obj.base, x);
             for (var j = 0u; j < live; j++) {
-                let pert = perturbations[select(cand[j], first + j, all)];
+                let pert = perturbations[select(candidates[j], first + j, all)];
                 let qv = q_eval(pert.q, x);
                 if (qv > 0.0) {
                     g += 3.0 * real(pert.factor.x) * qv * qv * q_grad(pert.q, x);
@@ -432,7 +443,6 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
         return best;
     }
     var t1 = t_max;
-    var stack: array<u32, BVH_STACK>;
     var sp = 0u;
     var node = 0u;
     loop {
@@ -442,7 +452,7 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
         if (bs.x <= bs.y) {
             if (nd.link.y == 0u) {
                 if (sp < BVH_STACK) {
-                    stack[sp] = nd.link.x;
+                    scene_stack[sp] = nd.link.x;
                     sp++;
                 }
                 node = node + 1u;
@@ -467,7 +477,7 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
                 break;
             }
             sp--;
-            node = stack[sp];
+            node = scene_stack[sp];
         }
     }
     return best;
