@@ -157,9 +157,17 @@ impl Precision {
     }
 }
 
-/// `geometry.wgsl` computing in `precision`.
+/// `geometry.wgsl` computing in `precision` (the alias `real` and its
+/// machine epsilon `REAL_EPS`).
 pub fn geometry_source(precision: Precision) -> String {
-    format!("alias real = {};\n", precision.wgsl()) + include_str!("shaders/geometry.wgsl")
+    let eps = match precision {
+        Precision::F32 => f32::EPSILON as f64,
+        Precision::F64 => f64::EPSILON,
+    };
+    format!(
+        "alias real = {};\nconst REAL_EPS: real = {eps:e};\n",
+        precision.wgsl()
+    ) + include_str!("shaders/geometry.wgsl")
 }
 
 /// The intersection kernel with its prelude (f32).

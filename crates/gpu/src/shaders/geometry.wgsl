@@ -133,18 +133,18 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
         g[k] = g[k] * hk;
         hk = hk * h;
     }
-    // b_k = sum_{j <= k} C(k, j) / C(6, j) g_j.
-    var binom6 = array<real, 7>(1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0);
+    // b_k = sum_{j <= k} C(k, j) / C(6, j) g_j, the weights written out
+    // as products with constants (a division by 6 is not a product with
+    // 1/6 in IEEE arithmetic, so a driver may not fold it into one).
     var b: array<real, 7>;
-    for (var k = 0; k < 7; k++) {
-        var s: real = 0.0;
-        var ckj: real = 1.0; // C(k, j)
-        for (var j = 0; j <= k; j++) {
-            s = s + ckj / binom6[j] * g[j];
-            ckj = ckj * real(k - j) / real(j + 1);
-        }
-        b[k] = s;
-    }
+    b[0] = g[0];
+    b[1] = g[0] + g[1] * (1.0 / 6.0);
+    b[2] = g[0] + g[1] * (1.0 / 3.0) + g[2] * (1.0 / 15.0);
+    b[3] = g[0] + g[1] * 0.5 + g[2] * 0.2 + g[3] * 0.05;
+    b[4] = g[0] + g[1] * (2.0 / 3.0) + g[2] * 0.4 + g[3] * 0.2 + g[4] * (1.0 / 15.0);
+    b[5] = g[0] + g[1] * (5.0 / 6.0) + g[2] * (2.0 / 3.0) + g[3] * 0.5 + g[4] * (1.0 / 3.0)
+        + g[5] * (1.0 / 6.0);
+    b[6] = g[0] + g[1] + g[2] + g[3] + g[4] + g[5] + g[6];
     return b;
 }
 
@@ -161,6 +161,13 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
 // object, `images.rs`, `conformance.rs`.) The hull is the Bernstein
 // coefficients' with their ends replaced by these values.
 fn first_root(p: array<real, 7>) -> real {
+    // What rounding can do to a control point: the Taylor shift, scaling
+    // and basis change stay within about 1024 ulps of sum |p_k| on [0, 1].
+    var size: real = 0.0;
+    for (var k = 0; k < 7; k++) {
+        size += abs(p[k]);
+    }
+    let tol = 1024.0 * REAL_EPS * size;
     var top = 1;
     root_stack[0] = vec4<real>(0.0, 1.0, p[0], poly_eval(p, 1.0));
     var guard = 0;
@@ -177,6 +184,8 @@ fn first_root(p: array<real, 7>) -> real {
             return iv.x;
         }
         var b = bernstein(p, iv.x, iv.y);
+        b[0] = fa;
+        b[6] = fb;
         var lo = min(fa, fb);
         var hi = max(fa, fb);
         for (var k = 1; k < 6; k++) {
@@ -186,26 +195,48 @@ fn first_root(p: array<real, 7>) -> real {
         if (lo > 0.0 || hi < 0.0) {
             continue;
         }
-        if (iv.y - iv.x < MIN_WIDTH) {
+        // Exactly one root: one sign change of the control polygon between
+        // ends of opposite signs (Descartes' rule of signs in the Bernstein
+        // basis), decided as the CPU's `Poly::first_crossing` and `isolate`
+        // decide it, and refined at once instead of split down to
+        // MIN_WIDTH. Trusted only when every control point clears `tol`, so
+        // that no sign is rounding's; otherwise the interval is split as
+        // before.
+        var single = fa * fb < 0.0;
+        var changes = 0;
+        for (var k = 0; k < 6; k++) {
+            if (abs(b[k + 1]) <= tol) {
+                single = false;
+            }
+            if ((b[k] < 0.0) != (b[k + 1] < 0.0)) {
+                changes++;
+            }
+        }
+        single = single && abs(fa) > tol && changes == 1;
+        if (single || iv.y - iv.x < MIN_WIDTH) {
             if (fa * fb <= 0.0) {
-                // Regula falsi on the tiny interval, Illinois variant: an
-                // end kept twice in a row has its value halved, so both
-                // ends move (plain regula falsi on a convex stretch keeps
-                // one end fixed and converges from one side only). The
-                // answer is the last estimate, not the bracket's midpoint,
-                // which lay up to half the bracket (2^-13 of the segment)
-                // from the root when one end stayed put.
+                // Regula falsi, Illinois variant: an end kept twice in a
+                // row has its value halved, so both ends move (plain
+                // regula falsi on a convex stretch keeps one end fixed and
+                // converges from one side only). The answer is the last
+                // estimate, not the bracket's midpoint, which lay up to
+                // half the bracket from the root when one end stayed put.
+                // Stops at an exact zero, or when an estimate repeats.
                 var x0 = iv.x;
                 var x1 = iv.y;
                 var f0 = fa;
                 var f1 = fb;
                 var xm = 0.5 * (x0 + x1);
                 var kept = 0; // -1: x0 kept last step, 1: x1, 0: none yet
-                for (var it = 0; it < 16; it++) {
+                for (var it = 0; it < 40; it++) {
                     if (f1 == f0) {
                         break;
                     }
-                    xm = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
+                    let x = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
+                    if (it > 0 && x == xm) {
+                        break;
+                    }
+                    xm = x;
                     let fm = poly_eval(p, xm);
                     if (fm == 0.0) {
                         return xm;
