@@ -256,6 +256,23 @@ impl Features {
     pub fn index(self) -> usize {
         self.wave as usize | (self.subsurface as usize) << 1
     }
+
+    /// The part of `self` that an entry point of the render module
+    /// reaches: `main` (the path tracer) all of it; `realtime` the `wave`
+    /// code only (it draws a medium black and never reads `SUBSURFACE`);
+    /// `aov_main` neither (first hits and albedos). Kernels that differ
+    /// only in code their entry never reaches are one kernel, compiled
+    /// once.
+    fn reached_by(self, entry: &str) -> Features {
+        match entry {
+            "main" => self,
+            "realtime" => Features {
+                subsurface: false,
+                ..self
+            },
+            _ => Features::NONE,
+        }
+    }
 }
 
 impl std::fmt::Display for Features {
@@ -591,26 +608,28 @@ impl Gpu {
     /// mode (entry `realtime`) of `render.wgsl`, with the code of
     /// `features`.
     fn render_pipeline(&self, realtime: bool, features: Features) -> &wgpu::ComputePipeline {
-        let (cell, entry) = if realtime {
-            (&self.realtime[features.index()], "realtime")
+        if realtime {
+            self.render_entry(&self.realtime, "realtime", features)
         } else {
-            (&self.render[features.index()], "main")
-        };
-        self.render_entry(cell, entry, features)
+            self.render_entry(&self.render, "main", features)
+        }
     }
 
     /// The AOV kernel (`aov_main` of `render.wgsl`).
     fn aov_pipeline(&self, features: Features) -> &wgpu::ComputePipeline {
-        self.render_entry(&self.aov[features.index()], "aov_main", features)
+        self.render_entry(&self.aov, "aov_main", features)
     }
 
+    /// Entry point `entry` with the part of `features` it reaches
+    /// ([`Features::reached_by`]), from its slot in `cells`.
     fn render_entry<'a>(
         &'a self,
-        cell: &'a OnceLock<wgpu::ComputePipeline>,
+        cells: &'a [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
         entry: &'static str,
         features: Features,
     ) -> &'a wgpu::ComputePipeline {
-        cell.get_or_init(|| {
+        let features = features.reached_by(entry);
+        cells[features.index()].get_or_init(|| {
             let module = self.render_module[features.index()].get_or_init(|| {
                 self.device
                     .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -850,19 +869,34 @@ impl Gpu {
 
 #[cfg(test)]
 mod tests {
-    #[test]
-    fn features_cover_and_name_their_combinations() {
-        use super::Features;
-        let all: Vec<Features> = (0..Features::COUNT)
-            .map(|i| Features {
+    /// Every combination of features, in slot order.
+    fn every_combination() -> Vec<super::Features> {
+        (0..super::Features::COUNT)
+            .map(|i| super::Features {
                 wave: i & 1 != 0,
                 subsurface: i & 2 != 0,
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn features_cover_and_name_their_combinations() {
+        use super::Features;
+        let all = every_combination();
         for (i, f) in all.iter().enumerate() {
             assert_eq!(f.index(), i);
             assert!(Features::ALL.covers(*f));
             assert!(f.covers(Features::NONE));
+            // Each entry point keeps what it reaches, and never more.
+            assert_eq!(f.reached_by("main"), *f);
+            assert_eq!(
+                f.reached_by("realtime"),
+                Features {
+                    subsurface: false,
+                    ..*f
+                }
+            );
+            assert_eq!(f.reached_by("aov_main"), Features::NONE);
             for g in &all {
                 let by_parts = (f.wave || !g.wave) && (f.subsurface || !g.subsurface);
                 assert_eq!(f.covers(*g), by_parts, "{f} covers {g}");
@@ -914,14 +948,11 @@ mod tests {
             super::render_source(),
         ]
         .into_iter()
-        .chain((0..super::Features::COUNT).map(|i| {
-            let f = super::Features {
-                wave: i & 1 != 0,
-                subsurface: i & 2 != 0,
-            };
-            assert_eq!(f.index(), i);
-            super::render_source_variant(super::Precision::F32, f)
-        })) {
+        .chain(
+            every_combination()
+                .into_iter()
+                .map(|f| super::render_source_variant(super::Precision::F32, f)),
+        ) {
             let module = naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
             naga::valid::Validator::new(
