@@ -46,6 +46,45 @@ var<private> object_stack: array<u32, BVH_STACK>;
 var<private> candidates: array<u32, MAX_CANDIDATES>;
 var<private> root_stack: array<vec4<real>, ROOT_STACK>;
 
+// The candidate perturbations of the object `object_hit` is intersecting.
+// An object with at most 32 perturbations keeps them as a bit mask over
+// its range (`cand_mask`, bit k for perturbation `cand_first + k`), which
+// lives in a register: a run-time-indexed array lives in memory (local
+// memory on NVIDIA), and the gallery's objects have two perturbations
+// each. A larger object lists them in `candidates` (`cand_count` of them),
+// or uses all `cand_count` of its perturbations when more than
+// MAX_CANDIDATES survive the culling. Walked by `next_candidate`.
+const CAND_MASK: u32 = 0u;
+const CAND_LIST: u32 = 1u;
+const CAND_ALL: u32 = 2u;
+var<private> cand_mode: u32;
+var<private> cand_mask: u32;
+var<private> cand_first: u32;
+var<private> cand_count: u32;
+
+// The next candidate perturbation (its index into `perturbations`), or
+// NO_NODE after the last. A walk starts from `vec2(cand_mask, 0u)`: the
+// mask's bits still to visit, and the position in the list.
+fn next_candidate(c: ptr<function, vec2<u32>>) -> u32 {
+    if (cand_mode == CAND_MASK) {
+        let m = (*c).x;
+        if (m == 0u) {
+            return NO_NODE;
+        }
+        (*c).x = m & (m - 1u);
+        return cand_first + firstTrailingBit(m);
+    }
+    let j = (*c).y;
+    if (j >= cand_count) {
+        return NO_NODE;
+    }
+    (*c).y = j + 1u;
+    if (cand_mode == CAND_ALL) {
+        return cand_first + j;
+    }
+    return candidates[j];
+}
+
 // Coefficients [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44].
 fn q_m(q: Quadric, p: vec3<real>) -> vec3<real> {
     let a = vec4<real>(q.c[0]);
@@ -314,13 +353,14 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
     // MAX_CANDIDATES are kept; beyond, every perturbation is used.
     var nc = 0u;
     var all = false;
+    var mask = 0u;
+    let masked = count <= 32u;
     let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
     if (obj.range.w != NO_NODE && count <= LINEAR_CULL) {
         // A few supports: the same test on each, no traversal.
         for (var k = 0u; k < count; k++) {
             if (keeps_support(first + k, o, d, span, slack)) {
-                candidates[nc] = first + k;
-                nc++;
+                mask |= 1u << k;
             }
         }
     } else if (obj.range.w != NO_NODE) {
@@ -344,7 +384,9 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
                         if (!keeps_support(pi, o, d, span, slack)) {
                             continue;
                         }
-                        if (nc < MAX_CANDIDATES) {
+                        if (masked) {
+                            mask |= 1u << (pi - first);
+                        } else if (nc < MAX_CANDIDATES) {
                             candidates[nc] = pi;
                             nc++;
                         } else {
@@ -362,7 +404,11 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
             }
         }
     }
-    let live = select(nc, count, all);
+    cand_first = first;
+    cand_mask = mask;
+    cand_count = select(nc, count, all);
+    cand_mode = select(select(CAND_LIST, CAND_ALL, all), CAND_MASK, masked);
+    let live = select(cand_count, countOneBits(mask), masked);
     var a = span.x;
     var guard = 0u;
     loop {
@@ -373,8 +419,12 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
         // Next breakpoint: the nearest root of an active Q_i beyond a.
         var b = span.y;
         let eps = 1e-6 * max(1.0, abs(a));
-        for (var j = 0u; j < live; j++) {
-            let pi = select(candidates[j], first + j, all);
+        var walk = vec2<u32>(cand_mask, 0u);
+        loop {
+            let pi = next_candidate(&walk);
+            if (pi == NO_NODE) {
+                break;
+            }
             let r = roots(q_along(perturbations[pi].q, o, d));
             if (r.x > a + eps && r.x < b) {
                 b = r.x;
@@ -388,8 +438,13 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
         let c = shift2(base, a, l);
         var p = array<real, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
         var n_active = 0u;
-        for (var j = 0u; j < live; j++) {
-            let pert = perturbations[select(candidates[j], first + j, all)];
+        walk = vec2<u32>(cand_mask, 0u);
+        loop {
+            let pi = next_candidate(&walk);
+            if (pi == NO_NODE) {
+                break;
+            }
+            let pert = perturbations[pi];
             let qa = q_along(pert.q, o, d);
             if (qa.z + mid * (qa.y + mid * qa.x) <= 0.0) {
                 continue;
@@ -431,8 +486,13 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
             let t = a + s * l;
             let x = o + t * d;
             var g = q_grad(obj.base, x);
-            for (var j = 0u; j < live; j++) {
-                let pert = perturbations[select(candidates[j], first + j, all)];
+            walk = vec2<u32>(cand_mask, 0u);
+            loop {
+                let pi = next_candidate(&walk);
+                if (pi == NO_NODE) {
+                    break;
+                }
+                let pert = perturbations[pi];
                 let qv = q_eval(pert.q, x);
                 if (qv > 0.0) {
                     g += 3.0 * real(pert.factor.x) * qv * qv * q_grad(pert.q, x);
