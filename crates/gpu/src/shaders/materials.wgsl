@@ -1170,17 +1170,26 @@ fn refract_z(wo: vec3<f32>, eta: f32) -> vec4<f32> {
     return vec4<f32>(-wo / etap + (cos_i / etap - cos_t) * n, etap);
 }
 
+// A sample of one model. A direction that the whole model scores
+// (`reflected`: its f and pdf) is drawn in the switch and scored after
+// it, at one call site: `reflected` calls `base_f` and `base_pdf`, whose
+// switches over every model are the bulk of the library, and the
+// compilers inline a call at each of its sites (a `reflected` in each of
+// the 16 branches made NIR compile 16 copies of the whole library here).
+// Specular and closed-form samples return from their branch.
 fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+    var wi = vec3<f32>(0.0);
+    var flags = FLAG_GLOSSY;
     switch m.tag.x {
         case MAT_DIFFUSE: {
             if (wo.z <= 0.0) {
                 return no_sample();
             }
-            let wi = cosine_hemisphere(u);
-            if (wi.z <= 0.0) {
+            let wd = cosine_hemisphere(u);
+            if (wd.z <= 0.0) {
                 return no_sample();
             }
-            return BsdfSample(wi, m.a.rgb * INV_PI, cosine_pdf(wi.z), FLAG_REFLECTION | FLAG_DIFFUSE, 1.0, true);
+            return BsdfSample(wd, m.a.rgb * INV_PI, cosine_pdf(wd.z), FLAG_REFLECTION | FLAG_DIFFUSE, 1.0, true);
         }
         case MAT_COOK_TORRANCE, MAT_GAUSSIAN: {
             if (wo.z <= 0.0) {
@@ -1191,55 +1200,55 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
                 if (dot(wo, h) <= 0.0) {
                     return no_sample();
                 }
-                return reflected(m, wo, reflect_about(wo, h), FLAG_GLOSSY);
+                wi = reflect_about(wo, h);
+            } else {
+                wi = cosine_hemisphere(u);
+                flags = FLAG_DIFFUSE;
             }
-            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
         }
         case MAT_FACTORED: {
             if (wo.z <= 0.0) {
                 return no_sample();
             }
             if (uc < 0.5) {
-                return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
+                wi = cosine_hemisphere(u);
+            } else {
+                wi = factored_sample_h(m, wo, u);
             }
-            return reflected(m, wo, factored_sample_h(m, wo, u), FLAG_GLOSSY);
         }
         case MAT_HEIDRICH_SEIDEL: {
             if (wo.z <= 0.0) {
                 return no_sample();
             }
             if (uc < m.e.x) {
-                return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+                wi = cosine_hemisphere(u);
+                flags = FLAG_DIFFUSE;
+            } else if (uc < m.e.x + m.e.y) {
+                wi = hs_fibre_sample(m, wo, u);
+            } else {
+                wi = around(mirror_z(wo), pow(u.x, 1.0 / (m.a.w + 1.0)), 2.0 * PI * u.y);
             }
-            if (uc < m.e.x + m.e.y) {
-                return reflected(m, wo, hs_fibre_sample(m, wo, u), FLAG_GLOSSY);
-            }
-            let wi = around(mirror_z(wo), pow(u.x, 1.0 / (m.a.w + 1.0)), 2.0 * PI * u.y);
-            return reflected(m, wo, wi, FLAG_GLOSSY);
         }
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD: {
             if (wo.z <= 0.0) {
                 return no_sample();
             }
-            let glossy = uc < m.c.y;
-            var wi: vec3<f32>;
-            if (glossy) {
+            if (uc < m.c.y) {
                 wi = lobe_sample(m, wo, u);
             } else {
                 wi = cosine_hemisphere(u);
+                flags = FLAG_DIFFUSE;
             }
-            return reflected(m, wo, wi, select(FLAG_DIFFUSE, FLAG_GLOSSY, glossy));
         }
         case MAT_GGX, MAT_BECKMANN: {
-            let wi = mfr_sample_dir(is_beckmann(m), m.a.x, m.a.y, wo, u);
-            return reflected(m, wo, wi, FLAG_GLOSSY);
+            wi = mfr_sample_dir(is_beckmann(m), m.a.x, m.a.y, wo, u);
         }
         case MAT_CONDUCTOR: {
             if (wo.z <= 0.0) {
                 return no_sample();
             }
-            let wi = mirror_z(wo);
-            return BsdfSample(wi, fresnel_eval(m.tag.y, m.b, m.c, wo.z) / wi.z, 1.0, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+            let wr = mirror_z(wo);
+            return BsdfSample(wr, fresnel_eval(m.tag.y, m.b, m.c, wo.z) / wr.z, 1.0, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
         }
         case MAT_DIELECTRIC, MAT_SUBSURFACE: {
             if (wo.z == 0.0) {
@@ -1247,8 +1256,8 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
             let f = fresnel_dielectric(wo.z, m.a.x);
             if (uc < f) {
-                let wi = mirror_z(wo);
-                return BsdfSample(wi, vec3<f32>(f / abs(wi.z)), f, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+                let wr = mirror_z(wo);
+                return BsdfSample(wr, vec3<f32>(f / abs(wr.z)), f, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
             }
             let r = refract_z(wo, m.a.x);
             if (r.w == 0.0) {
@@ -1263,15 +1272,16 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
             let pc = plastic_p_coat(m, wo);
             if (uc < pc) {
-                if (m.tag.w == 1u) {
-                    let wi = mfr_sample_dir(false, m.b.y, m.b.y, wo, u);
-                    return reflected(m, wo, wi, FLAG_GLOSSY);
+                if (m.tag.w != 1u) {
+                    let wr = mirror_z(wo);
+                    let f = fresnel_dielectric(wo.z, m.b.x);
+                    return BsdfSample(wr, vec3<f32>(f / wr.z), pc, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
                 }
-                let wi = mirror_z(wo);
-                let f = fresnel_dielectric(wo.z, m.b.x);
-                return BsdfSample(wi, vec3<f32>(f / wi.z), pc, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+                wi = mfr_sample_dir(false, m.b.y, m.b.y, wo, u);
+            } else {
+                wi = cosine_hemisphere(u);
+                flags = FLAG_DIFFUSE;
             }
-            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
         }
         case MAT_SUBSURFACE_BRDF: {
             if (wo.z <= 0.0) {
@@ -1279,27 +1289,30 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
             let pm = sss_brdf_p_mirror(m, wo);
             if (uc < pm) {
-                let wi = mirror_z(wo);
+                let wr = mirror_z(wo);
                 let f = fresnel_dielectric(wo.z, m.a.w);
-                return BsdfSample(wi, vec3<f32>(f / wi.z), pm, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
+                return BsdfSample(wr, vec3<f32>(f / wr.z), pm, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
             }
-            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+            wi = cosine_hemisphere(u);
+            flags = FLAG_DIFFUSE;
         }
         case MAT_MERL: {
             if (wo.z <= 0.0) {
                 return no_sample();
             }
-            return reflected(m, wo, cosine_hemisphere(u), FLAG_GLOSSY);
+            wi = cosine_hemisphere(u);
         }
         case MAT_SSS_ENTRY_LOBE: {
             // The continuation from a dipole entry point (render.wgsl):
             // cosine-weighted, weight S_w(cos) pi.
-            return reflected(m, wo, cosine_hemisphere(u), FLAG_DIFFUSE);
+            wi = cosine_hemisphere(u);
+            flags = FLAG_DIFFUSE;
         }
         default: {
             return no_sample();
         }
     }
+    return reflected(m, wo, wi, flags);
 }
 
 // ---- Mixtures (materials[idx.y .. idx.y + idx.z], flattened on the host) ---
