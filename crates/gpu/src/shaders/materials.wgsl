@@ -1142,12 +1142,14 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     }
 }
 
-// A reflected direction scored by the whole model (BsdfSample::reflected).
-fn reflected(m: Material, wo: vec3<f32>, wi: vec3<f32>, flags: u32) -> BsdfSample {
+// A reflected direction for the whole model to score
+// (BsdfSample::reflected): `material_sample` fills in f and the pdf,
+// marked -1 until then, at its one call site of each.
+fn to_score(wi: vec3<f32>, flags: u32) -> BsdfSample {
     if (wi.z <= 0.0) {
         return no_sample();
     }
-    return BsdfSample(wi, base_f(m, wo, wi), base_pdf(m, wo, wi), FLAG_REFLECTION | flags, 1.0, true);
+    return BsdfSample(wi, vec3<f32>(0.0), -1.0, FLAG_REFLECTION | flags, 1.0, true);
 }
 
 // Refraction through the +z interface of relative index eta (inside over
@@ -1170,13 +1172,13 @@ fn refract_z(wo: vec3<f32>, eta: f32) -> vec4<f32> {
     return vec4<f32>(-wo / etap + (cos_i / etap - cos_t) * n, etap);
 }
 
-// A sample of one model. A direction that the whole model scores
-// (`reflected`: its f and pdf) is drawn in the switch and scored after
-// it, at one call site: `reflected` calls `base_f` and `base_pdf`, whose
-// switches over every model are the bulk of the library, and the
-// compilers inline a call at each of its sites (a `reflected` in each of
-// the 16 branches made NIR compile 16 copies of the whole library here).
-// Specular and closed-form samples return from their branch.
+// A sample of one model. A direction that the whole model scores (its f
+// and pdf) is drawn in the switch and returned unscored (`to_score`):
+// `material_sample` scores it with one call of `base_f` and `base_pdf`,
+// whose switches over every model are the bulk of the library, since
+// the compilers inline a call at each of its sites (a scoring call in
+// each of the 16 branches made NIR compile 16 copies of the library
+// here). Specular and closed-form samples return scored.
 fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
     var wi = vec3<f32>(0.0);
     var flags = FLAG_GLOSSY;
@@ -1312,7 +1314,7 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             return no_sample();
         }
     }
-    return reflected(m, wo, wi, flags);
+    return to_score(wi, flags);
 }
 
 // ---- Mixtures (materials[idx.y .. idx.y + idx.z], flattened on the host) ---
@@ -1354,72 +1356,101 @@ fn mix_wave(m: Material) -> Material {
     return w;
 }
 
+// The leaves of m: a mix's components (weights `mix_w`, selection
+// probabilities `mix_p`), or m itself, weight 1. `material_f`,
+// `material_pdf` and `material_sample` loop over them, so that each calls
+// `base_f` and `base_pdf` at one site whether m is a mix or not (the
+// compilers inline every call site of these switches over the library).
+fn leaf_count(m: Material) -> u32 {
+    return select(1u, m.idx.z, m.tag.x == MAT_MIX);
+}
+
+fn leaf(m: Material, k: u32) -> Material {
+    if (m.tag.x == MAT_MIX) {
+        return materials[m.idx.y + k];
+    }
+    return m;
+}
+
+// sum_k w_k f_k over the leaves (a `wave` leaf's `base_f` is zero).
+fn leaves_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    let is_mix = m.tag.x == MAT_MIX;
+    var f = vec3<f32>(0.0);
+    for (var k = 0u; k < leaf_count(m); k++) {
+        f += select(1.0, mix_w(m, k), is_mix) * base_f(leaf(m, k), wo, wi);
+    }
+    return f;
+}
+
+// sum_k p_k pdf_k over the leaves (a `wave` leaf's `base_pdf` is zero).
+fn leaves_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
+    let is_mix = m.tag.x == MAT_MIX;
+    var p = 0.0;
+    for (var k = 0u; k < leaf_count(m); k++) {
+        p += select(1.0, mix_p(m, k), is_mix) * base_pdf(leaf(m, k), wo, wi);
+    }
+    return p;
+}
+
+// Whether m is or holds a `wave`.
+fn has_wave(m: Material) -> bool {
+    return m.tag.x == MAT_WAVE || (m.tag.x == MAT_MIX && m.idx.w > 0u);
+}
+
+// The `wave` of m, placed (a mix's rebuilt by `mix_wave`), and its weight
+// in f and its selection probability in m: (weight, probability).
+fn wave_of(m: Material) -> Material {
+    if (m.tag.x == MAT_MIX) {
+        return mix_wave(m);
+    }
+    return m;
+}
+
+fn wave_weights(m: Material) -> vec2<f32> {
+    if (m.tag.x == MAT_MIX) {
+        let k = m.idx.w - 1u;
+        return vec2<f32>(mix_w(m, k), mix_p(m, k));
+    }
+    return vec2<f32>(1.0);
+}
+
 // f(wo, wi) without the cosine, local frame. `wave` is evaluated at one
 // call site (its code, inlined at every call site, is large): a `wave`
 // material, or a mix's `wave` component beside the others' `base_f`
 // (whose `wave` case is zero).
 fn material_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    var f = vec3<f32>(0.0);
-    var wm = m;
-    var ww = 1.0;
-    if (m.tag.x == MAT_MIX) {
-        f = mix_f(m, wo, wi);
-        if (m.idx.w == 0u) {
-            return f;
-        }
-        wm = mix_wave(m);
-        ww = mix_w(m, m.idx.w - 1u);
-    } else if (m.tag.x != MAT_WAVE) {
-        return base_f(m, wo, wi);
+    let f = leaves_f(m, wo, wi);
+    if (!has_wave(m)) {
+        return f;
     }
-    return f + ww * wave_f(wm, wo, wi);
-}
-
-fn mix_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    var f = vec3<f32>(0.0);
-    for (var k = 0u; k < m.idx.z; k++) {
-        f += mix_w(m, k) * base_f(materials[m.idx.y + k], wo, wi);
-    }
-    return f;
+    return f + wave_weights(m).x * wave_f(wave_of(m), wo, wi);
 }
 
 fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    var p = 0.0;
-    var wm = m;
-    var wp = 1.0;
-    if (m.tag.x == MAT_MIX) {
-        p = mix_pdf(m, wo, wi);
-        if (m.idx.w == 0u) {
-            return p;
-        }
-        wm = mix_wave(m);
-        wp = mix_p(m, m.idx.w - 1u);
-    } else if (m.tag.x != MAT_WAVE) {
-        return base_pdf(m, wo, wi);
+    let p = leaves_pdf(m, wo, wi);
+    if (!has_wave(m)) {
+        return p;
     }
-    return p + wp * wave_pdf(wm, wo, wi);
+    return p + wave_weights(m).y * wave_pdf(wave_of(m), wo, wi);
 }
 
-fn mix_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    var p = 0.0;
-    for (var k = 0u; k < m.idx.z; k++) {
-        p += mix_p(m, k) * base_pdf(materials[m.idx.y + k], wo, wi);
-    }
-    return p;
-}
-
-// One component chosen by uc (rescaled for it), as the CPU's Mix::sample.
-// A `wave` (the material, or a mix's leaf) is sampled and evaluated at one
-// call site each (`wave_sample_dir`, `wave_pdf`, `wave_f`), whichever leaf
-// drew the direction: its code, inlined at every call site, is large.
+// One component chosen by uc (rescaled for it), as the CPU's Mix::sample:
+// the mix's f and pdf at the drawn direction (of a specular leaf's too,
+// as on the CPU). A plain material's specular or closed-form sample is
+// its own. One call each of `base_sample`, `leaves_f` and `leaves_pdf`,
+// and a `wave` (the material, or a mix's leaf) sampled and evaluated at
+// one call site each (`wave_sample_dir`, `wave_pdf`, `wave_f`), whichever
+// leaf drew the direction: their code, inlined at every call site, is
+// large.
 fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
-    if (m.tag.x != MAT_MIX && m.tag.x != MAT_WAVE) {
-        return base_sample(m, wo, uc, u);
-    }
-    var wm = m;
+    let is_mix = m.tag.x == MAT_MIX;
+    let waved = has_wave(m);
     var sm = m;
     var uc_rest = uc;
-    if (m.tag.x == MAT_MIX) {
+    // Whether the `wave` draws the direction: a plain `wave`, or a mix's
+    // chosen `wave` leaf.
+    var wave_drew = m.tag.x == MAT_WAVE;
+    if (is_mix) {
         let n = m.idx.z;
         var acc = 0.0;
         var chosen = n - 1u;
@@ -1432,19 +1463,17 @@ fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSam
             }
             acc += p;
         }
-        if (m.idx.w > 0u) {
-            wm = mix_wave(m);
-        }
-        if (chosen + 1u == m.idx.w) {
-            sm = wm;
-        } else {
-            sm = materials[m.idx.y + chosen];
-        }
+        wave_drew = chosen + 1u == m.idx.w;
+        sm = materials[m.idx.y + chosen];
+    }
+    var wm = m;
+    if (waved) {
+        wm = wave_of(m);
     }
     var wi: vec3<f32>;
     var flags = FLAG_REFLECTION | FLAG_GLOSSY;
-    if (sm.tag.x == MAT_WAVE) {
-        let d = wave_sample_dir(sm, wo, uc_rest, u);
+    if (wave_drew) {
+        let d = wave_sample_dir(wm, wo, uc_rest, u);
         if (d.w == 0.0) {
             return no_sample();
         }
@@ -1454,26 +1483,22 @@ fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSam
         if (!s.ok) {
             return no_sample();
         }
-        if (m.idx.w == 0u) {
-            return BsdfSample(s.wi, mix_f(m, wo, s.wi), mix_pdf(m, wo, s.wi), s.flags, 1.0, true);
+        if (!is_mix && s.pdf >= 0.0) {
+            return s;
         }
         wi = s.wi;
         flags = s.flags;
     }
-    // The `wave` at the direction, pdf before f (docs/gpu.md: Mesa 22's
-    // loop miscompile hit a pdf evaluated after f).
-    let wpdf = wave_pdf(wm, wo, wi);
-    let wf = wave_f(wm, wo, wi);
-    if (m.tag.x == MAT_WAVE) {
-        return BsdfSample(wi, wf, wpdf, flags, 1.0, true);
+    var f = vec3<f32>(0.0);
+    var pdf = 0.0;
+    if (waved) {
+        // The `wave` at the direction, pdf before f (docs/gpu.md: Mesa
+        // 22's loop miscompile hit a pdf evaluated after f).
+        let ww = wave_weights(m);
+        pdf = ww.y * wave_pdf(wm, wo, wi);
+        f = ww.x * wave_f(wm, wo, wi);
     }
-    let k = m.idx.w - 1u;
-    return BsdfSample(
-        wi,
-        mix_f(m, wo, wi) + mix_w(m, k) * wf,
-        mix_pdf(m, wo, wi) + mix_p(m, k) * wpdf,
-        flags,
-        1.0,
-        true,
-    );
+    f += leaves_f(m, wo, wi);
+    pdf += leaves_pdf(m, wo, wi);
+    return BsdfSample(wi, f, pdf, flags, 1.0, true);
 }
