@@ -206,8 +206,9 @@ pub fn render_source_with(precision: Precision) -> String {
 ///
 /// Decision: specialize rather than branch at run time. NIR and NVIDIA's
 /// compiler inline every WGSL function at every call site, so code that a
-/// scene never reaches still costs compile time (minutes on lavapipe for
-/// the `wave` code) and registers for the whole kernel: on an H100 the
+/// scene never reaches still costs compile time (on lavapipe the `wave`
+/// code took minutes before the material library's call sites were
+/// merged, docs/gpu.md) and registers for the whole kernel: on an H100 the
 /// path tracer went from 441 to 647 ms per gallery frame when the
 /// subsurface integrator joined it (c7c9a78, docs/benchmarks.md), although
 /// the gallery has no medium. `isolux bench gpu --general` times the

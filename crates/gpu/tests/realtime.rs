@@ -94,8 +94,7 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 2.0 }
 /// a random comb offset per sample), and the brushed metal inside a mix,
 /// agree with the CPU's real-time mode within noise, measured as above. The whole-image check of the GPU's
 /// `wave` placement, footprint and spectral colour that CI can afford (the
-/// path tracer with the wave code compiles for minutes on lavapipe; see
-/// `images.rs`).
+/// path tracer's, `images.rs`, renders for minutes on lavapipe).
 #[test]
 fn realtime_wave_scenes_match_the_cpu_within_noise() {
     let Some(gpu) = common::open("GPU real-time tests") else {

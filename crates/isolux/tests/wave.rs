@@ -430,11 +430,10 @@ base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.7 }}
 }
 
 /// `--gpu` renders the wave-optics example (small), a finite image with
-/// light in it; skipped without an adapter outside CI. `#[ignore]`d in
-/// CI: the path tracer with the `wave` code takes minutes to compile on
-/// lavapipe (docs/gpu.md).
+/// light in it; skipped without an adapter outside CI. (It was
+/// `#[ignore]`d while the path tracer with the `wave` code took minutes
+/// to compile on lavapipe; about 12 s since 2026-12-02, docs/gpu.md.)
 #[test]
-#[ignore = "compiles the wave path tracer: minutes on lavapipe"]
 fn render_gpu_draws_wave_optics() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("w.exr");
