@@ -424,6 +424,11 @@ fn wave(repeat: u32) -> Result<()> {
 /// time from queueing a frame to the idle queue; "GPU kernels" is the
 /// GPU's own time of the same frame from timestamps (where the adapter
 /// offers them), so the two differ by what the host and the driver cost.
+/// "First frame" is the wall time of the first frame of the mode's
+/// specialized f32 kernels, which compiles them, unless an earlier row
+/// of the run did (direct light runs the path tracer's kernel) or the
+/// driver's shader cache holds them (Mesa's and NVIDIA's keep compiled
+/// kernels on disk across runs): the wait before a first image.
 /// Materials not on the GPU yet are replaced by a grey diffuse, on both
 /// sides, and named in the output.
 fn gpu(a: &BenchArgs) -> Result<()> {
@@ -460,8 +465,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU general kernels (ms/frame) | general / specialized |";
         rule += "---:|---:|";
     }
-    println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU |");
-    println!("|---|---|---:|---|---:|---:|{rule}---:|---:|");
+    println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
+    println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
         let mut scene = isolux_scene::load(path)?;
         let replaced = isolux_gpu::replace_unsupported(&mut scene);
@@ -486,18 +491,21 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             // GPU's own time of the same frames (timestamps), best of each.
             let time = |gpu: &isolux_gpu::Gpu,
                         frame: &mut isolux_gpu::GpuFrame|
-             -> Result<(f64, Option<f64>)> {
+             -> Result<(f64, Option<f64>, f64)> {
                 // Warm-up: compiles the kernel, touches the buffers, and
                 // gives the GPU two seconds to raise its clocks (an idle
                 // H100 starts at 345 MHz: after half a second's warm-up
                 // the first mode of a run still measured 3-4x slow, 22 ms
                 // against 6.9 ms for the real-time frame, 2026-11-24).
                 let warm = Instant::now();
+                let mut first = None;
                 while warm.elapsed().as_secs_f64() < 2.0 {
                     frame.reset(gpu);
                     frame.run(gpu, spp);
                     gpu.wait()?;
+                    first.get_or_insert(warm.elapsed().as_secs_f64());
                 }
+                let first = first.unwrap_or(0.0);
                 let mut g = f64::INFINITY;
                 let mut k: Option<f64> = None;
                 for _ in 0..a.repeat.max(1) {
@@ -515,9 +523,9 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 if img.rgb.iter().flatten().any(|c| !c.is_finite()) {
                     bail!("{name}: the GPU image has non-finite pixels");
                 }
-                Ok((g, k))
+                Ok((g, k, first))
             };
-            let (g, kernels) = time(&gpu, &mut frame)?;
+            let (g, kernels, first) = time(&gpu, &mut frame)?;
             let kernels = kernels.map_or("-".to_string(), |k| format!("{:.2}", k * 1e3));
             let mut cols = String::new();
             if a.f64 {
@@ -549,8 +557,9 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 (format!("{:.1}", t * 1e3), format!("{:.1}", t / g))
             };
             println!(
-                "| {name} | {mode} | {spp} | {features} | {:.2} | {kernels} |{cols} {c} | {ratio} |",
-                g * 1e3
+                "| {name} | {mode} | {spp} | {features} | {:.2} | {kernels} |{cols} {c} | {ratio} | {:.2} |",
+                g * 1e3,
+                first * 1e3
             );
         }
         if !replaced.is_empty() {

@@ -122,5 +122,9 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         assert_eq!(cells[4], "none", "{row}");
         let ms: f64 = cells[5].parse().unwrap();
         assert!(ms.is_finite() && ms > 0.0, "{row}");
+        // The first frame, its kernel's compile included where no earlier
+        // row compiled it.
+        let first: f64 = cells[cells.len() - 2].parse().unwrap();
+        assert!(first.is_finite() && first > 0.0, "{row}");
     }
 }
