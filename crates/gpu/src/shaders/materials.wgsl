@@ -1434,17 +1434,17 @@ fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return p + wave_weights(m).y * wave_pdf(wave_of(m), wo, wi);
 }
 
-// One component chosen by uc (rescaled for it), as the CPU's Mix::sample:
-// the mix's f and pdf at the drawn direction (of a specular leaf's too,
-// as on the CPU). A plain material's specular or closed-form sample is
-// its own. One call each of `base_sample`, `leaves_f` and `leaves_pdf`,
-// and a `wave` (the material, or a mix's leaf) sampled and evaluated at
-// one call site each (`wave_sample_dir`, `wave_pdf`, `wave_f`), whichever
-// leaf drew the direction: their code, inlined at every call site, is
-// large.
-fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+// One component chosen by uc (rescaled for it), as the CPU's Mix::sample,
+// draws a direction: returned unscored (pdf -1, as `to_score`) for the
+// caller to score with `material_pdf` and `material_f` (the mix's, or
+// the material's, at the direction: of a specular leaf's too, as on the
+// CPU); a plain material's specular or closed-form sample returns scored.
+// Its callers score it at the call site they evaluate light samples at
+// (render.wgsl `direct_light`): each call site inlines the library's
+// switches. A `wave` (the material, or a mix's leaf) draws with
+// `wave_sample_dir`, whichever leaf drew the direction.
+fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
     let is_mix = m.tag.x == MAT_MIX;
-    let waved = has_wave(m);
     var sm = m;
     var uc_rest = uc;
     // Whether the `wave` draws the direction: a plain `wave`, or a mix's
@@ -1466,39 +1466,30 @@ fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSam
         wave_drew = chosen + 1u == m.idx.w;
         sm = materials[m.idx.y + chosen];
     }
-    var wm = m;
-    if (waved) {
-        wm = wave_of(m);
-    }
-    var wi: vec3<f32>;
-    var flags = FLAG_REFLECTION | FLAG_GLOSSY;
     if (wave_drew) {
-        let d = wave_sample_dir(wm, wo, uc_rest, u);
+        let d = wave_sample_dir(wave_of(m), wo, uc_rest, u);
         if (d.w == 0.0) {
             return no_sample();
         }
-        wi = d.xyz;
-    } else {
-        let s = base_sample(sm, wo, uc_rest, u);
-        if (!s.ok) {
-            return no_sample();
-        }
-        if (!is_mix && s.pdf >= 0.0) {
-            return s;
-        }
-        wi = s.wi;
-        flags = s.flags;
+        return BsdfSample(d.xyz, vec3<f32>(0.0), -1.0, FLAG_REFLECTION | FLAG_GLOSSY, 1.0, true);
     }
-    var f = vec3<f32>(0.0);
-    var pdf = 0.0;
-    if (waved) {
-        // The `wave` at the direction, pdf before f (docs/gpu.md: Mesa
-        // 22's loop miscompile hit a pdf evaluated after f).
-        let ww = wave_weights(m);
-        pdf = ww.y * wave_pdf(wm, wo, wi);
-        f = ww.x * wave_f(wm, wo, wi);
+    let s = base_sample(sm, wo, uc_rest, u);
+    if (!s.ok || (!is_mix && s.pdf >= 0.0)) {
+        return s;
     }
-    f += leaves_f(m, wo, wi);
-    pdf += leaves_pdf(m, wo, wi);
-    return BsdfSample(wi, f, pdf, flags, 1.0, true);
+    return BsdfSample(s.wi, vec3<f32>(0.0), -1.0, s.flags, 1.0, true);
+}
+
+// A sample of m, scored: `material_draw`, then `material_pdf` and
+// `material_f` at an unscored direction (pdf first: docs/gpu.md, Mesa
+// 22's loop miscompile hit a `wave` pdf evaluated after f). The
+// conformance kernel's entry (material_eval.wgsl); the render kernels
+// score in `direct_light`.
+fn material_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
+    var s = material_draw(m, wo, uc, u);
+    if (s.ok && s.pdf < 0.0) {
+        s.pdf = material_pdf(m, wo, s.wi);
+        s.f = material_f(m, wo, s.wi);
+    }
+    return s;
 }

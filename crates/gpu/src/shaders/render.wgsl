@@ -201,13 +201,19 @@ const GATHER_COSINE: u32 = 4u; // one cosine-sampled direction toward the enviro
 // the environment (the single scattering of a dipole medium), and the
 // environment mirrored by a subsurface boundary (`mirror`: the world
 // direction and its Fresnel weight; none when the weight is 0). The
-// real-time kernel gathers the point lights only.
+// real-time kernel gathers the point lights only. Then, last, the
+// vertex's BSDF sample of material sm (`material_draw` with a fresh uc
+// and u), left in `bsdf`.
 //
-// One loop, one `material_f` and one shadow ray for all of them, called
-// once per bounce: NIR inlines every call site of the exact intersection
-// and of the material library, and the kernel's compile time on lavapipe
-// grows with their count (docs/gpu.md).
-fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>) -> vec3<f32> {
+// One loop, one `material_f`, one `material_pdf` and one shadow ray for
+// all of them, the BSDF sample's scoring included, called once per
+// bounce: NIR and the NVIDIA driver inline every call site of the exact
+// intersection and of the material library, whose switches over every
+// model are the bulk of the kernel (docs/gpu.md, "One call site per
+// switch over the library").
+var<private> bsdf: BsdfSample;
+
+fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>, sm: Material) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     let env_map = params.counts.w == ENV_MAP;
     let n_lights = select(0u, params.counts.y, (what & GATHER_LIGHTS) != 0u);
@@ -215,15 +221,32 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
     let n_cos = select(0u, 1u, (what & GATHER_COSINE) != 0u);
     let n_mirror = select(0u, 1u, mirror.w > 0.0);
     let n = n_lights + n_env + n_cos + n_mirror;
-    for (var i = 0u; i < n; i++) {
+    bsdf = no_sample();
+    for (var i = 0u; i <= n; i++) {
         var wi: vec3<f32>;
+        var wl: vec3<f32>;
         var origin: vec3<f32>;
         var t_max = 3.0e38;
         var rad: vec3<f32>;
         var light_pdf = 0.0; // > 0: the map's sample, weighted by MIS here
         var cos_factor = true; // false: rad already holds the cosine / pdf
         var with_f = true;     // false: the mirror, weighted by Fresnel alone
-        if (i < n_lights) {
+        var mm = m;
+        var flags = 0u;
+        if (i == n) {
+            // The BSDF sample, scored below unless its draw was (a plain
+            // material's specular or closed-form sample) or failed.
+            let uc = rand();
+            let u = rand2();
+            let d = material_draw(sm, wo_l, uc, u);
+            if (!d.ok || d.pdf >= 0.0) {
+                bsdf = d;
+                break;
+            }
+            mm = sm;
+            wl = d.wi;
+            flags = d.flags;
+        } else if (i < n_lights) {
             let light = lights[i];
             origin = offset_origin(p, ng, light.position.xyz - p);
             let d = light.position.xyz - origin;
@@ -262,13 +285,28 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             rad = env_eval(wi) * mirror.w;
             with_f = false;
         }
+        if (i < n) {
+            wl = to_local(fr, wi);
+        }
         var fc = vec3<f32>(1.0);
+        var pdf = 0.0;
         if (with_f) {
-            let wl = to_local(fr, wi);
-            fc = material_f(m, wo_l, wl) * select(1.0, abs(wl.z), cos_factor);
-            if (light_pdf > 0.0) {
-                rad *= power_heuristic(light_pdf, material_pdf(m, wo_l, wl)) / light_pdf;
+            // pdf before f (docs/gpu.md: Mesa 22's loop miscompile hit a
+            // `wave` pdf evaluated after f).
+            if (light_pdf > 0.0 || i == n) {
+                pdf = material_pdf(mm, wo_l, wl);
             }
+            fc = material_f(mm, wo_l, wl);
+        }
+        if (i == n) {
+            bsdf = BsdfSample(wl, fc, pdf, flags, 1.0, true);
+            break;
+        }
+        if (with_f) {
+            fc *= select(1.0, abs(wl.z), cos_factor);
+        }
+        if (light_pdf > 0.0) {
+            rad *= power_heuristic(light_pdf, pdf) / light_pdf;
         }
         if (max3(fc) <= 0.0 || max3(rad) <= 0.0) {
             continue;
@@ -507,8 +545,8 @@ fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
 // One bounce of the path: false when it ends. (The loop lives in
 // `radiance`, the body here: one large loop body miscompiled on lavapipe.)
 // Each bounce finds its vertex (a traced ray, or the entry point of a
-// dipole medium), gathers direct light there with one `direct_light` call
-// and samples the continuation with one `material_sample` call.
+// dipole medium), gathers direct light there and samples the
+// continuation with one `direct_light` call.
 fn bounce() -> bool {
     let entry = path.entry;
     path.entry = false;
@@ -609,12 +647,9 @@ fn bounce() -> bool {
             mirror_env = true;
         }
     }
-    if (what != 0u || mirror.w > 0.0) {
-        path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror);
-    }
+    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m);
     path.env_counted = false;
-    let uc = rand();
-    let s = material_sample(m, wo_l, uc, rand2());
+    let s = bsdf;
     if (!s.ok || !(s.pdf > 0.0) || !finite(s.pdf) || !finite3(s.f) || s.wi.z == 0.0) {
         return false;
     }
