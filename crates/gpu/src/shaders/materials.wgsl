@@ -1143,8 +1143,8 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 }
 
 // A reflected direction for the whole model to score
-// (BsdfSample::reflected): `material_sample` fills in f and the pdf,
-// marked -1 until then, at its one call site of each.
+// (BsdfSample::reflected): the caller of `material_draw` fills in f and
+// the pdf, marked -1 until then.
 fn to_score(wi: vec3<f32>, flags: u32) -> BsdfSample {
     if (wi.z <= 0.0) {
         return no_sample();
@@ -1174,8 +1174,9 @@ fn refract_z(wo: vec3<f32>, eta: f32) -> vec4<f32> {
 
 // A sample of one model. A direction that the whole model scores (its f
 // and pdf) is drawn in the switch and returned unscored (`to_score`):
-// `material_sample` scores it with one call of `base_f` and `base_pdf`,
-// whose switches over every model are the bulk of the library, since
+// the caller of `material_draw` scores it with one call of `base_f` and
+// `base_pdf`, whose switches over every model are the bulk of the
+// library, since
 // the compilers inline a call at each of its sites (a scoring call in
 // each of the 16 branches made NIR compile 16 copies of the library
 // here). Specular and closed-form samples return scored.
@@ -1333,13 +1334,11 @@ fn mix_p(m: Material, k: u32) -> f32 {
     return m.d[k - 4u];
 }
 
+// The union of the leaves' flags (`leaf`, below).
 fn material_flags(m: Material) -> u32 {
-    if (m.tag.x != MAT_MIX) {
-        return base_flags(m);
-    }
     var f = 0u;
-    for (var k = 0u; k < m.idx.z; k++) {
-        f |= base_flags(materials[m.idx.y + k]);
+    for (var k = 0u; k < leaf_count(m); k++) {
+        f |= base_flags(leaf(m, k));
     }
     return f;
 }
@@ -1358,9 +1357,9 @@ fn mix_wave(m: Material) -> Material {
 
 // The leaves of m: a mix's components (weights `mix_w`, selection
 // probabilities `mix_p`), or m itself, weight 1. `material_f`,
-// `material_pdf` and `material_sample` loop over them, so that each calls
-// `base_f` and `base_pdf` at one site whether m is a mix or not (the
-// compilers inline every call site of these switches over the library).
+// `material_pdf` and `material_flags` loop over them, so that each calls
+// its switch over the library at one site whether m is a mix or not (the
+// compilers inline every call site of these switches).
 fn leaf_count(m: Material) -> u32 {
     return select(1u, m.idx.z, m.tag.x == MAT_MIX);
 }
@@ -1397,8 +1396,7 @@ fn has_wave(m: Material) -> bool {
     return m.tag.x == MAT_WAVE || (m.tag.x == MAT_MIX && m.idx.w > 0u);
 }
 
-// The `wave` of m, placed (a mix's rebuilt by `mix_wave`), and its weight
-// in f and its selection probability in m: (weight, probability).
+// The `wave` of m, placed (a mix's rebuilt by `mix_wave`).
 fn wave_of(m: Material) -> Material {
     if (m.tag.x == MAT_MIX) {
         return mix_wave(m);
@@ -1406,6 +1404,8 @@ fn wave_of(m: Material) -> Material {
     return m;
 }
 
+// The weight in f and the selection probability in m of m's `wave`:
+// (weight, probability), both 1 for a plain `wave`.
 fn wave_weights(m: Material) -> vec2<f32> {
     if (m.tag.x == MAT_MIX) {
         let k = m.idx.w - 1u;
