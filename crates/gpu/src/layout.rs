@@ -833,6 +833,10 @@ pub struct GpuParams {
     pub env: [f32; 4],
     /// `[map width, map height, 0, 0]`.
     pub env_size: [u32; 4],
+    /// The wavefront path tracer's `[step, last step (1) or not (0),
+    /// first padded pixel of the tile, paths in the tile]` (`trace` in
+    /// render.wgsl; zero for the other kernels).
+    pub wave: [u32; 4],
 }
 
 /// A material conformance query: `f`, `pdf` at `(wo, wi)` and a sample for
@@ -1011,7 +1015,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
         assert_eq!(std::mem::size_of::<GpuLight>(), 32);
-        assert_eq!(std::mem::size_of::<GpuParams>(), 144);
+        assert_eq!(std::mem::size_of::<GpuParams>(), 160);
         assert_eq!(std::mem::size_of::<GpuQuery>(), 80);
         assert_eq!(std::mem::size_of::<GpuAnswer>(), 48);
         // And naga agrees (layouts computed from the shader sources).

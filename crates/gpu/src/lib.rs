@@ -266,7 +266,7 @@ impl Features {
     /// once.
     fn reached_by(self, entry: &str) -> Features {
         match entry {
-            "main" => self,
+            "main" | "trace" => self,
             "realtime" => Features {
                 subsurface: false,
                 ..self
@@ -393,13 +393,20 @@ pub struct Gpu {
     render: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
     realtime: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
     aov: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
+    trace: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
+    /// The wavefront path tracer's group 1 (paths, queues, step counters)
+    /// and its pipeline layout (groups 0 and 1).
+    wavefront_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
     /// One per combination of [`Features`] ([`render_source_variant`]).
     render_module: [OnceLock<wgpu::ShaderModule>; Features::COUNT],
     /// GPU timestamps around a frame's dispatches, where the adapter offers
     /// `TIMESTAMP_QUERY` (for `isolux bench gpu`).
     pub(crate) timestamps: Option<Timestamps>,
     precision: Precision,
+    /// Frames prepared from now on path trace as a wavefront
+    /// ([`Gpu::set_wavefront`]).
+    wavefront: bool,
     f64_supported: bool,
     /// Adapter name and back end, for reports.
     pub adapter: String,
@@ -470,9 +477,12 @@ impl Gpu {
             render: Default::default(),
             realtime: Default::default(),
             aov: Default::default(),
+            trace: Default::default(),
             render_layout: OnceLock::new(),
+            wavefront_layout: OnceLock::new(),
             render_module: Default::default(),
             precision: Precision::F32,
+            wavefront: false,
             f64_supported,
             adapter: format!("{} ({:?})", info.name, info.backend),
             driver: format!("{} {}", info.driver, info.driver_info)
@@ -507,9 +517,22 @@ impl Gpu {
             self.render = Default::default();
             self.realtime = Default::default();
             self.aov = Default::default();
+            self.trace = Default::default();
             self.render_module = Default::default();
         }
         Ok(())
+    }
+
+    /// Frames prepared from now on (and [`Gpu::render`]) path trace with
+    /// the wavefront kernel (`on`) or the megakernel, the default
+    /// ([`GpuFrame::set_wavefront`]: the same image either way).
+    pub fn set_wavefront(&mut self, on: bool) {
+        self.wavefront = on;
+    }
+
+    /// Whether frames prepared now path trace as a wavefront.
+    pub fn wavefront(&self) -> bool {
+        self.wavefront
     }
 
     /// The device, for callers that draw with it (the viewer).
@@ -621,6 +644,63 @@ impl Gpu {
         self.render_entry(&self.aov, "aov_main", features)
     }
 
+    /// The wavefront path tracer (`trace` of `render.wgsl`), bound with
+    /// the render group and [`Gpu::wavefront_layout`]'s group 1.
+    fn trace_pipeline(&self, features: Features) -> &wgpu::ComputePipeline {
+        self.render_entry(&self.trace, "trace", features)
+    }
+
+    /// Group 1 of `trace` (paths, queues, step counters, all read-write
+    /// storage) and the pipeline layout of groups 0 and 1.
+    fn wavefront_layout(&self) -> &(wgpu::BindGroupLayout, wgpu::PipelineLayout) {
+        self.wavefront_layout.get_or_init(|| {
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..3)
+                .map(|i| wgpu::BindGroupLayoutEntry {
+                    binding: i,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                })
+                .collect();
+            let bgl = self
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("wavefront bindings"),
+                    entries: &entries,
+                });
+            let pl = self
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("wavefront"),
+                    bind_group_layouts: &[&self.render_layout().0, &bgl],
+                    push_constant_ranges: &[],
+                });
+            (bgl, pl)
+        })
+    }
+
+    /// A bind group of the wavefront's group 1 with `buffers` at bindings
+    /// 0, 1, 2.
+    fn wavefront_bind_group(&self, buffers: &[&wgpu::Buffer; 3]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("wavefront"),
+            layout: &self.wavefront_layout().0,
+            entries: &entries,
+        })
+    }
+
     /// Entry point `entry` with the part of `features` it reaches
     /// ([`Features::reached_by`]), from its slot in `cells`.
     fn render_entry<'a>(
@@ -643,7 +723,11 @@ impl Gpu {
             self.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(entry),
-                    layout: Some(&self.render_layout().1),
+                    layout: Some(if entry == "trace" {
+                        &self.wavefront_layout().1
+                    } else {
+                        &self.render_layout().1
+                    }),
                     module,
                     entry_point: Some(entry),
                     compilation_options: Default::default(),

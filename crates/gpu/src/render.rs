@@ -12,6 +12,38 @@ use wgpu::util::DeviceExt;
 /// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
 const TILE: u32 = 8;
 
+/// Bytes of one path's state between the wavefront's steps (`WfPath` in
+/// render.wgsl).
+const WF_PATH_BYTES: u64 = 96;
+
+/// The wavefront's steps of one bounce each, before the last step takes
+/// every bounce left (when `max_depth + 1` is smaller, that many: a path
+/// outside a medium takes at most `max_depth + 1` bounces, so then the
+/// last step's queue is empty).
+const WF_SINGLE_STEPS: u32 = 16;
+
+/// Paths per wavefront tile at most (a 2048 x 2048 film in one tile).
+const WF_TILE_MAX: u64 = 1 << 22;
+
+/// The wavefront path tracer's buffers for one frame (`trace` in
+/// render.wgsl, docs/gpu.md "The wavefront path tracer").
+struct Wavefront {
+    bind: wgpu::BindGroup,
+    /// Per step `[workgroups, 1, 1, queued paths]`: filled by the steps.
+    ctl: wgpu::Buffer,
+    /// `ctl` as it is before a tile's first step.
+    ctl_init: wgpu::Buffer,
+    /// The next indirect dispatch's arguments, copied from `ctl`.
+    indirect: wgpu::Buffer,
+    /// Paths per tile (a multiple of 64), and tiles per film.
+    tile: u32,
+    tiles: u32,
+    /// Steps per tile, the last included.
+    steps: u32,
+    /// Padded pixels of the film (8 x 8 blocks).
+    padded: u32,
+}
+
 /// The first material used by an object of `scene` that has no GPU
 /// implementation: `(name, type)`.
 pub fn unsupported_material(scene: &Scene) -> Option<(String, String)> {
@@ -99,6 +131,11 @@ pub struct GpuFrame {
     aov: Option<wgpu::Buffer>,
     /// Samples per pixel accumulated so far.
     pub samples: u32,
+    /// Path trace with the wavefront kernel (`trace`) rather than the
+    /// megakernel (`main`); see [`GpuFrame::set_wavefront`].
+    wavefront: bool,
+    /// Its buffers, made on first use.
+    wf: Option<Wavefront>,
 }
 
 /// Texels with their density in `(u, v)` (`w`), and the CDFs: the marginal
@@ -312,6 +349,7 @@ impl Gpu {
             ],
             env: env_rgb,
             env_size,
+            wave: [0; 4],
         };
 
         let limit = self.binding_limit();
@@ -393,6 +431,8 @@ impl Gpu {
             params,
             aov,
             samples: 0,
+            wavefront: self.wavefront(),
+            wf: None,
         })
     }
 
@@ -503,6 +543,11 @@ impl GpuFrame {
             self.samples = count;
             return;
         }
+        if self.wavefront {
+            self.dispatch_wavefront(gpu, count, timed);
+            self.samples += count;
+            return;
+        }
         // One dispatch per sample, all in one submission: a kernel
         // looping over several samples of its pixel lost many of them on
         // long paths (the loop defect of docs/gpu.md: a random-walk medium
@@ -516,6 +561,153 @@ impl GpuFrame {
             timed,
         );
         self.samples += count;
+    }
+
+    /// Whether the path tracer runs as a wavefront ([`GpuFrame::set_wavefront`]).
+    pub fn wavefront(&self) -> bool {
+        self.wavefront
+    }
+
+    /// Path traces with the wavefront kernel (`on`) or the megakernel.
+    /// Both trace the same paths with the same random numbers, so the
+    /// image is the same within the drivers' floating-point contraction;
+    /// the wavefront runs each bounce as a dispatch over the paths still
+    /// alive (docs/gpu.md, "The wavefront path tracer"). No effect in the
+    /// real-time mode.
+    pub fn set_wavefront(&mut self, on: bool) {
+        self.wavefront = on;
+    }
+
+    /// How many paths each step of the wavefront ran, in the last tile of
+    /// the last sample queued (step 0: the tile's padded pixels; waits for
+    /// the queue); `None` before the wavefront ran. A diagnostic: the
+    /// counts fall as paths end.
+    pub fn wavefront_steps(&self, gpu: &Gpu) -> Result<Option<Vec<u32>>, GpuError> {
+        let Some(wf) = self.wf.as_ref() else {
+            return Ok(None);
+        };
+        let ctl: Vec<[u32; 4]> = gpu.read_back(&wf.ctl)?;
+        let last = (wf.tiles - 1) * wf.tile;
+        let mut out = vec![wf.tile.min(wf.padded - last)];
+        out.extend(ctl[1..].iter().map(|c| c[3]));
+        Ok(Some(out))
+    }
+
+    /// The wavefront's buffers for this film, made on first use: one tile
+    /// of paths as large as the adapter binds, at most [`WF_TILE_MAX`].
+    fn make_wavefront(&mut self, gpu: &Gpu) {
+        let params = self.params;
+        self.wf.get_or_insert_with(|| {
+            let (w, h) = (params.film[0], params.film[1]);
+            let padded = w.div_ceil(TILE) * h.div_ceil(TILE) * TILE * TILE;
+            let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(WF_TILE_MAX) / 64 * 64;
+            let tile = (padded as u64).min(fit.max(64)) as u32;
+            let tiles = padded.div_ceil(tile);
+            let steps = WF_SINGLE_STEPS.min(params.counts[2] + 1) + 1;
+            let paths = gpu.output("wavefront paths", tile as u64 * WF_PATH_BYTES);
+            let queue = gpu.output("wavefront queues", 2 * tile as u64 * 4);
+            let init: Vec<[u32; 4]> = (0..steps).map(|_| [0, 1, 1, 0]).collect();
+            let ctl_init = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("wavefront counters (clear)"),
+                    contents: bytemuck::cast_slice(&init),
+                    usage: wgpu::BufferUsages::COPY_SRC,
+                });
+            let ctl = gpu.output("wavefront counters", steps as u64 * 16);
+            let indirect = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("wavefront dispatch"),
+                size: 16,
+                usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let bind = gpu.wavefront_bind_group(&[&paths, &queue, &ctl]);
+            Wavefront {
+                bind,
+                ctl,
+                ctl_init,
+                indirect,
+                tile,
+                tiles,
+                steps,
+                padded,
+            }
+        });
+    }
+
+    /// Queues samples `self.samples ..` (`count` of them) of the wavefront
+    /// path tracer in one submission: per sample and tile, the counters
+    /// cleared, step 0 over the tile's pixels, then each step `k` over the
+    /// paths step `k - 1` queued (an indirect dispatch whose workgroups
+    /// step `k - 1` counted). Timestamps as in [`GpuFrame::dispatch_samples`].
+    fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, timed: bool) {
+        let first = self.samples;
+        let params = self.params;
+        let pipeline = gpu.trace_pipeline(self.features);
+        self.make_wavefront(gpu);
+        let Some(wf) = self.wf.as_ref() else {
+            return;
+        };
+        let ts = gpu.timestamps.as_ref().filter(|_| timed);
+        let size = std::mem::size_of::<GpuParams>() as u64;
+        let mut blocks = Vec::new();
+        for s in 0..count {
+            for t in 0..wf.tiles {
+                for k in 0..wf.steps {
+                    let mut p = params;
+                    p.pass_info[0] = first + s;
+                    p.pass_info[1] = 1;
+                    p.wave = [k, (k + 1 == wf.steps) as u32, t * wf.tile, wf.tile];
+                    blocks.push(p);
+                }
+            }
+        }
+        let staging = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("wavefront parameters"),
+                contents: bytemuck::cast_slice(&blocks),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            });
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("wavefront"),
+            });
+        let total = blocks.len();
+        for (i, block) in blocks.iter().enumerate() {
+            let [k, _, start, _] = block.wave;
+            if k == 0 {
+                enc.copy_buffer_to_buffer(&wf.ctl_init, 0, &wf.ctl, 0, wf.steps as u64 * 16);
+            } else {
+                enc.copy_buffer_to_buffer(&wf.ctl, k as u64 * 16, &wf.indirect, 0, 16);
+            }
+            enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
+            let (begin, end) = (i == 0, i + 1 == total);
+            let writes = ts
+                .filter(|_| begin || end)
+                .map(|ts| wgpu::ComputePassTimestampWrites {
+                    query_set: &ts.set,
+                    beginning_of_pass_write_index: begin.then_some(0),
+                    end_of_pass_write_index: end.then_some(1),
+                });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("wavefront step"),
+                timestamp_writes: writes,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_bind_group(1, &wf.bind, &[]);
+            if k == 0 {
+                pass.dispatch_workgroups(wf.tile.min(wf.padded - start).div_ceil(64), 1, 1);
+            } else {
+                pass.dispatch_workgroups_indirect(&wf.indirect, 0);
+            }
+        }
+        if let Some(ts) = ts {
+            enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
+        }
+        gpu.queue.submit(Some(enc.finish()));
     }
 
     /// Queues `count` dispatches of `pipeline` in one submission, sample

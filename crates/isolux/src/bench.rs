@@ -59,6 +59,11 @@ pub struct BenchArgs {
     /// specialized to the scene, with their ratio.
     #[arg(long)]
     pub general: bool,
+    /// `gpu`: also time the wavefront path tracer (one dispatch per
+    /// bounce over the paths still alive), in a column beside the
+    /// megakernel, with their ratio (`-` in the real-time mode).
+    #[arg(long)]
+    pub wavefront: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -465,6 +470,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU general kernels (ms/frame) | general / specialized |";
         rule += "---:|---:|";
     }
+    if a.wavefront {
+        extra += " GPU wavefront (ms/frame) | wavefront / megakernel |";
+        rule += "---:|---:|";
+    }
     println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
     println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
@@ -541,6 +550,16 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 let gg = time(&gpu, &mut frame)?.0;
                 frame.set_features(features)?;
                 cols += &format!(" {:.2} | {:.2} |", gg * 1e3, gg / g);
+            }
+            if a.wavefront {
+                if realtime {
+                    cols += " - | - |";
+                } else {
+                    frame.set_wavefront(true);
+                    let gw = time(&gpu, &mut frame)?.0;
+                    frame.set_wavefront(false);
+                    cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);
+                }
             }
             let (c, ratio) = if a.skip_cpu {
                 ("-".to_string(), "-".to_string())

@@ -68,6 +68,13 @@ pub struct RenderArgs {
     /// or on the GPU with `--gpu`.
     #[arg(long)]
     pub realtime: bool,
+    /// With `--gpu`: path trace as a wavefront, one dispatch per bounce
+    /// over the paths still alive, rather than one kernel running each
+    /// path to its end. The same paths and random numbers, so the same
+    /// image; which is faster depends on the device (`isolux bench gpu
+    /// --wavefront` times both; docs/gpu.md).
+    #[arg(long, requires = "gpu", conflicts_with = "realtime")]
+    pub wavefront: bool,
 }
 
 /// Runs `isolux render`.
@@ -161,7 +168,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mut device = format!("{threads} threads");
     let start;
     let (image, stats) = if a.gpu {
-        let gpu = isolux_gpu::Gpu::new().context("--gpu")?;
+        let mut gpu = isolux_gpu::Gpu::new().context("--gpu")?;
+        gpu.set_wavefront(a.wavefront);
         device = gpu.adapter.clone();
         // Refuse before any work, naming the material.
         if let Some((name, type_name)) = isolux_gpu::unsupported_material(&scene) {

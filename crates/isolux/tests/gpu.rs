@@ -19,9 +19,17 @@ const FURNACE: &str = concat!(
 
 #[test]
 fn render_gpu_writes_an_image_of_the_furnace() {
+    for wavefront in [false, true] {
+        render_furnace(wavefront);
+    }
+}
+
+/// The furnace through `render --gpu` (with `--wavefront`, as a
+/// wavefront): 1 in every pixel.
+fn render_furnace(wavefront: bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.exr");
-    let o = run(&[
+    let mut args = vec![
         "render",
         FURNACE,
         "--gpu",
@@ -33,7 +41,11 @@ fn render_gpu_writes_an_image_of_the_furnace() {
         "24",
         "-o",
         out.to_str().unwrap(),
-    ]);
+    ];
+    if wavefront {
+        args.push("--wavefront");
+    }
+    let o = run(&args);
     let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
         assert_eq!(o.status.code(), Some(1));
@@ -45,6 +57,21 @@ fn render_gpu_writes_an_image_of_the_furnace() {
     let img = isolux_io::read_rgb_image(&out).unwrap();
     let mean: f64 = img.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / img.pixels.len() as f64;
     assert!((mean - 1.0).abs() < 0.01, "{mean}");
+}
+
+/// `--wavefront` is a way of path tracing on the GPU: refused without
+/// `--gpu` and with `--realtime`, before any work.
+#[test]
+fn wavefront_needs_the_gpu_path_tracer() {
+    for extra in [&[][..], &["--gpu", "--realtime"][..]] {
+        let mut args = vec!["render", FURNACE, "--wavefront", "-o", "never.png"];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("--wavefront"), "{err}");
+        assert!(!std::path::Path::new("never.png").exists());
+    }
 }
 
 #[test]
@@ -98,6 +125,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "--repeat",
         "1",
         "--skip-cpu",
+        "--wavefront",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
@@ -109,6 +137,10 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
     assert!(out.starts_with("adapter: "), "{out}");
     assert!(
         out.contains("| kernel features | GPU (ms/frame) |"),
+        "{out}"
+    );
+    assert!(
+        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel |"),
         "{out}"
     );
     let rows: Vec<&str> = out
@@ -126,5 +158,15 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         // row compiled it.
         let first: f64 = cells[cells.len() - 2].parse().unwrap();
         assert!(first.is_finite() && first > 0.0, "{row}");
+        // `--wavefront`: its time and its ratio to the megakernel's, for
+        // the path tracer's modes.
+        if mode == "real-time" {
+            assert_eq!((cells[7], cells[8]), ("-", "-"), "{row}");
+        } else {
+            let wf: f64 = cells[7].parse().unwrap();
+            let ratio: f64 = cells[8].parse().unwrap();
+            assert!(wf.is_finite() && wf > 0.0, "{row}");
+            assert!((ratio - wf / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
+        }
     }
 }

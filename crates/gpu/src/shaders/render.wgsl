@@ -31,6 +31,9 @@ struct Params {
     counts: vec4<u32>,    // objects, lights, max depth, environment kind
     env: vec4<f32>,       // constant radiance (rgb)
     env_size: vec4<u32>,  // map width, height, pyramid levels (realtime.wgsl)
+    // The wavefront path tracer (`trace`): step, 1 on the last step (which
+    // takes every bounce left), first padded pixel of the tile, its paths.
+    wave: vec4<u32>,
 }
 
 struct Light { position: vec4<f32>, intensity: vec4<f32> }
@@ -702,13 +705,18 @@ fn pixel_footprint(t: f32) -> f32 {
     return t * 2.0 * length(params.up.xyz) / f32(params.film.y);
 }
 
+// The most bounces a path takes (`radiance`'s loop, `trace`'s steps).
+fn bounce_bound() -> u32 {
+    return 2u * params.counts.z + MAX_MEDIUM_EVENTS + 3u;
+}
+
 fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
     // Every bounce either ends the path or raises its depth (ending it at
     // max_depth) or its medium events (ending it at MAX_MEDIUM_EVENTS), or
     // chooses a dipole entry point whose bounce raises the depth: the
     // bound only guards against the unforeseen.
-    for (var i = 0u; i <= 2u * params.counts.z + MAX_MEDIUM_EVENTS + 2u; i++) {
+    for (var i = 0u; i < bounce_bound(); i++) {
         if (!bounce()) {
             break;
         }
@@ -751,6 +759,116 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pixel = gid.y * width + gid.x;
     var acc = accum[pixel];
     let v = radiance(params.origin.xyz, camera_sample(gid));
+    if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
+        acc = vec4<f32>(acc.rgb + v, acc.w);
+    } else {
+        acc.w += 1.0;
+    }
+    accum[pixel] = acc;
+}
+
+// ---- The wavefront path tracer (`trace`) ---------------------------------
+//
+// The same paths as `main`, bounce for bounce, with the loop over bounces
+// split into dispatches (render.rs `dispatch_wavefront`): step 0 runs over
+// every pixel of a tile, starts its camera ray and takes one bounce; each
+// path still alive is stored in `wf_paths` and its slot queued; step k > 0
+// runs (an indirect dispatch) over step k - 1's queue only, so a workgroup
+// holds live paths instead of lanes idle since their path ended. The last
+// step takes every remaining bounce of `radiance`'s bound. A path's random
+// stream travels with it, so its radiance, and the image, are `main`'s.
+
+struct WfPath {
+    o: vec4<f32>,       // o, prev_pdf
+    d: vec4<f32>,       // d, eta_scale
+    l: vec4<f32>,       // l, rng_state (bits)
+    beta: vec4<f32>,    // beta, pixel (bits)
+    entry_n: vec4<f32>, // entry_n, entry_m (bits)
+    info: vec4<u32>,    // depth, medium, channel | env_counted << 8 | entry << 9, events
+}
+
+@group(1) @binding(0) var<storage, read_write> wf_paths: array<WfPath>;
+// Two queues of `params.wave.w` slots: step k reads queue k mod 2 and
+// fills the other.
+@group(1) @binding(1) var<storage, read_write> wf_queue: array<u32>;
+// Per step k: the workgroups of its indirect dispatch, 1, 1, and the
+// number of queued paths (filled by step k - 1, cleared by the host).
+@group(1) @binding(2) var<storage, read_write> wf_ctl: array<atomic<u32>>;
+
+fn wf_store(slot: u32, pixel: u32) {
+    let flags = path.channel | select(0u, 256u, path.env_counted) | select(0u, 512u, path.entry);
+    wf_paths[slot] = WfPath(
+        vec4<f32>(path.o, path.prev_pdf),
+        vec4<f32>(path.d, path.eta_scale),
+        vec4<f32>(path.l, bitcast<f32>(rng_state)),
+        vec4<f32>(path.beta, bitcast<f32>(pixel)),
+        vec4<f32>(path.entry_n, bitcast<f32>(path.entry_m)),
+        vec4<u32>(path.depth, path.medium, flags, path.events),
+    );
+}
+
+// Loads slot's path into `path` and `rng_state`; returns its pixel.
+fn wf_load(slot: u32) -> u32 {
+    let w = wf_paths[slot];
+    path = Path(w.o.xyz, w.d.xyz, w.l.xyz, w.beta.xyz, w.o.w, w.d.w, w.info.x, w.info.y,
+        w.info.z & 255u, w.info.w, (w.info.z & 256u) != 0u, (w.info.z & 512u) != 0u,
+        w.entry_n.xyz, bitcast<u32>(w.entry_n.w));
+    rng_state = bitcast<u32>(w.l.w);
+    return bitcast<u32>(w.beta.w);
+}
+
+@compute @workgroup_size(64)
+fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let step = params.wave.x;
+    let tile = params.wave.w;
+    var slot = gid.x;
+    var pixel = 0u;
+    if (step == 0u) {
+        if (slot >= tile) {
+            return;
+        }
+        // Padded pixel index q in 8 x 8 blocks, row by row of blocks, so a
+        // workgroup's camera rays are one block (as `main`'s 8 x 8 groups).
+        let q = params.wave.z + slot;
+        let width = params.film.x;
+        let blocks = (width + 7u) / 8u;
+        let b = q / 64u;
+        let x = (b % blocks) * 8u + q % 8u;
+        let y = (b / blocks) * 8u + (q % 64u) / 8u;
+        if (x >= width || y >= params.film.y) {
+            return;
+        }
+        pixel = y * width + x;
+        let d = camera_sample(vec3<u32>(x, y, 0u));
+        path = Path(params.origin.xyz, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
+    } else {
+        if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
+            return;
+        }
+        slot = wf_queue[(step % 2u) * tile + gid.x];
+        pixel = wf_load(slot);
+    }
+    var alive = true;
+    let last = params.wave.y != 0u;
+    let n = select(1u, bounce_bound() - step, last);
+    for (var i = 0u; i < n; i++) {
+        if (!bounce()) {
+            alive = false;
+            break;
+        }
+    }
+    if (alive && !last) {
+        wf_store(slot, pixel);
+        let next = 4u * (step + 1u);
+        let at = atomicAdd(&wf_ctl[next + 3u], 1u);
+        if (at % 64u == 0u) {
+            atomicAdd(&wf_ctl[next], 1u);
+        }
+        wf_queue[((step + 1u) % 2u) * tile + at] = slot;
+        return;
+    }
+    var acc = accum[pixel];
+    let v = path.l;
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
         acc = vec4<f32>(acc.rgb + v, acc.w);
     } else {
