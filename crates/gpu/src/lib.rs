@@ -310,6 +310,24 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
         + include_str!("shaders/realtime.wgsl")
 }
 
+/// Which of the two path tracers of `render.wgsl` a frame runs. Both trace
+/// the same paths with the same random numbers, so they give the same
+/// image (within the drivers' floating-point contraction); they differ in
+/// speed (docs/gpu.md, "The wavefront path tracer").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PathKernel {
+    /// The wavefront for scenes with a subsurface medium, whose paths run
+    /// long (random walks of hundreds of events: 0.76-0.84 of the
+    /// megakernel's time on lavapipe), the megakernel for the rest (the
+    /// gallery: 0.95-1.03 on lavapipe, not yet measured on NVIDIA).
+    #[default]
+    Auto,
+    /// One kernel runs each path to its end (`main`).
+    Megakernel,
+    /// One dispatch per bounce over the paths still alive (`trace`).
+    Wavefront,
+}
+
 /// Errors of the GPU back end.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
@@ -404,9 +422,8 @@ pub struct Gpu {
     /// `TIMESTAMP_QUERY` (for `isolux bench gpu`).
     pub(crate) timestamps: Option<Timestamps>,
     precision: Precision,
-    /// Frames prepared from now on path trace as a wavefront
-    /// ([`Gpu::set_wavefront`]).
-    wavefront: bool,
+    /// How frames prepared from now on path trace ([`Gpu::set_path_kernel`]).
+    path_kernel: PathKernel,
     f64_supported: bool,
     /// Adapter name and back end, for reports.
     pub adapter: String,
@@ -482,7 +499,7 @@ impl Gpu {
             wavefront_layout: OnceLock::new(),
             render_module: Default::default(),
             precision: Precision::F32,
-            wavefront: false,
+            path_kernel: PathKernel::Auto,
             f64_supported,
             adapter: format!("{} ({:?})", info.name, info.backend),
             driver: format!("{} {}", info.driver, info.driver_info)
@@ -523,16 +540,15 @@ impl Gpu {
         Ok(())
     }
 
-    /// Frames prepared from now on (and [`Gpu::render`]) path trace with
-    /// the wavefront kernel (`on`) or the megakernel, the default
-    /// ([`GpuFrame::set_wavefront`]: the same image either way).
-    pub fn set_wavefront(&mut self, on: bool) {
-        self.wavefront = on;
+    /// How frames prepared from now on (and [`Gpu::render`]) path trace
+    /// ([`PathKernel`]; the same image either way).
+    pub fn set_path_kernel(&mut self, kernel: PathKernel) {
+        self.path_kernel = kernel;
     }
 
-    /// Whether frames prepared now path trace as a wavefront.
-    pub fn wavefront(&self) -> bool {
-        self.wavefront
+    /// How frames prepared now path trace.
+    pub fn path_kernel(&self) -> PathKernel {
+        self.path_kernel
     }
 
     /// The device, for callers that draw with it (the viewer).

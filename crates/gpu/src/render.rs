@@ -431,7 +431,11 @@ impl Gpu {
             params,
             aov,
             samples: 0,
-            wavefront: self.wavefront(),
+            wavefront: match self.path_kernel() {
+                crate::PathKernel::Auto => needed.subsurface,
+                crate::PathKernel::Megakernel => false,
+                crate::PathKernel::Wavefront => true,
+            },
             wf: None,
         })
     }

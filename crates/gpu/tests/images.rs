@@ -390,6 +390,40 @@ fn frames_choose_the_kernels_their_scenes_need() {
     }
 }
 
+/// `PathKernel::Auto` (the default) path traces scenes with a medium,
+/// whose paths run long, as a wavefront and the others with the
+/// megakernel; `Megakernel` and `Wavefront` hold whatever the scene.
+/// (Compiles nothing; both give the same image,
+/// `wavefront_traces_the_megakernels_paths`.)
+#[test]
+fn path_kernel_follows_the_scene_unless_chosen() {
+    use isolux_gpu::PathKernel;
+    let Some(mut gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    assert_eq!(gpu.path_kernel(), PathKernel::Auto);
+    for (name, medium) in [
+        ("gallery.toml", false),
+        ("translucent.toml", true),
+        ("translucent-random-walk.toml", true),
+    ] {
+        let scene = common::example(name);
+        for (kernel, wavefront) in [
+            (PathKernel::Auto, medium),
+            (PathKernel::Megakernel, false),
+            (PathKernel::Wavefront, true),
+        ] {
+            gpu.set_path_kernel(kernel);
+            assert_eq!(
+                gpu.prepare(&scene).unwrap().wavefront(),
+                wavefront,
+                "{name} {kernel:?}"
+            );
+        }
+        gpu.set_path_kernel(PathKernel::Auto);
+    }
+}
+
 /// The wavefront path tracer (`GpuFrame::set_wavefront`) traces the
 /// megakernel's paths with the same random numbers, one dispatch per
 /// bounce: the two images agree pixel for pixel, up to the drivers'

@@ -429,7 +429,9 @@ fn wave(repeat: u32) -> Result<()> {
 /// time from queueing a frame to the idle queue; "GPU kernels" is the
 /// GPU's own time of the same frame from timestamps (where the adapter
 /// offers them), so the two differ by what the host and the driver cost.
-/// "First frame" is the wall time of the first frame of the mode's
+/// The path tracer's columns time the megakernel, and `--wavefront` the
+/// wavefront beside it (a render picks between them by the scene,
+/// `isolux_gpu::PathKernel::Auto`). "First frame" is the wall time of the first frame of the mode's
 /// specialized f32 kernels, which compiles them, unless an earlier row
 /// of the run did (direct light runs the path tracer's kernel) or the
 /// driver's shader cache holds them (Mesa's and NVIDIA's keep compiled
@@ -496,6 +498,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             } else {
                 gpu.prepare(&scene)?
             };
+            // The GPU columns time the megakernel, whatever a render
+            // would pick for the scene (`PathKernel::Auto`); `--wavefront`
+            // adds the wavefront's.
+            frame.set_wavefront(false);
             // Wall time from queueing the frame to the idle queue, and the
             // GPU's own time of the same frames (timestamps), best of each.
             let time = |gpu: &isolux_gpu::Gpu,

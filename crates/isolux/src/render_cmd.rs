@@ -71,10 +71,16 @@ pub struct RenderArgs {
     /// With `--gpu`: path trace as a wavefront, one dispatch per bounce
     /// over the paths still alive, rather than one kernel running each
     /// path to its end. The same paths and random numbers, so the same
-    /// image; which is faster depends on the device (`isolux bench gpu
-    /// --wavefront` times both; docs/gpu.md).
+    /// image; which is faster depends on the scene and the device
+    /// (`isolux bench gpu --wavefront` times both; docs/gpu.md). By
+    /// default scenes with a `subsurface` material run as a wavefront,
+    /// the others as a megakernel.
     #[arg(long, requires = "gpu", conflicts_with = "realtime")]
     pub wavefront: bool,
+    /// With `--gpu`: path trace with the megakernel, whatever the scene
+    /// (see `--wavefront`).
+    #[arg(long, requires = "gpu", conflicts_with_all = ["realtime", "wavefront"])]
+    pub megakernel: bool,
 }
 
 /// Runs `isolux render`.
@@ -169,7 +175,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let start;
     let (image, stats) = if a.gpu {
         let mut gpu = isolux_gpu::Gpu::new().context("--gpu")?;
-        gpu.set_wavefront(a.wavefront);
+        gpu.set_path_kernel(if a.wavefront {
+            isolux_gpu::PathKernel::Wavefront
+        } else if a.megakernel {
+            isolux_gpu::PathKernel::Megakernel
+        } else {
+            isolux_gpu::PathKernel::Auto
+        });
         device = gpu.adapter.clone();
         // Refuse before any work, naming the material.
         if let Some((name, type_name)) = isolux_gpu::unsupported_material(&scene) {

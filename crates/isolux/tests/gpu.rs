@@ -59,17 +59,24 @@ fn render_furnace(wavefront: bool) {
     assert!((mean - 1.0).abs() < 0.01, "{mean}");
 }
 
-/// `--wavefront` is a way of path tracing on the GPU: refused without
-/// `--gpu` and with `--realtime`, before any work.
+/// `--wavefront` and `--megakernel` choose the GPU's path tracer:
+/// refused without `--gpu`, with `--realtime` and together, before any
+/// work.
 #[test]
 fn wavefront_needs_the_gpu_path_tracer() {
-    for extra in [&[][..], &["--gpu", "--realtime"][..]] {
-        let mut args = vec!["render", FURNACE, "--wavefront", "-o", "never.png"];
+    for (flag, extra) in [
+        ("--wavefront", &[][..]),
+        ("--megakernel", &[][..]),
+        ("--wavefront", &["--gpu", "--realtime"][..]),
+        ("--megakernel", &["--gpu", "--realtime"][..]),
+        ("--wavefront", &["--gpu", "--megakernel"][..]),
+    ] {
+        let mut args = vec!["render", FURNACE, flag, "-o", "never.png"];
         args.extend_from_slice(extra);
         let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{err}");
-        assert!(err.contains("--wavefront"), "{err}");
+        assert_eq!(o.status.code(), Some(2), "{flag} {extra:?}: {err}");
+        assert!(err.contains(flag), "{err}");
         assert!(!std::path::Path::new("never.png").exists());
     }
 }
