@@ -316,10 +316,11 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
 /// speed (docs/gpu.md, "The wavefront path tracer").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PathKernel {
-    /// The wavefront for scenes with a subsurface medium, whose paths run
-    /// long (random walks of hundreds of events: 0.76-0.84 of the
-    /// megakernel's time on lavapipe), the megakernel for the rest (the
-    /// gallery: 0.95-1.03 on lavapipe, not yet measured on NVIDIA).
+    /// The wavefront for scenes with a random-walk medium, whose paths run
+    /// long (hundreds of scattering events: 0.52-0.57 of the megakernel's
+    /// time on lavapipe), the megakernel for the rest (the gallery
+    /// 0.95-1.03, the dipole 0.88-1.02 on lavapipe; not yet measured on
+    /// NVIDIA).
     #[default]
     Auto,
     /// One kernel runs each path to its end (`main`).

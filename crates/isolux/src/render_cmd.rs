@@ -73,8 +73,8 @@ pub struct RenderArgs {
     /// path to its end. The same paths and random numbers, so the same
     /// image; which is faster depends on the scene and the device
     /// (`isolux bench gpu --wavefront` times both; docs/gpu.md). By
-    /// default scenes with a `subsurface` material run as a wavefront,
-    /// the others as a megakernel.
+    /// default scenes with a random-walk `subsurface` medium run as a
+    /// wavefront, the others as a megakernel.
     #[arg(long, requires = "gpu", conflicts_with = "realtime")]
     pub wavefront: bool,
     /// With `--gpu`: path trace with the megakernel, whatever the scene
