@@ -614,26 +614,7 @@ impl Gpu {
                 B::Storage { read_only: false },
                 B::Storage { read_only: true },
             ];
-            let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
-                .iter()
-                .enumerate()
-                .map(|(i, &ty)| wgpu::BindGroupLayoutEntry {
-                    binding: i as u32,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                })
-                .collect();
-            let bgl = self
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("render bindings"),
-                    entries: &entries,
-                });
+            let bgl = self.buffer_layout("render bindings", &kinds);
             let pl = self
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -671,24 +652,8 @@ impl Gpu {
     /// storage) and the pipeline layout of groups 0 and 1.
     fn wavefront_layout(&self) -> &(wgpu::BindGroupLayout, wgpu::PipelineLayout) {
         self.wavefront_layout.get_or_init(|| {
-            let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..3)
-                .map(|i| wgpu::BindGroupLayoutEntry {
-                    binding: i,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                })
-                .collect();
-            let bgl = self
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("wavefront bindings"),
-                    entries: &entries,
-                });
+            let rw = wgpu::BufferBindingType::Storage { read_only: false };
+            let bgl = self.buffer_layout("wavefront bindings", &[rw; 3]);
             let pl = self
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -703,6 +668,45 @@ impl Gpu {
     /// A bind group of the wavefront's group 1 with `buffers` at bindings
     /// 0, 1, 2.
     fn wavefront_bind_group(&self, buffers: &[&wgpu::Buffer; 3]) -> wgpu::BindGroup {
+        self.buffer_bind_group("wavefront", &self.wavefront_layout().0, buffers)
+    }
+
+    /// A compute bind group layout of buffers of `kinds` at bindings 0, 1,
+    /// 2, ... in order.
+    fn buffer_layout(
+        &self,
+        label: &str,
+        kinds: &[wgpu::BufferBindingType],
+    ) -> wgpu::BindGroupLayout {
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
+            .iter()
+            .enumerate()
+            .map(|(i, &ty)| wgpu::BindGroupLayoutEntry {
+                binding: i as u32,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            })
+            .collect();
+        self.device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries: &entries,
+            })
+    }
+
+    /// A bind group of `layout` with `buffers` whole at bindings 0, 1, 2,
+    /// ... in order.
+    fn buffer_bind_group(
+        &self,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        buffers: &[&wgpu::Buffer],
+    ) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -712,8 +716,8 @@ impl Gpu {
             })
             .collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("wavefront"),
-            layout: &self.wavefront_layout().0,
+            label: Some(label),
+            layout,
             entries: &entries,
         })
     }
@@ -754,19 +758,7 @@ impl Gpu {
     }
 
     fn render_bind_group(&self, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("render"),
-            layout: &self.render_layout().0,
-            entries: &entries,
-        })
+        self.buffer_bind_group("render", &self.render_layout().0, buffers)
     }
 
     /// The largest storage buffer this device binds (and creates).
@@ -792,20 +784,7 @@ impl Gpu {
         pipeline: &wgpu::ComputePipeline,
         buffers: &[&wgpu::Buffer],
     ) -> wgpu::BindGroup {
-        let layout = pipeline.get_bind_group_layout(0);
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
-            layout: &layout,
-            entries: &entries,
-        })
+        self.buffer_bind_group("kernel", &pipeline.get_bind_group_layout(0), buffers)
     }
 
     /// A zeroed storage buffer of `size` bytes that can be read back.

@@ -34,6 +34,28 @@ const WF_MEDIUM_STEPS: u32 = 128;
 /// Paths per wavefront tile at most (a 2048 x 2048 film in one tile).
 const WF_TILE_MAX: u64 = 1 << 22;
 
+/// A compute pass of a frame, with the frame's timestamps (`ts`, when
+/// timed) at its start if it is the `first` and at its end if the `last`.
+fn begin_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    ts: Option<&'e crate::Timestamps>,
+    first: bool,
+    last: bool,
+) -> wgpu::ComputePass<'e> {
+    let writes = ts
+        .filter(|_| first || last)
+        .map(|ts| wgpu::ComputePassTimestampWrites {
+            query_set: &ts.set,
+            beginning_of_pass_write_index: first.then_some(0),
+            end_of_pass_write_index: last.then_some(1),
+        });
+    enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: writes,
+    })
+}
+
 /// The wavefront path tracer's buffers for one frame (`trace` in
 /// render.wgsl, docs/gpu.md "The wavefront path tracer").
 struct Wavefront {
@@ -709,18 +731,7 @@ impl GpuFrame {
                 enc.copy_buffer_to_buffer(&wf.ctl, k as u64 * 16, &wf.indirect, 0, 16);
             }
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
-            let (begin, end) = (i == 0, i + 1 == total);
-            let writes = ts
-                .filter(|_| begin || end)
-                .map(|ts| wgpu::ComputePassTimestampWrites {
-                    query_set: &ts.set,
-                    beginning_of_pass_write_index: begin.then_some(0),
-                    end_of_pass_write_index: end.then_some(1),
-                });
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("wavefront step"),
-                timestamp_writes: writes,
-            });
+            let mut pass = begin_pass(&mut enc, "wavefront step", ts, i == 0, i + 1 == total);
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
@@ -776,18 +787,7 @@ impl GpuFrame {
             });
         for s in 0..count as u64 {
             enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
-            let (first, last) = (s == 0, s + 1 == count as u64);
-            let writes = ts
-                .filter(|_| first || last)
-                .map(|ts| wgpu::ComputePassTimestampWrites {
-                    query_set: &ts.set,
-                    beginning_of_pass_write_index: first.then_some(0),
-                    end_of_pass_write_index: last.then_some(1),
-                });
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("sample"),
-                timestamp_writes: writes,
-            });
+            let mut pass = begin_pass(&mut enc, "sample", ts, s == 0, s + 1 == count as u64);
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
             pass.dispatch_workgroups(

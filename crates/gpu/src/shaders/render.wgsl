@@ -756,9 +756,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= width || gid.y >= height) {
         return;
     }
-    let pixel = gid.y * width + gid.x;
+    add_sample(gid.y * width + gid.x, radiance(params.origin.xyz, camera_sample(gid)));
+}
+
+// Adds a sample's radiance v to the pixel's sum, or counts it dropped
+// (`.w`) when it is not finite or is negative.
+fn add_sample(pixel: u32, v: vec3<f32>) {
     var acc = accum[pixel];
-    let v = radiance(params.origin.xyz, camera_sample(gid));
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
         acc = vec4<f32>(acc.rgb + v, acc.w);
     } else {
@@ -867,14 +871,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         wf_queue[((step + 1u) % 2u) * tile + at] = slot;
         return;
     }
-    var acc = accum[pixel];
-    let v = path.l;
-    if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
-        acc = vec4<f32>(acc.rgb + v, acc.w);
-    } else {
-        acc.w += 1.0;
-    }
-    accum[pixel] = acc;
+    add_sample(pixel, path.l);
 }
 
 // AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
