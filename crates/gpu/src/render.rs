@@ -26,8 +26,8 @@ const WF_SINGLE_STEPS: u32 = 16;
 /// hundreds of events (each a bounce, none raising the depth): in the
 /// random-walk scene the queue shrinks by 3-4% a step at first, by 1%
 /// after a hundred, and 128 steps leave the last one 2.6% of the tile's
-/// pixels (66 of 2,560 at 61 x 35). Lavapipe, the random-walk scene at 160 x 90,
-/// 16 spp, interleaved: 9 steps 12.6 / 13.4 s, 32 steps 12.2 / 10.7 s,
+/// pixels (66 of 2,560 at 61 x 35). Lavapipe, the random-walk scene at
+/// 160 x 90, 16 spp, interleaved: 9 steps 12.6 / 13.4 s, 32 steps 12.2 / 10.7 s,
 /// 128 steps 10.5 / 9.1 s (the megakernel 16.4-18.0 s).
 const WF_MEDIUM_STEPS: u32 = 128;
 

@@ -392,8 +392,8 @@ fn frames_choose_the_kernels_their_scenes_need() {
 
 /// `PathKernel::Auto` (the default) path traces scenes with a
 /// random-walk medium, whose paths run long, as a wavefront and the
-/// others (the dipole's too) with the megakernel; `Megakernel` and `Wavefront` hold whatever the scene.
-/// (Compiles nothing; both give the same image,
+/// others (the dipole's too) with the megakernel; `Megakernel` and
+/// `Wavefront` hold whatever the scene. (Compiles nothing; both give the same image,
 /// `wavefront_traces_the_megakernels_paths`.)
 #[test]
 fn path_kernel_follows_the_scene_unless_chosen() {

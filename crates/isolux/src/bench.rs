@@ -431,8 +431,8 @@ fn wave(repeat: u32) -> Result<()> {
 /// offers them), so the two differ by what the host and the driver cost.
 /// The path tracer's columns time the megakernel, and `--wavefront` the
 /// wavefront beside it (a render picks between them by the scene,
-/// `isolux_gpu::PathKernel::Auto`). "First frame" is the wall time of the first frame of the mode's
-/// specialized f32 kernels, which compiles them, unless an earlier row
+/// `isolux_gpu::PathKernel::Auto`). "First frame" is the wall time of
+/// the first frame of the mode's specialized f32 kernels, which compiles them, unless an earlier row
 /// of the run did (direct light runs the path tracer's kernel) or the
 /// driver's shader cache holds them (Mesa's and NVIDIA's keep compiled
 /// kernels on disk across runs): the wait before a first image.

@@ -710,17 +710,28 @@ fn bounce_bound() -> u32 {
     return 2u * params.counts.z + MAX_MEDIUM_EVENTS + 3u;
 }
 
-fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+// A camera path from o along d, in `path`.
+fn start_path(o: vec3<f32>, d: vec3<f32>) {
     path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
+}
+
+// Up to n bounces of `path`: whether it is still alive after them.
+fn bounces(n: u32) -> bool {
+    for (var i = 0u; i < n; i++) {
+        if (!bounce()) {
+            return false;
+        }
+    }
+    return true;
+}
+
+fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    start_path(o, d);
     // Every bounce either ends the path or raises its depth (ending it at
     // max_depth) or its medium events (ending it at MAX_MEDIUM_EVENTS), or
     // chooses a dipole entry point whose bounce raises the depth: the
     // bound only guards against the unforeseen.
-    for (var i = 0u; i < bounce_bound(); i++) {
-        if (!bounce()) {
-            break;
-        }
-    }
+    bounces(bounce_bound());
     return path.l;
 }
 
@@ -843,8 +854,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
             return;
         }
         pixel = y * width + x;
-        let d = camera_sample(vec3<u32>(x, y, 0u));
-        path = Path(params.origin.xyz, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
+        start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, 0u)));
     } else {
         if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
             return;
@@ -852,16 +862,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         slot = wf_queue[(step % 2u) * tile + gid.x];
         pixel = wf_load(slot);
     }
-    var alive = true;
     let last = params.wave.y != 0u;
-    let n = select(1u, bounce_bound() - step, last);
-    for (var i = 0u; i < n; i++) {
-        if (!bounce()) {
-            alive = false;
-            break;
-        }
-    }
-    if (alive && !last) {
+    if (bounces(select(1u, bounce_bound() - step, last)) && !last) {
         wf_store(slot, pixel);
         let next = 4u * (step + 1u);
         let at = atomicAdd(&wf_ctl[next + 3u], 1u);
