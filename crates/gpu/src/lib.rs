@@ -29,7 +29,8 @@ pub use render::{replace_unsupported, unsupported_material, GpuFrame};
 pub use wgpu;
 
 use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuQuery, GpuRay, GpuScene};
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
 /// Threads per workgroup of the compute kernels.
@@ -183,6 +184,7 @@ pub fn intersect_source_with(precision: Precision) -> String {
 /// The material conformance kernel with its prelude.
 pub fn material_eval_source() -> String {
     prelude()
+        + &models_source(Features::ALL)
         + include_str!("shaders/materials.wgsl")
         + include_str!("shaders/wave.wgsl")
         + include_str!("shaders/material_eval.wgsl")
@@ -199,113 +201,162 @@ pub fn render_source_with(precision: Precision) -> String {
     render_source_variant(precision, Features::ALL)
 }
 
-/// Scene features whose code the render kernels (`render.wgsl`,
-/// `realtime.wgsl`) carry only when a scene needs them. Each combination
-/// is its own shader module and kernels, compiled on first use; a frame
-/// picks the smallest that covers its scene ([`Features::of`]).
+/// The code the render kernels (`render.wgsl`, `realtime.wgsl`) carry:
+/// the material models a scene uses, and with them the optional parts of
+/// the integrator. Each set is its own shader module and kernels,
+/// compiled on first use and kept; a frame picks the smallest set that
+/// covers its scene ([`Features::of`]).
 ///
 /// Decision: specialize rather than branch at run time. NIR and NVIDIA's
 /// compiler inline every WGSL function at every call site, so code that a
-/// scene never reaches still costs compile time (on lavapipe the `wave`
-/// code took minutes before the material library's call sites were
-/// merged, docs/gpu.md) and registers for the whole kernel: on an H100 the
-/// path tracer went from 441 to 647 ms per gallery frame when the
-/// subsurface integrator joined it (c7c9a78, docs/benchmarks.md), although
-/// the gallery has no medium. `isolux bench gpu --general` times the
-/// general kernels beside the specialized ones.
+/// scene never reaches still costs compile time and registers for the
+/// whole kernel: on an H100 the path tracer went from 441 to 647 ms per
+/// gallery frame when the subsurface integrator joined it (c7c9a78,
+/// docs/benchmarks.md), although the gallery has no medium. Lavapipe
+/// runs both sides of every branch under a lane mask, so there it also
+/// costs time: a diffuse-only scene renders 1.6x faster with the diffuse
+/// model alone (docs/gpu.md, "Kernels specialized to the scene").
+/// `isolux bench gpu --general` times the general kernels beside the
+/// specialized ones.
+///
+/// Two models switch whole parts of the integrator on: `wave` its
+/// placement and evaluation code (`wave.wgsl`, else `wave_stub.wgsl`),
+/// `subsurface` the subsurface integrator (`SUBSURFACE` in `render.wgsl`:
+/// free flights and scattering in a random-walk medium, the dipole's entry
+/// points and single scattering, a boundary's mirrored environment), which
+/// builds the two internal lobes `SSS_SINGLE_LOBE` and `SSS_ENTRY_LOBE`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Features {
-    /// The `wave` material's code (`wave.wgsl`; else `wave_stub.wgsl`).
-    pub wave: bool,
-    /// The subsurface integrator (`SUBSURFACE` in `render.wgsl`: free
-    /// flights and scattering in a random-walk medium, the dipole's entry
-    /// points and single scattering, a boundary's mirrored environment).
-    pub subsurface: bool,
+    /// Bit `1 << tag` for each material tag ([`layout::tag`]) whose code
+    /// the kernels carry (`MODELS` in the WGSL; `has_model` in
+    /// `materials.wgsl`).
+    pub models: u32,
 }
 
 impl Features {
-    /// Every feature: runs any scene the GPU supports.
+    /// Every model: runs any scene the GPU supports.
     pub const ALL: Features = Features {
-        wave: true,
-        subsurface: true,
+        models: (1 << layout::tag::ALL.len()) - 1,
     };
-    /// No optional code.
-    pub const NONE: Features = Features {
-        wave: false,
-        subsurface: false,
-    };
-    /// How many combinations there are (kernel slots per entry point).
-    pub const COUNT: usize = 4;
+    /// No material code at all (what the AOV kernel reaches).
+    pub const NONE: Features = Features { models: 0 };
 
-    /// What the material records of a frame need: `wave` for a `wave`
-    /// material or mix leaf, `subsurface` for a `subsurface` material.
+    /// The code `materials` need: each record's model (a mix's leaves are
+    /// records of their own), and the internal lobes of the subsurface
+    /// integrator with a `subsurface` material.
     pub fn of(materials: &[layout::GpuMaterial]) -> Self {
-        Features {
-            wave: materials.iter().any(|m| m.tag[0] == layout::tag::WAVE),
-            subsurface: materials
-                .iter()
-                .any(|m| m.tag[0] == layout::tag::SUBSURFACE),
+        let mut models = materials.iter().fold(0u32, |m, r| m | bit(r.tag[0]));
+        if models & bit(layout::tag::SUBSURFACE) != 0 {
+            models |= bit(layout::tag::SSS_SINGLE_LOBE) | bit(layout::tag::SSS_ENTRY_LOBE);
         }
+        Features {
+            models: models & Self::ALL.models,
+        }
+    }
+
+    /// Whether the kernels carry model `tag`.
+    pub fn has(self, tag: u32) -> bool {
+        self.models & bit(tag) != 0
+    }
+
+    /// The `wave` material's code.
+    pub fn wave(self) -> bool {
+        self.has(layout::tag::WAVE)
+    }
+
+    /// The subsurface integrator.
+    pub fn subsurface(self) -> bool {
+        self.has(layout::tag::SUBSURFACE)
     }
 
     /// Whether kernels built with `self` run everything `needed` asks for.
     pub fn covers(self, needed: Features) -> bool {
-        (self.wave || !needed.wave) && (self.subsurface || !needed.subsurface)
-    }
-
-    /// The kernel slot of this combination, in `0..COUNT`.
-    pub fn index(self) -> usize {
-        self.wave as usize | (self.subsurface as usize) << 1
+        needed.models & !self.models == 0
     }
 
     /// The part of `self` that an entry point of the render module
-    /// reaches: `main` (the path tracer) all of it; `realtime` the `wave`
-    /// code only (it draws a medium black and never reads `SUBSURFACE`);
-    /// `aov_main` neither (first hits and albedos). Kernels that differ
-    /// only in code their entry never reaches are one kernel, compiled
-    /// once.
+    /// reaches: `main` and `trace` (the path tracers) all of it;
+    /// `realtime` all but the subsurface integrator's internal lobes (it
+    /// draws a medium black and never builds them; a `subsurface` leaf of
+    /// a mix, which only the library API builds, is still its smooth
+    /// boundary there); `aov_main` no material code (first hits and
+    /// albedos). Kernels that differ only in code their entry never
+    /// reaches are one kernel, compiled once.
     fn reached_by(self, entry: &str) -> Features {
+        use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
         match entry {
             "main" | "trace" => self,
             "realtime" => Features {
-                subsurface: false,
-                ..self
+                models: self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE)),
             },
             _ => Features::NONE,
         }
     }
 }
 
+/// The bit of material tag `tag` in [`Features::models`] (0 for a tag
+/// beyond them).
+fn bit(tag: u32) -> u32 {
+    1u32.checked_shl(tag).unwrap_or(0)
+}
+
+/// "all", "none", the models by name (`diffuse+dielectric`) up to four,
+/// else their count with the integrator's optional parts
+/// (`14 models`, `9 models with wave+subsurface`). The internal lobes go
+/// unnamed: they come with `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let names: Vec<&str> = [(self.wave, "wave"), (self.subsurface, "subsurface")]
+        use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
+        if *self == Features::ALL {
+            return f.write_str("all");
+        }
+        let names: Vec<String> = layout::tag::ALL
             .iter()
-            .filter(|(on, _)| *on)
-            .map(|(_, n)| *n)
+            .filter(|(_, t)| self.has(*t) && *t != SSS_SINGLE_LOBE && *t != SSS_ENTRY_LOBE)
+            .map(|(n, _)| n.trim_start_matches("MAT_").to_ascii_lowercase())
             .collect();
-        if names.is_empty() {
-            f.write_str("none")
-        } else {
-            f.write_str(&names.join("+"))
+        match names.len() {
+            0 => f.write_str("none"),
+            1..=4 => f.write_str(&names.join("+")),
+            n => {
+                write!(f, "{n} models")?;
+                let parts: Vec<&str> = [(self.wave(), "wave"), (self.subsurface(), "subsurface")]
+                    .iter()
+                    .filter(|(on, _)| *on)
+                    .map(|(_, p)| *p)
+                    .collect();
+                if !parts.is_empty() {
+                    write!(f, " with {}", parts.join("+"))?;
+                }
+                Ok(())
+            }
         }
     }
 }
 
-/// The render kernels' source with the code of `features` only: the `wave`
-/// material's (else `wave_stub.wgsl`: scenes without it compile a much
-/// smaller kernel) and the subsurface integrator's (the constant
-/// `SUBSURFACE`, which turns its branches into dead code that the driver
-/// drops).
+/// The WGSL constant `MODELS` of `features` (`has_model` in
+/// `materials.wgsl` tests it; a constant, so the driver drops the code of
+/// every model left out).
+fn models_source(features: Features) -> String {
+    format!("const MODELS: u32 = {:#x}u;\n", features.models)
+}
+
+/// The render kernels' source with the code of `features` only: the
+/// material models (`MODELS`), the `wave` material's code (else
+/// `wave_stub.wgsl`: scenes without it compile a much smaller kernel) and
+/// the subsurface integrator's (the constant `SUBSURFACE`, which turns its
+/// branches into dead code that the driver drops).
 pub fn render_source_variant(precision: Precision, features: Features) -> String {
     prelude()
+        + &models_source(features)
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
-        + if features.wave {
+        + if features.wave() {
             include_str!("shaders/wave.wgsl")
         } else {
             include_str!("shaders/wave_stub.wgsl")
         }
-        + &format!("const SUBSURFACE: bool = {};\n", features.subsurface)
+        + &format!("const SUBSURFACE: bool = {};\n", features.subsurface())
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -409,16 +460,15 @@ pub struct Gpu {
     queue: wgpu::Queue,
     intersect: OnceLock<wgpu::ComputePipeline>,
     material_eval: OnceLock<wgpu::ComputePipeline>,
-    render: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
-    realtime: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
-    aov: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
-    trace: [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
+    /// The render module's kernels by entry point and the features it
+    /// reaches ([`Features::reached_by`]), each compiled on first use.
+    kernels: Mutex<HashMap<(&'static str, Features), wgpu::ComputePipeline>>,
     render_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
     /// The wavefront path tracer's group 1 (paths, queues, step counters)
     /// and its pipeline layout (groups 0 and 1).
     wavefront_layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
-    /// One per combination of [`Features`] ([`render_source_variant`]).
-    render_module: [OnceLock<wgpu::ShaderModule>; Features::COUNT],
+    /// One per set of [`Features`] ([`render_source_variant`]).
+    render_modules: Mutex<HashMap<Features, wgpu::ShaderModule>>,
     /// GPU timestamps around a frame's dispatches, where the adapter offers
     /// `TIMESTAMP_QUERY` (for `isolux bench gpu`).
     pub(crate) timestamps: Option<Timestamps>,
@@ -492,13 +542,10 @@ impl Gpu {
             queue,
             intersect: OnceLock::new(),
             material_eval: OnceLock::new(),
-            render: Default::default(),
-            realtime: Default::default(),
-            aov: Default::default(),
-            trace: Default::default(),
+            kernels: Default::default(),
             render_layout: OnceLock::new(),
             wavefront_layout: OnceLock::new(),
-            render_module: Default::default(),
+            render_modules: Default::default(),
             precision: Precision::F32,
             path_kernel: PathKernel::Auto,
             f64_supported,
@@ -532,11 +579,8 @@ impl Gpu {
         if precision != self.precision {
             self.precision = precision;
             self.intersect = OnceLock::new();
-            self.render = Default::default();
-            self.realtime = Default::default();
-            self.aov = Default::default();
-            self.trace = Default::default();
-            self.render_module = Default::default();
+            self.kernels = Default::default();
+            self.render_modules = Default::default();
         }
         Ok(())
     }
@@ -629,23 +673,19 @@ impl Gpu {
     /// The path tracer (`realtime` false, entry `main`) or the real-time
     /// mode (entry `realtime`) of `render.wgsl`, with the code of
     /// `features`.
-    fn render_pipeline(&self, realtime: bool, features: Features) -> &wgpu::ComputePipeline {
-        if realtime {
-            self.render_entry(&self.realtime, "realtime", features)
-        } else {
-            self.render_entry(&self.render, "main", features)
-        }
+    fn render_pipeline(&self, realtime: bool, features: Features) -> wgpu::ComputePipeline {
+        self.render_entry(if realtime { "realtime" } else { "main" }, features)
     }
 
     /// The AOV kernel (`aov_main` of `render.wgsl`).
-    fn aov_pipeline(&self, features: Features) -> &wgpu::ComputePipeline {
-        self.render_entry(&self.aov, "aov_main", features)
+    fn aov_pipeline(&self, features: Features) -> wgpu::ComputePipeline {
+        self.render_entry("aov_main", features)
     }
 
     /// The wavefront path tracer (`trace` of `render.wgsl`), bound with
     /// the render group and [`Gpu::wavefront_layout`]'s group 1.
-    fn trace_pipeline(&self, features: Features) -> &wgpu::ComputePipeline {
-        self.render_entry(&self.trace, "trace", features)
+    fn trace_pipeline(&self, features: Features) -> wgpu::ComputePipeline {
+        self.render_entry("trace", features)
     }
 
     /// Group 1 of `trace` (paths, queues, step counters, all read-write
@@ -723,38 +763,41 @@ impl Gpu {
     }
 
     /// Entry point `entry` with the part of `features` it reaches
-    /// ([`Features::reached_by`]), from its slot in `cells`.
-    fn render_entry<'a>(
-        &'a self,
-        cells: &'a [OnceLock<wgpu::ComputePipeline>; Features::COUNT],
-        entry: &'static str,
-        features: Features,
-    ) -> &'a wgpu::ComputePipeline {
+    /// ([`Features::reached_by`]), compiled on first use (its module too).
+    fn render_entry(&self, entry: &'static str, features: Features) -> wgpu::ComputePipeline {
         let features = features.reached_by(entry);
-        cells[features.index()].get_or_init(|| {
-            let module = self.render_module[features.index()].get_or_init(|| {
+        let mut kernels = self.kernels.lock().unwrap_or_else(|e| e.into_inner());
+        kernels
+            .entry((entry, features))
+            .or_insert_with(|| {
+                let mut modules = self
+                    .render_modules
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner());
+                let module = modules.entry(features).or_insert_with(|| {
+                    self.device
+                        .create_shader_module(wgpu::ShaderModuleDescriptor {
+                            label: Some("render"),
+                            source: wgpu::ShaderSource::Wgsl(
+                                render_source_variant(self.precision, features).into(),
+                            ),
+                        })
+                });
                 self.device
-                    .create_shader_module(wgpu::ShaderModuleDescriptor {
-                        label: Some("render"),
-                        source: wgpu::ShaderSource::Wgsl(
-                            render_source_variant(self.precision, features).into(),
-                        ),
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(if entry == "trace" {
+                            &self.wavefront_layout().1
+                        } else {
+                            &self.render_layout().1
+                        }),
+                        module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
                     })
-            });
-            self.device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(if entry == "trace" {
-                        &self.wavefront_layout().1
-                    } else {
-                        &self.render_layout().1
-                    }),
-                    module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-        })
+            })
+            .clone()
     }
 
     fn render_bind_group(&self, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
@@ -950,47 +993,69 @@ impl Gpu {
 
 #[cfg(test)]
 mod tests {
-    /// Every combination of features, in slot order.
-    fn every_combination() -> Vec<super::Features> {
-        (0..super::Features::COUNT)
-            .map(|i| super::Features {
-                wave: i & 1 != 0,
-                subsurface: i & 2 != 0,
-            })
-            .collect()
+    use super::layout::tag;
+
+    /// Feature sets worth compiling in tests: none, all, each model alone,
+    /// and the integrator's optional parts with and without the rest.
+    fn representative_sets() -> Vec<super::Features> {
+        use super::Features;
+        let wave = 1 << tag::WAVE;
+        let sss = 1 << tag::SUBSURFACE | 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
+        let mut sets = vec![Features::NONE, Features::ALL];
+        sets.extend(tag::ALL.iter().map(|(_, t)| Features { models: 1 << t }));
+        for extra in [wave, sss, wave | sss] {
+            sets.push(Features { models: extra });
+            sets.push(Features {
+                models: Features::ALL.models & !(wave | sss) | extra,
+            });
+        }
+        sets
     }
 
     #[test]
-    fn features_cover_and_name_their_combinations() {
+    fn features_cover_and_name_their_sets() {
         use super::Features;
-        let all = every_combination();
-        for (i, f) in all.iter().enumerate() {
-            assert_eq!(f.index(), i);
+        let all = representative_sets();
+        for f in &all {
             assert!(Features::ALL.covers(*f));
             assert!(f.covers(Features::NONE));
+            assert!(f.covers(*f));
             // Each entry point keeps what it reaches, and never more.
             assert_eq!(f.reached_by("main"), *f);
-            assert_eq!(
-                f.reached_by("realtime"),
-                Features {
-                    subsurface: false,
-                    ..*f
-                }
-            );
+            assert_eq!(f.reached_by("trace"), *f);
+            let rt = f.reached_by("realtime");
+            let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
+            assert_eq!(rt.models, f.models & !lobes, "{f}");
             assert_eq!(f.reached_by("aov_main"), Features::NONE);
             for g in &all {
-                let by_parts = (f.wave || !g.wave) && (f.subsurface || !g.subsurface);
+                let by_parts = tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t));
                 assert_eq!(f.covers(*g), by_parts, "{f} covers {g}");
             }
         }
         assert_eq!(Features::NONE.to_string(), "none");
-        assert_eq!(Features::ALL.to_string(), "wave+subsurface");
-        // The kernels differ by the constant: without the subsurface
-        // integrator its branches are dead.
+        assert_eq!(Features::ALL.to_string(), "all");
+        let few = Features {
+            models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
+        };
+        assert_eq!(few.to_string(), "diffuse+dielectric");
+        let sss = Features::of(&[super::layout::GpuMaterial {
+            tag: [tag::SUBSURFACE, 0, 0, 0],
+            ..Default::default()
+        }]);
+        assert_eq!(sss.to_string(), "subsurface");
+        assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
+        let many = Features {
+            models: Features::ALL.models & !(1 << tag::SUBSURFACE),
+        };
+        assert_eq!(many.to_string(), "17 models with wave");
+        // The kernels differ by their constants: a model left out, or the
+        // subsurface integrator, is dead code.
         let none = super::render_source_variant(super::Precision::F32, Features::NONE);
+        assert!(none.contains("const MODELS: u32 = 0x0u;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
         assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
+        assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
         assert!(full.contains("fn place_wave("));
     }
@@ -1030,7 +1095,7 @@ mod tests {
         ]
         .into_iter()
         .chain(
-            every_combination()
+            representative_sets()
                 .into_iter()
                 .map(|f| super::render_source_variant(super::Precision::F32, f)),
         ) {

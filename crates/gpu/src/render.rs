@@ -575,7 +575,7 @@ impl GpuFrame {
         if self.realtime {
             self.dispatch_samples(
                 gpu,
-                gpu.render_pipeline(true, self.features),
+                &gpu.render_pipeline(true, self.features),
                 0,
                 count,
                 count,
@@ -597,7 +597,7 @@ impl GpuFrame {
         // at 16 samples per dispatch came out 38% dark).
         self.dispatch_samples(
             gpu,
-            gpu.render_pipeline(false, self.features),
+            &gpu.render_pipeline(false, self.features),
             self.samples,
             count,
             1,
@@ -732,7 +732,7 @@ impl GpuFrame {
             }
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
             let mut pass = begin_pass(&mut enc, "wavefront step", ts, i == 0, i + 1 == total);
-            pass.set_pipeline(pipeline);
+            pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
             if k == 0 {
@@ -819,7 +819,7 @@ impl GpuFrame {
             });
         enc.clear_buffer(buf, 0, None);
         gpu.queue.submit(Some(enc.finish()));
-        self.dispatch_samples(gpu, gpu.aov_pipeline(self.features), 0, count, 1, false);
+        self.dispatch_samples(gpu, &gpu.aov_pipeline(self.features), 0, count, 1, false);
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();

@@ -343,45 +343,50 @@ fn gallery_matches_the_cpu_within_noise() {
 }
 
 /// Each frame runs the kernels specialized to its scene's features
-/// (`isolux_gpu::Features`): none for the gallery, the subsurface
-/// integrator for the translucent scenes, the `wave` code for the wave
-/// scenes; a frame refuses kernels that lack a feature its scene needs and
-/// accepts the general ones. (The images of each variant are checked
-/// against the CPU by the tests above; this one compiles nothing.)
+/// (`isolux_gpu::Features`): the material models it uses (diffuse alone
+/// for the furnace), with the subsurface integrator for the translucent
+/// scenes and the `wave` code for the wave scenes; a frame refuses
+/// kernels that lack any model its scene needs and accepts the general
+/// ones. (The images of each variant are checked against the CPU by the
+/// tests above; this one compiles nothing.)
 #[test]
 fn frames_choose_the_kernels_their_scenes_need() {
+    use isolux_gpu::layout::tag;
     use isolux_gpu::Features;
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    for (name, wave, subsurface) in [
-        ("gallery.toml", false, false),
-        ("furnace.toml", false, false),
-        ("translucent.toml", false, true),
-        ("translucent-random-walk.toml", false, true),
-        ("wave-grating.toml", true, false),
+    for (name, models, wave, subsurface) in [
+        ("gallery.toml", 13, false, false),
+        ("furnace.toml", 1, false, false),
+        ("translucent.toml", 4, false, true),
+        ("translucent-random-walk.toml", 4, false, true),
+        ("wave-grating.toml", 1, true, false),
     ] {
-        let needed = Features { wave, subsurface };
         let scene = common::example(name);
         for mut frame in [
             gpu.prepare(&scene).unwrap(),
             gpu.prepare_realtime(&scene).unwrap(),
         ] {
-            assert_eq!(frame.features(), needed, "{name}");
-            for lacking in [
-                Features {
-                    wave: false,
-                    ..needed
-                },
-                Features {
-                    subsurface: false,
-                    ..needed
-                },
-            ] {
-                if lacking != needed {
-                    let e = frame.set_features(lacking).unwrap_err().to_string();
-                    assert!(e.contains(&needed.to_string()), "{name}: {e}");
-                }
+            let needed = frame.features();
+            assert_eq!(needed.models.count_ones(), models, "{name}: {needed}");
+            assert_eq!(
+                (needed.wave(), needed.subsurface()),
+                (wave, subsurface),
+                "{name}"
+            );
+            assert_eq!(
+                needed.has(tag::SSS_ENTRY_LOBE) && needed.has(tag::SSS_SINGLE_LOBE),
+                subsurface,
+                "{name}"
+            );
+            assert!(needed.has(tag::DIFFUSE) || wave, "{name}: {needed}");
+            for (_, t) in tag::ALL.iter().filter(|(_, t)| needed.has(*t)) {
+                let lacking = Features {
+                    models: needed.models & !(1 << t),
+                };
+                let e = frame.set_features(lacking).unwrap_err().to_string();
+                assert!(e.contains(&needed.to_string()), "{name}: {e}");
             }
             frame.set_features(Features::ALL).unwrap();
             assert_eq!(frame.features(), Features::ALL);
@@ -469,27 +474,89 @@ fn wavefront_traces_the_megakernels_paths() {
             img
         };
         let (mega, wave) = (run(false), run(true));
-        let (a, b): (Vec<f32>, Vec<f32>) = mega
-            .rgb
-            .iter()
-            .flatten()
-            .zip(wave.rgb.iter().flatten())
-            .map(|(a, b)| (*a, *b))
-            .unzip();
-        let same = a
-            .iter()
-            .zip(&b)
-            .filter(|(a, b)| (*a - *b).abs() <= 1e-4 * a.abs().max(1.0))
-            .count() as f64
-            / a.len() as f64;
-        let mean = |v: &[f32]| v.iter().map(|&c| c as f64).sum::<f64>() / v.len() as f64;
-        let (ma, mb) = (mean(&a), mean(&b));
-        eprintln!(
-            "{name}: {:.2}% of the values agree, means {ma:.5} (megakernel) {mb:.5} (wavefront)",
-            100.0 * same
-        );
-        assert!(b.iter().all(|c| c.is_finite() && *c >= 0.0), "{name}");
-        assert!(same >= 0.97, "{name}: {same}");
-        assert!((ma - mb).abs() <= 0.01 * ma, "{name}: {ma} vs {mb}");
+        same_paths(name, ("megakernel", &mega), ("wavefront", &wave));
+    }
+}
+
+/// Asserts that two renders of the same paths agree: at least 97% of the
+/// values within 1e-4 (relative above 1), the means within 1%, the
+/// second all finite and non-negative.
+fn same_paths(name: &str, (la, a): (&str, &Image), (lb, b): (&str, &Image)) {
+    let (a, b): (Vec<f32>, Vec<f32>) = a
+        .rgb
+        .iter()
+        .flatten()
+        .zip(b.rgb.iter().flatten())
+        .map(|(a, b)| (*a, *b))
+        .unzip();
+    let same = a
+        .iter()
+        .zip(&b)
+        .filter(|(a, b)| (*a - *b).abs() <= 1e-4 * a.abs().max(1.0))
+        .count() as f64
+        / a.len() as f64;
+    let mean = |v: &[f32]| v.iter().map(|&c| c as f64).sum::<f64>() / v.len() as f64;
+    let (ma, mb) = (mean(&a), mean(&b));
+    eprintln!(
+        "{name}: {:.2}% of the values agree, means {ma:.5} ({la}) {mb:.5} ({lb})",
+        100.0 * same
+    );
+    assert!(b.iter().all(|c| c.is_finite() && *c >= 0.0), "{name}");
+    assert!(same >= 0.97, "{name}: {same}");
+    assert!((ma - mb).abs() <= 0.01 * ma, "{name}: {ma} vs {mb}");
+}
+
+/// The kernels specialized to a scene's models trace the general kernels'
+/// paths (the same random numbers, so the same image within the drivers'
+/// floating-point contraction), in both modes: a model that `Features::of`
+/// missed, or a guard in `materials.wgsl` that drops a model the scene
+/// uses, renders it black in the specialized image. Scenes: the gallery
+/// (13 models, a mix), the translucent one (the subsurface integrator and
+/// its internal lobes), and two furnaces of one model each, whose kernels
+/// dispatch to it without a switch (`model` in `materials.wgsl`).
+#[test]
+fn specialized_kernels_trace_the_general_kernels_paths() {
+    use isolux_gpu::Features;
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut glass = common::example("furnace.toml");
+    glass.materials[0] = Material::Dielectric(isolux_materials::Dielectric { ior: 1.5 });
+    glass.integrator.max_depth = 64;
+    for (name, mut scene) in [
+        ("gallery", common::example("gallery.toml")),
+        ("translucent", common::example("translucent.toml")),
+        ("diffuse furnace", common::example("furnace.toml")),
+        ("glass furnace", glass),
+    ] {
+        scene.film.width = 40;
+        scene.film.height = 24;
+        scene.film.spp = 4;
+        for realtime in [false, true] {
+            let run = |general: bool| {
+                let mut frame = if realtime {
+                    gpu.prepare_realtime(&scene).unwrap()
+                } else {
+                    gpu.prepare(&scene).unwrap()
+                };
+                assert_ne!(frame.features(), Features::ALL, "{name}");
+                if general {
+                    frame.set_features(Features::ALL).unwrap();
+                }
+                frame.run(&gpu, 4);
+                let (img, stats) = frame.image(&gpu).unwrap();
+                assert_eq!(stats.rejected_samples, 0, "{name}");
+                img
+            };
+            let label = format!(
+                "{name}, {}",
+                if realtime { "real time" } else { "path traced" }
+            );
+            same_paths(
+                &label,
+                ("general", &run(true)),
+                ("specialized", &run(false)),
+            );
+        }
     }
 }

@@ -54,9 +54,9 @@ pub struct BenchArgs {
     /// SHADER_F64), in a column beside f32.
     #[arg(long)]
     pub f64: bool,
-    /// `gpu`: also time the general kernels (every optional feature
-    /// compiled in: `wave` and subsurface), in a column beside the kernels
-    /// specialized to the scene, with their ratio.
+    /// `gpu`: also time the general kernels (every material model compiled
+    /// in, `wave` and subsurface included), in a column beside the kernels
+    /// specialized to the scene's models, with their ratio.
     #[arg(long)]
     pub general: bool,
     /// `gpu`: also time the wavefront path tracer (one dispatch per

@@ -460,20 +460,20 @@ fn blinn_lobe_pdf(n: f32, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 }
 
 fn lobe_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    if (m.tag.x == MAT_WARD) {
+    if (has_model(MAT_WARD) && m.tag.x == MAT_WARD) {
         return ward_lobe_eval(m.c.x, m.c.z, wo, wi);
     }
-    if (m.tag.x == MAT_PHONG) {
+    if (has_model(MAT_PHONG) && m.tag.x == MAT_PHONG) {
         return phong_lobe_eval(m.c.x, wo, wi);
     }
     return blinn_lobe_eval(m.c.x, wo, wi);
 }
 
 fn lobe_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    if (m.tag.x == MAT_WARD) {
+    if (has_model(MAT_WARD) && m.tag.x == MAT_WARD) {
         return ward_lobe_pdf(m.c.x, m.c.z, wo, wi);
     }
-    if (m.tag.x == MAT_PHONG) {
+    if (has_model(MAT_PHONG) && m.tag.x == MAT_PHONG) {
         return phong_lobe_pdf(m.c.x, wo, wi);
     }
     return blinn_lobe_pdf(m.c.x, wo, wi);
@@ -482,10 +482,10 @@ fn lobe_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 // The lobe's direction for u (zero vector when none).
 fn lobe_sample(m: Material, wo: vec3<f32>, u: vec2<f32>) -> vec3<f32> {
     let n = m.c.x;
-    if (m.tag.x == MAT_WARD) {
+    if (has_model(MAT_WARD) && m.tag.x == MAT_WARD) {
         return ward_lobe_sample(m.c.x, m.c.z, wo, u);
     }
-    if (m.tag.x == MAT_PHONG) {
+    if (has_model(MAT_PHONG) && m.tag.x == MAT_PHONG) {
         let cos_a = pow(u.x, 1.0 / (n + 1.0));
         return around(mirror_z(wo), cos_a, 2.0 * PI * u.y);
     }
@@ -646,7 +646,7 @@ fn ct_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
         return vec3<f32>(0.0);
     }
-    let gaussian = m.tag.x == MAT_GAUSSIAN;
+    let gaussian = has_model(MAT_GAUSSIAN) && m.tag.x == MAT_GAUSSIAN;
     var f: vec3<f32>;
     if (gaussian) {
         f = m.a.rgb * INV_PI;
@@ -994,12 +994,30 @@ fn merl_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
 
 // ---- The dispatch ---------------------------------------------------------
 
+// Whether this kernel carries model `tag`'s code: `MODELS` is a constant
+// the Rust side writes (lib.rs `Features`), so every branch of a model left
+// out is dead code that the driver drops; a material of such a model never
+// reaches these kernels (`GpuFrame::set_features` refuses them).
+fn has_model(tag: u32) -> bool {
+    return (MODELS & (1u << tag)) != 0u;
+}
+
+// The model the switches below dispatch on: m's tag, or the kernel's one
+// model where it carries a single one (a constant, so that they fold to
+// it: a diffuse-only scene's library is the diffuse model alone).
+fn model(m: Material) -> u32 {
+    if (countOneBits(MODELS) == 1u) {
+        return countTrailingZeros(MODELS);
+    }
+    return m.tag.x;
+}
+
 fn is_beckmann(m: Material) -> bool {
-    return m.tag.x == MAT_BECKMANN;
+    return has_model(MAT_BECKMANN) && m.tag.x == MAT_BECKMANN;
 }
 
 fn base_flags(m: Material) -> u32 {
-    switch m.tag.x {
+    switch model(m) {
         case MAT_DIFFUSE: {
             return FLAG_REFLECTION | FLAG_DIFFUSE;
         }
@@ -1029,32 +1047,53 @@ fn base_flags(m: Material) -> u32 {
 
 // f(wo, wi) without the cosine, local frame.
 fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    switch m.tag.x {
+    switch model(m) {
         case MAT_DIFFUSE: {
+            if (!has_model(MAT_DIFFUSE)) {
+                return vec3<f32>(0.0);
+            }
             if (wo.z > 0.0 && wi.z > 0.0) {
                 return m.a.rgb * INV_PI;
             }
             return vec3<f32>(0.0);
         }
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD: {
+            if (!has_model(MAT_PHONG) && !has_model(MAT_BLINN_PHONG) && !has_model(MAT_WARD)) {
+                return vec3<f32>(0.0);
+            }
             if (wo.z <= 0.0 || wi.z <= 0.0) {
                 return vec3<f32>(0.0);
             }
             return m.a.rgb * INV_PI + m.b.rgb * lobe_eval(m, wo, wi);
         }
         case MAT_COOK_TORRANCE, MAT_GAUSSIAN: {
+            if (!has_model(MAT_COOK_TORRANCE) && !has_model(MAT_GAUSSIAN)) {
+                return vec3<f32>(0.0);
+            }
             return ct_f(m, wo, wi);
         }
         case MAT_HEIDRICH_SEIDEL: {
+            if (!has_model(MAT_HEIDRICH_SEIDEL)) {
+                return vec3<f32>(0.0);
+            }
             return hs_f(m, wo, wi);
         }
         case MAT_FACTORED: {
+            if (!has_model(MAT_FACTORED)) {
+                return vec3<f32>(0.0);
+            }
             return factored_f(m, wo, wi);
         }
         case MAT_GGX, MAT_BECKMANN: {
+            if (!has_model(MAT_GGX) && !has_model(MAT_BECKMANN)) {
+                return vec3<f32>(0.0);
+            }
             return mfr_f(is_beckmann(m), m.a.x, m.a.y, m.tag.y, m.b, m.c, wo, wi);
         }
         case MAT_PLASTIC: {
+            if (!has_model(MAT_PLASTIC)) {
+                return vec3<f32>(0.0);
+            }
             if (wo.z <= 0.0 || wi.z <= 0.0) {
                 return vec3<f32>(0.0);
             }
@@ -1065,15 +1104,24 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
             return f;
         }
         case MAT_SUBSURFACE_BRDF, MAT_SSS_SINGLE_LOBE: {
+            if (!has_model(MAT_SUBSURFACE_BRDF) && !has_model(MAT_SSS_SINGLE_LOBE)) {
+                return vec3<f32>(0.0);
+            }
             return sss_brdf_f(m, wo, wi);
         }
         case MAT_SSS_ENTRY_LOBE: {
+            if (!has_model(MAT_SSS_ENTRY_LOBE)) {
+                return vec3<f32>(0.0);
+            }
             if (wi.z <= 0.0) {
                 return vec3<f32>(0.0);
             }
             return vec3<f32>((1.0 - fresnel_dielectric(wi.z, m.a.x)) * INV_PI / m.a.w);
         }
         case MAT_MERL: {
+            if (!has_model(MAT_MERL)) {
+                return vec3<f32>(0.0);
+            }
             return merl_f(m, wo, wi);
         }
         default: {
@@ -1083,14 +1131,20 @@ fn base_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
 }
 
 fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    switch m.tag.x {
+    switch model(m) {
         case MAT_DIFFUSE: {
+            if (!has_model(MAT_DIFFUSE)) {
+                return 0.0;
+            }
             if (wo.z > 0.0 && wi.z > 0.0) {
                 return cosine_pdf(wi.z);
             }
             return 0.0;
         }
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD: {
+            if (!has_model(MAT_PHONG) && !has_model(MAT_BLINN_PHONG) && !has_model(MAT_WARD)) {
+                return 0.0;
+            }
             if (wo.z <= 0.0 || wi.z <= 0.0) {
                 return 0.0;
             }
@@ -1098,18 +1152,33 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
             return ps * lobe_pdf(m, wo, wi) + (1.0 - ps) * cosine_pdf(wi.z);
         }
         case MAT_COOK_TORRANCE, MAT_GAUSSIAN: {
+            if (!has_model(MAT_COOK_TORRANCE) && !has_model(MAT_GAUSSIAN)) {
+                return 0.0;
+            }
             return ct_pdf(m, wo, wi);
         }
         case MAT_HEIDRICH_SEIDEL: {
+            if (!has_model(MAT_HEIDRICH_SEIDEL)) {
+                return 0.0;
+            }
             return hs_pdf(m, wo, wi);
         }
         case MAT_FACTORED: {
+            if (!has_model(MAT_FACTORED)) {
+                return 0.0;
+            }
             return factored_pdf(m, wo, wi);
         }
         case MAT_GGX, MAT_BECKMANN: {
+            if (!has_model(MAT_GGX) && !has_model(MAT_BECKMANN)) {
+                return 0.0;
+            }
             return mfr_pdf(is_beckmann(m), m.a.x, m.a.y, wo, wi);
         }
         case MAT_PLASTIC: {
+            if (!has_model(MAT_PLASTIC)) {
+                return 0.0;
+            }
             if (wo.z <= 0.0 || wi.z <= 0.0) {
                 return 0.0;
             }
@@ -1121,16 +1190,25 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
             return p;
         }
         case MAT_SUBSURFACE_BRDF: {
+            if (!has_model(MAT_SUBSURFACE_BRDF)) {
+                return 0.0;
+            }
             if (wo.z <= 0.0 || wi.z <= 0.0) {
                 return 0.0;
             }
             return (1.0 - sss_brdf_p_mirror(m, wo)) * cosine_pdf(wi.z);
         }
         case MAT_SSS_SINGLE_LOBE, MAT_SSS_ENTRY_LOBE: {
+            if (!has_model(MAT_SSS_SINGLE_LOBE) && !has_model(MAT_SSS_ENTRY_LOBE)) {
+                return 0.0;
+            }
             // Estimated with cosine-sampled directions (render.wgsl).
             return cosine_pdf(wi.z);
         }
         case MAT_MERL: {
+            if (!has_model(MAT_MERL)) {
+                return 0.0;
+            }
             if (wo.z <= 0.0 || wi.z <= 0.0) {
                 return 0.0;
             }
@@ -1183,8 +1261,11 @@ fn refract_z(wo: vec3<f32>, eta: f32) -> vec4<f32> {
 fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
     var wi = vec3<f32>(0.0);
     var flags = FLAG_GLOSSY;
-    switch m.tag.x {
+    switch model(m) {
         case MAT_DIFFUSE: {
+            if (!has_model(MAT_DIFFUSE)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1195,6 +1276,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             return BsdfSample(wd, m.a.rgb * INV_PI, cosine_pdf(wd.z), FLAG_REFLECTION | FLAG_DIFFUSE, 1.0, true);
         }
         case MAT_COOK_TORRANCE, MAT_GAUSSIAN: {
+            if (!has_model(MAT_COOK_TORRANCE) && !has_model(MAT_GAUSSIAN)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1210,6 +1294,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
         }
         case MAT_FACTORED: {
+            if (!has_model(MAT_FACTORED)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1220,6 +1307,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
         }
         case MAT_HEIDRICH_SEIDEL: {
+            if (!has_model(MAT_HEIDRICH_SEIDEL)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1233,6 +1323,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
         }
         case MAT_PHONG, MAT_BLINN_PHONG, MAT_WARD: {
+            if (!has_model(MAT_PHONG) && !has_model(MAT_BLINN_PHONG) && !has_model(MAT_WARD)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1244,9 +1337,15 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
         }
         case MAT_GGX, MAT_BECKMANN: {
+            if (!has_model(MAT_GGX) && !has_model(MAT_BECKMANN)) {
+                return no_sample();
+            }
             wi = mfr_sample_dir(is_beckmann(m), m.a.x, m.a.y, wo, u);
         }
         case MAT_CONDUCTOR: {
+            if (!has_model(MAT_CONDUCTOR)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1254,6 +1353,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             return BsdfSample(wr, fresnel_eval(m.tag.y, m.b, m.c, wo.z) / wr.z, 1.0, FLAG_REFLECTION | FLAG_SPECULAR, 1.0, true);
         }
         case MAT_DIELECTRIC, MAT_SUBSURFACE: {
+            if (!has_model(MAT_DIELECTRIC) && !has_model(MAT_SUBSURFACE)) {
+                return no_sample();
+            }
             if (wo.z == 0.0) {
                 return no_sample();
             }
@@ -1270,6 +1372,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             return BsdfSample(r.xyz, vec3<f32>(t / (r.w * r.w) / abs(r.z)), t, FLAG_TRANSMISSION | FLAG_SPECULAR, r.w, true);
         }
         case MAT_PLASTIC: {
+            if (!has_model(MAT_PLASTIC)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1287,6 +1392,9 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             }
         }
         case MAT_SUBSURFACE_BRDF: {
+            if (!has_model(MAT_SUBSURFACE_BRDF)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
@@ -1300,12 +1408,18 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             flags = FLAG_DIFFUSE;
         }
         case MAT_MERL: {
+            if (!has_model(MAT_MERL)) {
+                return no_sample();
+            }
             if (wo.z <= 0.0) {
                 return no_sample();
             }
             wi = cosine_hemisphere(u);
         }
         case MAT_SSS_ENTRY_LOBE: {
+            if (!has_model(MAT_SSS_ENTRY_LOBE)) {
+                return no_sample();
+            }
             // The continuation from a dipole entry point (render.wgsl):
             // cosine-weighted, weight S_w(cos) pi.
             wi = cosine_hemisphere(u);
@@ -1360,12 +1474,16 @@ fn mix_wave(m: Material) -> Material {
 // `material_pdf` and `material_flags` loop over them, so that each calls
 // its switch over the library at one site whether m is a mix or not (the
 // compilers inline every call site of these switches).
+fn is_mix(m: Material) -> bool {
+    return has_model(MAT_MIX) && m.tag.x == MAT_MIX;
+}
+
 fn leaf_count(m: Material) -> u32 {
-    return select(1u, m.idx.z, m.tag.x == MAT_MIX);
+    return select(1u, m.idx.z, is_mix(m));
 }
 
 fn leaf(m: Material, k: u32) -> Material {
-    if (m.tag.x == MAT_MIX) {
+    if (is_mix(m)) {
         return materials[m.idx.y + k];
     }
     return m;
@@ -1373,32 +1491,30 @@ fn leaf(m: Material, k: u32) -> Material {
 
 // sum_k w_k f_k over the leaves (a `wave` leaf's `base_f` is zero).
 fn leaves_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    let is_mix = m.tag.x == MAT_MIX;
     var f = vec3<f32>(0.0);
     for (var k = 0u; k < leaf_count(m); k++) {
-        f += select(1.0, mix_w(m, k), is_mix) * base_f(leaf(m, k), wo, wi);
+        f += select(1.0, mix_w(m, k), is_mix(m)) * base_f(leaf(m, k), wo, wi);
     }
     return f;
 }
 
 // sum_k p_k pdf_k over the leaves (a `wave` leaf's `base_pdf` is zero).
 fn leaves_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
-    let is_mix = m.tag.x == MAT_MIX;
     var p = 0.0;
     for (var k = 0u; k < leaf_count(m); k++) {
-        p += select(1.0, mix_p(m, k), is_mix) * base_pdf(leaf(m, k), wo, wi);
+        p += select(1.0, mix_p(m, k), is_mix(m)) * base_pdf(leaf(m, k), wo, wi);
     }
     return p;
 }
 
 // Whether m is or holds a `wave`.
 fn has_wave(m: Material) -> bool {
-    return m.tag.x == MAT_WAVE || (m.tag.x == MAT_MIX && m.idx.w > 0u);
+    return has_model(MAT_WAVE) && (m.tag.x == MAT_WAVE || (is_mix(m) && m.idx.w > 0u));
 }
 
 // The `wave` of m, placed (a mix's rebuilt by `mix_wave`).
 fn wave_of(m: Material) -> Material {
-    if (m.tag.x == MAT_MIX) {
+    if (is_mix(m)) {
         return mix_wave(m);
     }
     return m;
@@ -1407,7 +1523,7 @@ fn wave_of(m: Material) -> Material {
 // The weight in f and the selection probability in m of m's `wave`:
 // (weight, probability), both 1 for a plain `wave`.
 fn wave_weights(m: Material) -> vec2<f32> {
-    if (m.tag.x == MAT_MIX) {
+    if (is_mix(m)) {
         let k = m.idx.w - 1u;
         return vec2<f32>(mix_w(m, k), mix_p(m, k));
     }
@@ -1444,13 +1560,13 @@ fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 // switches. A `wave` (the material, or a mix's leaf) draws with
 // `wave_sample_dir`, whichever leaf drew the direction.
 fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {
-    let is_mix = m.tag.x == MAT_MIX;
+    let mixed = is_mix(m);
     var sm = m;
     var uc_rest = uc;
     // Whether the `wave` draws the direction: a plain `wave`, or a mix's
     // chosen `wave` leaf.
-    var wave_drew = m.tag.x == MAT_WAVE;
-    if (is_mix) {
+    var wave_drew = has_model(MAT_WAVE) && m.tag.x == MAT_WAVE;
+    if (mixed) {
         let n = m.idx.z;
         var acc = 0.0;
         var chosen = n - 1u;
@@ -1463,7 +1579,7 @@ fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSampl
             }
             acc += p;
         }
-        wave_drew = chosen + 1u == m.idx.w;
+        wave_drew = has_model(MAT_WAVE) && chosen + 1u == m.idx.w;
         sm = materials[m.idx.y + chosen];
     }
     if (wave_drew) {
@@ -1474,7 +1590,7 @@ fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSampl
         return BsdfSample(d.xyz, vec3<f32>(0.0), -1.0, FLAG_REFLECTION | FLAG_GLOSSY, 1.0, true);
     }
     let s = base_sample(sm, wo, uc_rest, u);
-    if (!s.ok || (!is_mix && s.pdf >= 0.0)) {
+    if (!s.ok || (!mixed && s.pdf >= 0.0)) {
         return s;
     }
     return BsdfSample(s.wi, vec3<f32>(0.0), -1.0, s.flags, 1.0, true);

@@ -86,7 +86,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
         return vec3<f32>(0.0);
     }
     let p = o + h.x * d;
-    if (m.tag.x == MAT_WAVE || (m.tag.x == MAT_MIX && m.idx.w > 0u)) {
+    if (has_wave(m)) {
         m = place_material(m, p, pixel_footprint(h.x), rand());
     }
     let ng = h.yzw;

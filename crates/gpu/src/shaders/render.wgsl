@@ -603,7 +603,7 @@ fn bounce() -> bool {
         // rays with the pixel footprint (the angle of one pixel times the
         // distance), as on the CPU; the comb offset is drawn only for them.
         m = materials[mi];
-        if (m.tag.x == MAT_WAVE || (m.tag.x == MAT_MIX && m.idx.w > 0u)) {
+        if (has_wave(m)) {
             let fp = select(-1.0, pixel_footprint(h.x), path.depth == 0u);
             m = place_material(m, p, fp, rand());
         }
