@@ -8,7 +8,9 @@
 #      wavefront path tracer, and the CPU on all cores);
 #   2. the conformance suite (its f64 assertion failed on the H100 at
 #      b93c7db), the material, real-time and AOV tests;
-#   3. the whole-image tests, the ignored ones included.
+#   3. the whole-image tests, the ignored ones included;
+#   4. the kernels' registers and spills (kernel_stats), where the driver
+#      reports them.
 # The log lands in $OUT/device-check.log. Each step has its own time limit
 # so that a hang in one still reports the others; the whole stays inside
 # 9 minutes. QUICK=1 runs each step small (64 x 36, one repetition, no
@@ -72,4 +74,8 @@ if [ "${QUICK:-0}" != 1 ]; then
     step 30 "$bin/aov"
     step 150 "$bin/images" --include-ignored
 fi
+# Registers, spills and code size of each kernel, where the driver reports
+# them (VK_KHR_pipeline_executable_properties): what occupancy the kernels
+# allow, beside their times above. Last: the measurements come first.
+step 60 "$bin/kernel_stats"
 echo "device-check: done, $(date -u +%FT%TZ)"

@@ -4,7 +4,8 @@
 # no Rust toolchain: the release `isolux` binary and the GPU crate's test
 # binaries (conformance, images, materials, realtime, aov), built here,
 # stripped and gzipped, the Vulkan
-# loader's Debian package, and the commit they were built from.
+# loader's Debian package, the kernel_stats example (registers and spills
+# per kernel), and the commit they were built from.
 #
 #   bash scripts/device-prepare.sh
 #   # then, with the device tool:
@@ -32,6 +33,11 @@ echo "device-prepare: release binaries"
 cargo build --release -p isolux
 strip -o .device/bin/isolux target/release/isolux
 gzip -f .device/bin/isolux
+# The kernels' register counts and spills as the driver's compiler reports
+# them (crates/gpu/examples/kernel_stats.rs).
+cargo build --release -p isolux-gpu --example kernel_stats
+strip -o .device/bin/kernel_stats target/release/examples/kernel_stats
+gzip -f .device/bin/kernel_stats
 # The test binaries' paths, from cargo's own report of what it built.
 cargo test --release -p isolux-gpu --tests --no-run \
     --message-format=json 2>/dev/null |

@@ -105,20 +105,26 @@ fn furnace_stats(img: &Image, what: &str) -> (f32, f64, f64, f32) {
     (worst, good, mean, max)
 }
 
-fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image, u32)> {
+/// The furnace's perturbed object in glass (index 1.5) with `max_depth`:
+/// everything entering leaves, if the depth limit lets it.
+fn glass_furnace(max_depth: u32) -> Scene {
     let mut scene = common::example("furnace.toml");
-    scene.film.width = 64;
-    scene.film.height = 48;
-    scene.film.spp = 4;
-    let diffuse = gpu_image(gpu, &scene);
-    // The same perturbed object in glass: everything entering leaves, if
-    // the depth limit lets it.
     scene.materials[0] = Material::Dielectric(isolux_materials::Dielectric { ior: 1.5 });
-    scene.film.spp = 8;
-    scene.integrator.max_depth = 100_000;
+    scene.integrator.max_depth = max_depth;
+    scene
+}
+
+fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image, u32)> {
+    let mut diffuse = common::example("furnace.toml");
+    let mut glass = glass_furnace(100_000);
+    for (scene, spp) in [(&mut diffuse, 4), (&mut glass, 8)] {
+        scene.film.width = 64;
+        scene.film.height = 48;
+        scene.film.spp = spp;
+    }
     vec![
-        ("diffuse furnace", diffuse, 4),
-        ("glass furnace", gpu_image(gpu, &scene), 8),
+        ("diffuse furnace", gpu_image(gpu, &diffuse), 4),
+        ("glass furnace", gpu_image(gpu, &glass), 8),
     ]
 }
 
@@ -445,9 +451,6 @@ fn wavefront_traces_the_megakernels_paths() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let mut furnace = common::example("furnace.toml");
-    furnace.materials[0] = Material::Dielectric(isolux_materials::Dielectric { ior: 1.5 });
-    furnace.integrator.max_depth = 100_000;
     for (name, mut scene) in [
         ("gallery", common::example("gallery.toml")),
         ("translucent", common::example("translucent.toml")),
@@ -455,7 +458,7 @@ fn wavefront_traces_the_megakernels_paths() {
             "random walk",
             common::example("translucent-random-walk.toml"),
         ),
-        ("glass furnace", furnace),
+        ("glass furnace", glass_furnace(100_000)),
     ] {
         scene.film.width = 61;
         scene.film.height = 35;
@@ -520,14 +523,11 @@ fn specialized_kernels_trace_the_general_kernels_paths() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let mut glass = common::example("furnace.toml");
-    glass.materials[0] = Material::Dielectric(isolux_materials::Dielectric { ior: 1.5 });
-    glass.integrator.max_depth = 64;
     for (name, mut scene) in [
         ("gallery", common::example("gallery.toml")),
         ("translucent", common::example("translucent.toml")),
         ("diffuse furnace", common::example("furnace.toml")),
-        ("glass furnace", glass),
+        ("glass furnace", glass_furnace(64)),
     ] {
         scene.film.width = 40;
         scene.film.height = 24;

@@ -1,0 +1,316 @@
+//! What a GPU's own compiler makes of the kernels: registers, spills, code
+//! size and occupancy, as the driver reports them through
+//! `VK_KHR_pipeline_executable_properties` (RADV and other Mesa drivers,
+//! NVIDIA's), one row per kernel.
+//!
+//! ```text
+//! cargo run --release -p isolux-gpu --example kernel_stats [-- SCENE.toml ...] [--all]
+//! ```
+//!
+//! Kernels: the intersection alone (the conformance kernel), then for each
+//! scene (default: the furnace, the gallery, the translucent scene) and for
+//! every model at once (`all`, the general kernels) the path tracer
+//! (`main`), the wavefront step (`trace`) and the real-time kernel
+//! (`realtime`), each specialized to the scene's material models as
+//! `isolux render --gpu` runs it (`Features::of`). `--all` prints every
+//! statistic the driver reports, not only those about registers, spills,
+//! code size, instructions, scratch and occupancy.
+//!
+//! wgpu does not expose the compiler's statistics, so this compiles the
+//! WGSL through naga to SPIR-V and creates the pipelines with `ash` on the
+//! first Vulkan device that is not a CPU (or the first one). Without a
+//! GPU, Mesa's RADV compiles for an AMD GPU on its null device (Mesa 25;
+//! Debian bookworm-backports' `mesa-vulkan-drivers`, docs/gpu.md,
+//! "Register pressure"):
+//!
+//! ```text
+//! RADV_FORCE_FAMILY=navi21 VK_ICD_FILENAMES=.../radeon_icd.json \
+//!     cargo run --release -p isolux-gpu --example kernel_stats
+//! ```
+use ash::vk;
+use isolux_gpu::{layout::GpuMaterials, render_source_variant, Features, Precision};
+use std::ffi::{CStr, CString};
+
+/// Statistics worth a column, by words in their names (case-insensitive).
+const KEYWORDS: [&str; 10] = [
+    "register",
+    "gpr",
+    "spill",
+    "code size",
+    "instructions",
+    "scratch",
+    "subgroups",
+    "occupancy",
+    "local memory",
+    "stack",
+];
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let every_stat = args.iter().any(|a| a == "--all");
+    let mut scenes: Vec<String> = args.into_iter().filter(|a| a != "--all").collect();
+    if scenes.is_empty() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes");
+        scenes = ["furnace.toml", "gallery.toml", "translucent.toml"]
+            .iter()
+            .map(|s| format!("{dir}/{s}"))
+            .collect();
+    }
+    // (label, models, entry point, source)
+    let mut kernels = vec![(
+        "intersection".to_string(),
+        "-".to_string(),
+        "main",
+        isolux_gpu::intersect_source(),
+    )];
+    let mut sets = Vec::new();
+    for path in &scenes {
+        let scene = isolux_scene::load(std::path::Path::new(path))?;
+        let materials = GpuMaterials::new(&scene.materials).map_err(|i| {
+            format!(
+                "{path}: material {} does not run on the GPU",
+                scene.material_names[i]
+            )
+        })?;
+        let name = std::path::Path::new(path)
+            .file_name()
+            .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
+        sets.push((name, Features::of(&materials.materials)));
+    }
+    sets.push(("every model".to_string(), Features::ALL));
+    for (name, features) in &sets {
+        let src = render_source_variant(Precision::F32, *features);
+        for entry in ["main", "trace", "realtime"] {
+            kernels.push((
+                format!("{name}: {entry}"),
+                features.to_string(),
+                entry,
+                src.clone(),
+            ));
+        }
+    }
+
+    let compiler = Compiler::new()?;
+    println!("device: {}", compiler.device_name);
+    let mut columns: Vec<String> = Vec::new();
+    for (label, models, entry, src) in &kernels {
+        let stats = compiler.stats(src, entry)?;
+        if columns.is_empty() {
+            columns = stats
+                .iter()
+                .map(|(n, _)| n.clone())
+                .filter(|n| every_stat || KEYWORDS.iter().any(|k| n.to_lowercase().contains(k)))
+                .collect();
+            if columns.is_empty() {
+                columns = stats.iter().map(|(n, _)| n.clone()).collect();
+            }
+            println!("| kernel | models | {} |", columns.join(" | "));
+            println!("|---|---|{}", "---:|".repeat(columns.len()));
+        }
+        let cells: Vec<String> = columns
+            .iter()
+            .map(|c| {
+                stats
+                    .iter()
+                    .find(|(n, _)| n == c)
+                    .map_or("-".to_string(), |(_, v)| v.clone())
+            })
+            .collect();
+        println!("| {label} | {models} | {} |", cells.join(" | "));
+    }
+    Ok(())
+}
+
+/// A Vulkan device that compiles compute pipelines with statistics.
+struct Compiler {
+    _entry: ash::Entry,
+    instance: ash::Instance,
+    device: ash::Device,
+    exec: ash::khr::pipeline_executable_properties::Device,
+    sets: Vec<vk::DescriptorSetLayout>,
+    layout: vk::PipelineLayout,
+    device_name: String,
+}
+
+impl Compiler {
+    fn new() -> Result<Self, Box<dyn std::error::Error>> {
+        // SAFETY: plain Vulkan calls on objects created here, in order,
+        // with valid create infos; nothing is shared between threads.
+        unsafe {
+            let entry = ash::Entry::load()?;
+            let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_3);
+            let instance = entry.create_instance(
+                &vk::InstanceCreateInfo::default().application_info(&app),
+                None,
+            )?;
+            let devices = instance.enumerate_physical_devices()?;
+            let pd = *devices
+                .iter()
+                .find(|&&d| {
+                    instance.get_physical_device_properties(d).device_type
+                        != vk::PhysicalDeviceType::CPU
+                })
+                .or(devices.first())
+                .ok_or("no Vulkan device")?;
+            let props = instance.get_physical_device_properties(pd);
+            let device_name = props
+                .device_name_as_c_str()
+                .map_or("?".into(), |n| n.to_string_lossy().into_owned());
+            let ext = ash::khr::pipeline_executable_properties::NAME;
+            let offered = instance
+                .enumerate_device_extension_properties(pd)?
+                .iter()
+                .any(|e| e.extension_name_as_c_str() == Ok(ext));
+            if !offered {
+                return Err(format!(
+                    "{device_name} does not offer {} (the compiler's statistics)",
+                    ext.to_string_lossy()
+                )
+                .into());
+            }
+            let exts = [ext.as_ptr()];
+            let mut feature = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default()
+                .pipeline_executable_info(true);
+            let family = instance
+                .get_physical_device_queue_family_properties(pd)
+                .iter()
+                .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
+                .ok_or("no compute queue")? as u32;
+            let prio = [1.0f32];
+            let queues = [vk::DeviceQueueCreateInfo::default()
+                .queue_family_index(family)
+                .queue_priorities(&prio)];
+            let device = instance.create_device(
+                pd,
+                &vk::DeviceCreateInfo::default()
+                    .queue_create_infos(&queues)
+                    .enabled_extension_names(&exts)
+                    .push_next(&mut feature),
+                None,
+            )?;
+            let exec = ash::khr::pipeline_executable_properties::Device::new(&instance, &device);
+            // The render kernels' groups: 13 storage buffers, then the
+            // wavefront's 3 (the intersection kernel uses the first 6).
+            let binding = |i: u32| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(i)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            };
+            let mut sets = Vec::new();
+            for n in [13, 3] {
+                let b: Vec<_> = (0..n).map(binding).collect();
+                sets.push(device.create_descriptor_set_layout(
+                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&b),
+                    None,
+                )?);
+            }
+            let layout = device.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
+                None,
+            )?;
+            Ok(Self {
+                _entry: entry,
+                instance,
+                device,
+                exec,
+                sets,
+                layout,
+                device_name,
+            })
+        }
+    }
+
+    /// The statistics (name, value) of entry point `entry` of `src`: those
+    /// of each of the pipeline's executables (a compute pipeline has one).
+    fn stats(
+        &self,
+        src: &str,
+        entry: &str,
+    ) -> Result<Vec<(String, String)>, Box<dyn std::error::Error>> {
+        let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
+        let info = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .map_err(|e| e.emit_to_string(src))?;
+        let spv = naga::back::spv::write_vec(
+            &module,
+            &info,
+            &naga::back::spv::Options {
+                lang_version: (1, 3),
+                flags: naga::back::spv::WriterFlags::empty(),
+                ..Default::default()
+            },
+            Some(&naga::back::spv::PipelineOptions {
+                shader_stage: naga::ShaderStage::Compute,
+                entry_point: entry.to_string(),
+            }),
+        )?;
+        // SAFETY: as in `new`; the module and pipeline are destroyed before
+        // returning, after their statistics are read.
+        unsafe {
+            let sm = self
+                .device
+                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&spv), None)?;
+            let name = CString::new(entry)?;
+            let stage = vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::COMPUTE)
+                .module(sm)
+                .name(&name);
+            let info = [vk::ComputePipelineCreateInfo::default()
+                .flags(vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR)
+                .stage(stage)
+                .layout(self.layout)];
+            let pipeline = self
+                .device
+                .create_compute_pipelines(vk::PipelineCache::null(), &info, None)
+                .map_err(|(_, e)| e)?[0];
+            let executables = self.exec.get_pipeline_executable_properties(
+                &vk::PipelineInfoKHR::default().pipeline(pipeline),
+            )?;
+            let mut out: Vec<(String, String)> = Vec::new();
+            for i in 0..executables.len() as u32 {
+                let stats = self.exec.get_pipeline_executable_statistics(
+                    &vk::PipelineExecutableInfoKHR::default()
+                        .pipeline(pipeline)
+                        .executable_index(i),
+                )?;
+                for s in stats {
+                    let n = CStr::from_ptr(s.name.as_ptr())
+                        .to_string_lossy()
+                        .into_owned();
+                    let v = match s.format {
+                        vk::PipelineExecutableStatisticFormatKHR::BOOL32 => {
+                            (s.value.b32 != 0).to_string()
+                        }
+                        vk::PipelineExecutableStatisticFormatKHR::INT64 => s.value.i64.to_string(),
+                        vk::PipelineExecutableStatisticFormatKHR::UINT64 => s.value.u64.to_string(),
+                        _ => format!("{:.3}", s.value.f64),
+                    };
+                    out.push((n, v));
+                }
+            }
+            self.device.destroy_pipeline(pipeline, None);
+            self.device.destroy_shader_module(sm, None);
+            Ok(out)
+        }
+    }
+}
+
+impl Drop for Compiler {
+    fn drop(&mut self) {
+        // SAFETY: every object was created by this device and instance and
+        // is no longer in use.
+        unsafe {
+            self.device.destroy_pipeline_layout(self.layout, None);
+            for &s in &self.sets {
+                self.device.destroy_descriptor_set_layout(s, None);
+            }
+            self.device.destroy_device(None);
+            self.instance.destroy_instance(None);
+        }
+    }
+}
