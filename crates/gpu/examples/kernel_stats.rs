@@ -11,8 +11,9 @@
 //! scene (default: the furnace, the gallery, the translucent scene) and for
 //! every model at once (`all`, the general kernels) the path tracer
 //! (`main`), the wavefront step (`trace`) and the real-time kernel
-//! (`realtime`), each specialized to the scene's material models as
-//! `isolux render --gpu` runs it (`Features::of`). `--all` prints every
+//! (`realtime`), each specialized to the scene's material models and
+//! traversal stack as `isolux render --gpu` runs it (`Features::of`,
+//! `Features::with_stack`). `--all` prints every
 //! statistic the driver reports, not only those about registers, spills,
 //! code size, instructions, scratch and occupancy.
 //!
@@ -28,7 +29,8 @@
 //!     cargo run --release -p isolux-gpu --example kernel_stats
 //! ```
 use ash::vk;
-use isolux_gpu::{layout::GpuMaterials, render_source_variant, Features, Precision};
+use isolux_gpu::layout::{GpuMaterials, GpuScene};
+use isolux_gpu::{render_source_variant, Features, Precision};
 use std::ffi::{CStr, CString};
 
 /// Statistics worth a column, by words in their names (case-insensitive).
@@ -75,7 +77,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let name = std::path::Path::new(path)
             .file_name()
             .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
-        sets.push((name, Features::of(&materials.materials)));
+        let geometry = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
+        sets.push((
+            name,
+            Features::of(&materials.materials).with_stack(geometry.stack_depth()),
+        ));
     }
     sets.push(("every model".to_string(), Features::ALL));
     for (name, features) in &sets {
@@ -92,6 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let compiler = Compiler::new()?;
     println!("device: {}", compiler.device_name);
+    println!();
     let mut columns: Vec<String> = Vec::new();
     for (label, models, entry, src) in &kernels {
         let stats = compiler.stats(src, entry)?;
@@ -104,7 +111,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if columns.is_empty() {
                 columns = stats.iter().map(|(n, _)| n.clone()).collect();
             }
-            println!("| kernel | models | {} |", columns.join(" | "));
+            println!("| kernel | features | {} |", columns.join(" | "));
             println!("|---|---|{}", "---:|".repeat(columns.len()));
         }
         let cells: Vec<String> = columns

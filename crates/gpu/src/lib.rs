@@ -65,7 +65,8 @@ pub const MAX_CANDIDATES: u32 = 32;
 pub const LINEAR_CULL: u32 = 4;
 const _: () = assert!(LINEAR_CULL <= MAX_CANDIDATES);
 /// Entries of a BVH traversal's stack: the depth of a median-split
-/// hierarchy of up to 2^32 leaves.
+/// hierarchy of up to 2^32 leaves. The render kernels take the smallest
+/// of [`Features::STACKS`] that their scene's hierarchies need.
 pub const BVH_STACK: u32 = 32;
 /// Environment kinds (`Params.counts.w`).
 pub const ENV_CONSTANT: u32 = 0;
@@ -84,7 +85,6 @@ pub fn prelude() -> String {
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
          const ROOT_STACK: i32 = {ROOT_STACK};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
-         const BVH_STACK: u32 = {BVH_STACK}u;\n\
          const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
          const NO_NODE: u32 = {}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
@@ -176,9 +176,18 @@ pub fn intersect_source() -> String {
     intersect_source_with(Precision::F32)
 }
 
-/// The intersection kernel computing in `precision`.
+/// The intersection kernel computing in `precision` (with the largest
+/// traversal stack, [`BVH_STACK`]).
 pub fn intersect_source_with(precision: Precision) -> String {
-    prelude() + &geometry_source(precision) + include_str!("shaders/intersect.wgsl")
+    prelude()
+        + &stack_source(BVH_STACK)
+        + &geometry_source(precision)
+        + include_str!("shaders/intersect.wgsl")
+}
+
+/// The WGSL constant `BVH_STACK`: the entries of each traversal stack.
+fn stack_source(entries: u32) -> String {
+    format!("const BVH_STACK: u32 = {entries}u;\n")
 }
 
 /// The material conformance kernel with its prelude.
@@ -225,25 +234,43 @@ pub fn render_source_with(precision: Precision) -> String {
 /// free flights and scattering in a random-walk medium, the dipole's entry
 /// points and single scattering, a boundary's mirrored environment), which
 /// builds the two internal lobes `SSS_SINGLE_LOBE` and `SSS_ENTRY_LOBE`.
+///
+/// The traversal stacks are sized to the scene as well (`stack`): the
+/// intersection's private arrays are the bulk of its registers on a GPU
+/// compiler that keeps them in registers (RADV: the gallery's path tracer
+/// spills 206 VGPRs with stacks of 32 entries, 82 with 16), and naga
+/// clears them at every invocation (docs/gpu.md, "Register pressure").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Features {
     /// Bit `1 << tag` for each material tag ([`layout::tag`]) whose code
     /// the kernels carry (`MODELS` in the WGSL; `has_model` in
     /// `materials.wgsl`).
     pub models: u32,
+    /// Entries of each BVH traversal stack (`BVH_STACK` in the WGSL), one
+    /// of [`Features::STACKS`]: at least the deepest hierarchy's
+    /// [`layout::GpuScene::stack_depth`].
+    pub stack: u32,
 }
 
 impl Features {
-    /// Every model: runs any scene the GPU supports.
+    /// The traversal stack sizes kernels are built with, smallest first.
+    pub const STACKS: [u32; 3] = [8, 16, BVH_STACK];
+    /// Every model and the largest stack: runs any scene the GPU supports.
     pub const ALL: Features = Features {
         models: (1 << layout::tag::ALL.len()) - 1,
+        stack: BVH_STACK,
     };
-    /// No material code at all (what the AOV kernel reaches).
-    pub const NONE: Features = Features { models: 0 };
+    /// No material code at all (what the AOV kernel reaches) and the
+    /// smallest stack.
+    pub const NONE: Features = Features {
+        models: 0,
+        stack: Self::STACKS[0],
+    };
 
     /// The code `materials` need: each record's model (a mix's leaves are
     /// records of their own), and the internal lobes of the subsurface
-    /// integrator with a `subsurface` material.
+    /// integrator with a `subsurface` material; with the largest stack
+    /// ([`Features::with_stack`] fits it to a scene).
     pub fn of(materials: &[layout::GpuMaterial]) -> Self {
         let mut models = materials.iter().fold(0u32, |m, r| m | bit(r.tag[0]));
         if models & bit(layout::tag::SUBSURFACE) != 0 {
@@ -251,7 +278,19 @@ impl Features {
         }
         Features {
             models: models & Self::ALL.models,
+            stack: BVH_STACK,
         }
+    }
+
+    /// `self` with the smallest stack of [`Features::STACKS`] that holds
+    /// `depth` entries (hierarchies of a scene's [`GpuScene`]:
+    /// [`layout::GpuScene::stack_depth`]).
+    pub fn with_stack(self, depth: u32) -> Self {
+        let stack = Self::STACKS
+            .into_iter()
+            .find(|&s| s >= depth)
+            .unwrap_or(BVH_STACK);
+        Features { stack, ..self }
     }
 
     /// Whether the kernels carry model `tag`.
@@ -271,7 +310,7 @@ impl Features {
 
     /// Whether kernels built with `self` run everything `needed` asks for.
     pub fn covers(self, needed: Features) -> bool {
-        needed.models & !self.models == 0
+        needed.models & !self.models == 0 && self.stack >= needed.stack
     }
 
     /// The part of `self` that an entry point of the render module
@@ -280,16 +319,17 @@ impl Features {
     /// draws a medium black and never builds them; a `subsurface` leaf of
     /// a mix, which only the library API builds, is still its smooth
     /// boundary there); `aov_main` no material code (first hits and
-    /// albedos). Kernels that differ only in code their entry never
-    /// reaches are one kernel, compiled once.
+    /// albedos). Every entry keeps the stack. Kernels that differ only in
+    /// code their entry never reaches are one kernel, compiled once.
     fn reached_by(self, entry: &str) -> Features {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
         match entry {
             "main" | "trace" => self,
             "realtime" => Features {
                 models: self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE)),
+                ..self
             },
-            _ => Features::NONE,
+            _ => Features { models: 0, ..self },
         }
     }
 }
@@ -302,11 +342,24 @@ fn bit(tag: u32) -> u32 {
 
 /// "all", "none", the models by name (`diffuse+dielectric`) up to four,
 /// else their count with the integrator's optional parts
-/// (`14 models`, `9 models with wave+subsurface`). The internal lobes go
+/// (`14 models`, `9 models with wave+subsurface`), then the stack where it
+/// is below the largest (`diffuse, stack 8`). The internal lobes go
 /// unnamed: they come with `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
+        if self.stack < BVH_STACK {
+            write!(
+                f,
+                "{}, stack {}",
+                Features {
+                    stack: BVH_STACK,
+                    ..*self
+                },
+                self.stack
+            )?;
+            return Ok(());
+        }
         if *self == Features::ALL {
             return f.write_str("all");
         }
@@ -349,6 +402,7 @@ fn models_source(features: Features) -> String {
 pub fn render_source_variant(precision: Precision, features: Features) -> String {
     prelude()
         + &models_source(features)
+        + &stack_source(features.stack)
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
         + if features.wave() {
@@ -1001,13 +1055,12 @@ mod tests {
         use super::Features;
         let wave = 1 << tag::WAVE;
         let sss = 1 << tag::SUBSURFACE | 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
+        let set = |models: u32, stack: u32| Features { models, stack };
         let mut sets = vec![Features::NONE, Features::ALL];
-        sets.extend(tag::ALL.iter().map(|(_, t)| Features { models: 1 << t }));
+        sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, 8)));
         for extra in [wave, sss, wave | sss] {
-            sets.push(Features { models: extra });
-            sets.push(Features {
-                models: Features::ALL.models & !(wave | sss) | extra,
-            });
+            sets.push(set(extra, 16));
+            sets.push(set(Features::ALL.models & !(wave | sss) | extra, 32));
         }
         sets
     }
@@ -1026,18 +1079,27 @@ mod tests {
             let rt = f.reached_by("realtime");
             let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
             assert_eq!(rt.models, f.models & !lobes, "{f}");
-            assert_eq!(f.reached_by("aov_main"), Features::NONE);
+            assert_eq!(rt.stack, f.stack);
+            let aov = f.reached_by("aov_main");
+            assert_eq!((aov.models, aov.stack), (0, f.stack));
             for g in &all {
-                let by_parts = tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t));
+                let by_parts =
+                    tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t)) && f.stack >= g.stack;
                 assert_eq!(f.covers(*g), by_parts, "{f} covers {g}");
             }
+            for (depth, stack) in [(0, 8), (8, 8), (9, 16), (16, 16), (17, 32), (32, 32)] {
+                assert_eq!(f.with_stack(depth).stack, stack);
+                assert_eq!(f.with_stack(depth).models, f.models);
+            }
         }
-        assert_eq!(Features::NONE.to_string(), "none");
+        assert_eq!(Features::NONE.to_string(), "none, stack 8");
         assert_eq!(Features::ALL.to_string(), "all");
         let few = Features {
             models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
+            stack: super::BVH_STACK,
         };
         assert_eq!(few.to_string(), "diffuse+dielectric");
+        assert_eq!(few.with_stack(3).to_string(), "diffuse+dielectric, stack 8");
         let sss = Features::of(&[super::layout::GpuMaterial {
             tag: [tag::SUBSURFACE, 0, 0, 0],
             ..Default::default()
@@ -1046,16 +1108,19 @@ mod tests {
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
         let many = Features {
             models: Features::ALL.models & !(1 << tag::SUBSURFACE),
+            ..Features::ALL
         };
         assert_eq!(many.to_string(), "17 models with wave");
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.
         let none = super::render_source_variant(super::Precision::F32, Features::NONE);
         assert!(none.contains("const MODELS: u32 = 0x0u;"));
+        assert!(none.contains("const BVH_STACK: u32 = 8u;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
         assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
         assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
+        assert!(full.contains("const BVH_STACK: u32 = 32u;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
         assert!(full.contains("fn place_wave("));
     }

@@ -387,9 +387,12 @@ fn frames_choose_the_kernels_their_scenes_need() {
                 "{name}"
             );
             assert!(needed.has(tag::DIFFUSE) || wave, "{name}: {needed}");
+            // Every example's hierarchies are a few levels deep.
+            assert_eq!(needed.stack, 8, "{name}: {needed}");
             for (_, t) in tag::ALL.iter().filter(|(_, t)| needed.has(*t)) {
                 let lacking = Features {
                     models: needed.models & !(1 << t),
+                    ..needed
                 };
                 let e = frame.set_features(lacking).unwrap_err().to_string();
                 assert!(e.contains(&needed.to_string()), "{name}: {e}");
@@ -515,15 +518,27 @@ fn same_paths(name: &str, (la, a): (&str, &Image), (lb, b): (&str, &Image)) {
 /// missed, or a guard in `materials.wgsl` that drops a model the scene
 /// uses, renders it black in the specialized image. Scenes: the gallery
 /// (13 models, a mix), the translucent one (the subsurface integrator and
-/// its internal lobes), and two furnaces of one model each, whose kernels
-/// dispatch to it without a switch (`model` in `materials.wgsl`).
+/// its internal lobes), two furnaces of one model each, whose kernels
+/// dispatch to it without a switch (`model` in `materials.wgsl`), and a
+/// sphere of 600 bumps under a point light, whose hierarchy needs a
+/// traversal stack of 16 entries (the others' fit in 8, the general
+/// kernels hold 32). That a stack holds what a scene's rays push is
+/// checked against a simulated traversal (layout.rs,
+/// `stack_depth_bounds_the_traversal`): a stack of 8 on the 600 bumps
+/// loses too few pushes to show at this size (measured: 100% agree).
 #[test]
 fn specialized_kernels_trace_the_general_kernels_paths() {
     use isolux_gpu::Features;
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
+    let mut bumpy = common::example("perturbed-sphere.toml");
+    bumpy.geometry =
+        isolux_geometry::Aggregate::new(vec![isolux_geometry::samples::bumpy_sphere(600)]);
+    bumpy.object_material = vec![0];
+    assert_eq!(gpu.prepare(&bumpy).unwrap().features().stack, 16);
     for (name, mut scene) in [
+        ("600 bumps", bumpy),
         ("gallery", common::example("gallery.toml")),
         ("translucent", common::example("translucent.toml")),
         ("diffuse furnace", common::example("furnace.toml")),
