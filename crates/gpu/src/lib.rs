@@ -223,8 +223,8 @@ pub fn render_source_with(precision: Precision) -> String {
 /// gallery frame when the subsurface integrator joined it (c7c9a78,
 /// docs/benchmarks.md), although the gallery has no medium. Lavapipe
 /// runs both sides of every branch under a lane mask, so there it also
-/// costs time: a diffuse-only scene renders 1.6x faster with the diffuse
-/// model alone (docs/gpu.md, "Kernels specialized to the scene").
+/// costs time: a diffuse-only scene renders 1.2-1.6x faster with the
+/// diffuse model alone (docs/gpu.md, "Kernels specialized to the scene").
 /// `isolux bench gpu --general` times the general kernels beside the
 /// specialized ones.
 ///
@@ -238,8 +238,9 @@ pub fn render_source_with(precision: Precision) -> String {
 /// The traversal stacks are sized to the scene as well (`stack`): the
 /// intersection's private arrays are the bulk of its registers on a GPU
 /// compiler that keeps them in registers (RADV: the gallery's path tracer
-/// spills 206 VGPRs with stacks of 32 entries, 82 with 16), and naga
-/// clears them at every invocation (docs/gpu.md, "Register pressure").
+/// spills 206 VGPRs with stacks of 32 entries, 51 with the 8 it needs),
+/// and naga clears them at every invocation (docs/gpu.md, "Register
+/// pressure").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Features {
     /// Bit `1 << tag` for each material tag ([`layout::tag`]) whose code
