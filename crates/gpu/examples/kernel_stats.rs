@@ -11,9 +11,9 @@
 //! scene (default: the furnace, the gallery, the translucent scene) and for
 //! every model at once (`all`, the general kernels) the path tracer
 //! (`main`), the wavefront step (`trace`) and the real-time kernel
-//! (`realtime`), each specialized to the scene's material models and
-//! traversal stack as `isolux render --gpu` runs it (`Features::of`,
-//! `Features::with_stack`). `--all` prints every
+//! (`realtime`), each specialized to the scene's material models,
+//! traversal stack and candidate list as `isolux render --gpu` runs it
+//! (`Features::of`, `Features::fit_to`). `--all` prints every
 //! statistic the driver reports, not only those about registers, spills,
 //! code size, instructions, scratch and occupancy.
 //!
@@ -78,10 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .file_name()
             .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
         let geometry = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
-        sets.push((
-            name,
-            Features::of(&materials.materials).with_stack(geometry.stack_depth()),
-        ));
+        sets.push((name, Features::of(&materials.materials).fit_to(&geometry)));
     }
     sets.push(("every model".to_string(), Features::ALL));
     for (name, features) in &sets {

@@ -64,6 +64,9 @@ pub const MAX_CANDIDATES: u32 = 32;
 /// costs more than it saves on a few supports: see docs/benchmarks.md).
 pub const LINEAR_CULL: u32 = 4;
 const _: () = assert!(LINEAR_CULL <= MAX_CANDIDATES);
+/// Perturbations an object may have and still keep its candidates as a
+/// bit mask (a `u32` in `geometry.wgsl`) rather than in a list.
+pub const MASK_CANDIDATES: u32 = u32::BITS;
 /// Entries of a BVH traversal's stack: the depth of a median-split
 /// hierarchy of up to 2^32 leaves. The render kernels take the smallest
 /// of [`Features::STACKS`] that their scene's hierarchies need.
@@ -180,14 +183,15 @@ pub fn intersect_source() -> String {
 /// traversal stack, [`BVH_STACK`]).
 pub fn intersect_source_with(precision: Precision) -> String {
     prelude()
-        + &stack_source(BVH_STACK)
+        + &stack_source(BVH_STACK, true)
         + &geometry_source(precision)
         + include_str!("shaders/intersect.wgsl")
 }
 
-/// The WGSL constant `BVH_STACK`: the entries of each traversal stack.
-fn stack_source(entries: u32) -> String {
-    format!("const BVH_STACK: u32 = {entries}u;\n")
+/// The WGSL constants `BVH_STACK` (the entries of each traversal stack)
+/// and `CANDIDATE_LIST` (whether an object may list its candidates).
+fn stack_source(entries: u32, list: bool) -> String {
+    format!("const BVH_STACK: u32 = {entries}u;\nconst CANDIDATE_LIST: bool = {list};\n")
 }
 
 /// The material conformance kernel with its prelude.
@@ -235,11 +239,12 @@ pub fn render_source_with(precision: Precision) -> String {
 /// points and single scattering, a boundary's mirrored environment), which
 /// builds the two internal lobes `SSS_SINGLE_LOBE` and `SSS_ENTRY_LOBE`.
 ///
-/// The traversal stacks are sized to the scene as well (`stack`): the
-/// intersection's private arrays are the bulk of its registers on a GPU
-/// compiler that keeps them in registers (RADV: the gallery's path tracer
-/// spills 206 VGPRs with stacks of 32 entries, 51 with the 8 it needs),
-/// and naga clears them at every invocation (docs/gpu.md, "Register
+/// The intersection's private arrays are fitted to the scene as well
+/// (`stack`, `list`): they are the bulk of its registers on a GPU compiler
+/// that keeps them in registers (RADV: the gallery's path tracer spills
+/// 206 VGPRs with stacks of 32 entries and the candidate list, 51 with
+/// the 8 entries it needs, 10 without the list it does not need), and
+/// naga clears them at every invocation (docs/gpu.md, "Register
 /// pressure").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Features {
@@ -251,6 +256,11 @@ pub struct Features {
     /// of [`Features::STACKS`]: at least the deepest hierarchy's
     /// [`layout::GpuScene::stack_depth`].
     pub stack: u32,
+    /// The run-time-indexed list of candidate perturbations
+    /// (`CANDIDATE_LIST` in the WGSL), which only an object of more than
+    /// [`MASK_CANDIDATES`] perturbations needs; without it every object
+    /// keeps its candidates as a bit mask in a register.
+    pub list: bool,
 }
 
 impl Features {
@@ -260,18 +270,20 @@ impl Features {
     pub const ALL: Features = Features {
         models: (1 << layout::tag::ALL.len()) - 1,
         stack: BVH_STACK,
+        list: true,
     };
-    /// No material code at all (what the AOV kernel reaches) and the
-    /// smallest stack.
+    /// No material code at all (what the AOV kernel reaches), the
+    /// smallest stack and no candidate list.
     pub const NONE: Features = Features {
         models: 0,
         stack: Self::STACKS[0],
+        list: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
     /// records of their own), and the internal lobes of the subsurface
-    /// integrator with a `subsurface` material; with the largest stack
-    /// ([`Features::with_stack`] fits it to a scene).
+    /// integrator with a `subsurface` material; with the largest stack and
+    /// the candidate list ([`Features::fit_to`] fits them to a scene).
     pub fn of(materials: &[layout::GpuMaterial]) -> Self {
         let mut models = materials.iter().fold(0u32, |m, r| m | bit(r.tag[0]));
         if models & bit(layout::tag::SUBSURFACE) != 0 {
@@ -280,6 +292,18 @@ impl Features {
         Features {
             models: models & Self::ALL.models,
             stack: BVH_STACK,
+            list: true,
+        }
+    }
+
+    /// `self` with the stack and the candidate list `scene` needs: the
+    /// smallest stack that holds its deepest hierarchy
+    /// ([`Features::with_stack`]), the list only if an object has more
+    /// than [`MASK_CANDIDATES`] perturbations.
+    pub fn fit_to(self, scene: &GpuScene) -> Self {
+        Features {
+            list: scene.objects.iter().any(|o| o.range[1] > MASK_CANDIDATES),
+            ..self.with_stack(scene.stack_depth())
         }
     }
 
@@ -311,7 +335,9 @@ impl Features {
 
     /// Whether kernels built with `self` run everything `needed` asks for.
     pub fn covers(self, needed: Features) -> bool {
-        needed.models & !self.models == 0 && self.stack >= needed.stack
+        needed.models & !self.models == 0
+            && self.stack >= needed.stack
+            && (self.list || !needed.list)
     }
 
     /// The part of `self` that an entry point of the render module
@@ -343,22 +369,27 @@ fn bit(tag: u32) -> u32 {
 
 /// "all", "none", the models by name (`diffuse+dielectric`) up to four,
 /// else their count with the integrator's optional parts
-/// (`14 models`, `9 models with wave+subsurface`), then the stack where it
-/// is below the largest (`diffuse, stack 8`). The internal lobes go
-/// unnamed: they come with `subsurface`.
+/// (`14 models`, `9 models with wave+subsurface`); then, for kernels
+/// fitted to a scene, the stack where it is below the largest and the
+/// candidate list where there is one (`diffuse, stack 8`, `ggx, stack 16,
+/// candidate list`). The internal lobes go unnamed: they come with
+/// `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
-        if self.stack < BVH_STACK {
-            write!(
-                f,
-                "{}, stack {}",
-                Features {
-                    stack: BVH_STACK,
-                    ..*self
-                },
-                self.stack
-            )?;
+        let general = Features {
+            stack: BVH_STACK,
+            list: true,
+            ..*self
+        };
+        if *self != general {
+            write!(f, "{general}")?;
+            if self.stack < BVH_STACK {
+                write!(f, ", stack {}", self.stack)?;
+            }
+            if self.list {
+                f.write_str(", candidate list")?;
+            }
             return Ok(());
         }
         if *self == Features::ALL {
@@ -403,7 +434,7 @@ fn models_source(features: Features) -> String {
 pub fn render_source_variant(precision: Precision, features: Features) -> String {
     prelude()
         + &models_source(features)
-        + &stack_source(features.stack)
+        + &stack_source(features.stack, features.list)
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
         + if features.wave() {
@@ -1056,12 +1087,16 @@ mod tests {
         use super::Features;
         let wave = 1 << tag::WAVE;
         let sss = 1 << tag::SUBSURFACE | 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
-        let set = |models: u32, stack: u32| Features { models, stack };
+        let set = |models: u32, stack: u32, list: bool| Features {
+            models,
+            stack,
+            list,
+        };
         let mut sets = vec![Features::NONE, Features::ALL];
-        sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, 8)));
+        sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, 8, false)));
         for extra in [wave, sss, wave | sss] {
-            sets.push(set(extra, 16));
-            sets.push(set(Features::ALL.models & !(wave | sss) | extra, 32));
+            sets.push(set(extra, 16, true));
+            sets.push(set(Features::ALL.models & !(wave | sss) | extra, 32, false));
         }
         sets
     }
@@ -1080,12 +1115,13 @@ mod tests {
             let rt = f.reached_by("realtime");
             let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
             assert_eq!(rt.models, f.models & !lobes, "{f}");
-            assert_eq!(rt.stack, f.stack);
+            assert_eq!((rt.stack, rt.list), (f.stack, f.list));
             let aov = f.reached_by("aov_main");
-            assert_eq!((aov.models, aov.stack), (0, f.stack));
+            assert_eq!((aov.models, aov.stack, aov.list), (0, f.stack, f.list));
             for g in &all {
-                let by_parts =
-                    tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t)) && f.stack >= g.stack;
+                let by_parts = tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t))
+                    && f.stack >= g.stack
+                    && (f.list || !g.list);
                 assert_eq!(f.covers(*g), by_parts, "{f} covers {g}");
             }
             for (depth, stack) in [(0, 8), (8, 8), (9, 16), (16, 16), (17, 32), (32, 32)] {
@@ -1097,10 +1133,22 @@ mod tests {
         assert_eq!(Features::ALL.to_string(), "all");
         let few = Features {
             models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
-            stack: super::BVH_STACK,
+            ..Features::ALL
         };
         assert_eq!(few.to_string(), "diffuse+dielectric");
-        assert_eq!(few.with_stack(3).to_string(), "diffuse+dielectric, stack 8");
+        assert_eq!(
+            few.with_stack(3).to_string(),
+            "diffuse+dielectric, stack 8, candidate list"
+        );
+        // Fitted to scenes: a sphere of 33 bumps needs the list, one of 32
+        // does not; both hierarchies fit in 8 entries.
+        for (bumps, list) in [(32, false), (33, true)] {
+            let scene =
+                super::layout::GpuScene::new(&[isolux_geometry::samples::bumpy_sphere(bumps)]);
+            let fitted = few.fit_to(&scene);
+            assert_eq!((fitted.stack, fitted.list), (8, list), "{bumps}");
+            assert_eq!(fitted.models, few.models);
+        }
         let sss = Features::of(&[super::layout::GpuMaterial {
             tag: [tag::SUBSURFACE, 0, 0, 0],
             ..Default::default()
@@ -1117,11 +1165,13 @@ mod tests {
         let none = super::render_source_variant(super::Precision::F32, Features::NONE);
         assert!(none.contains("const MODELS: u32 = 0x0u;"));
         assert!(none.contains("const BVH_STACK: u32 = 8u;"));
+        assert!(none.contains("const CANDIDATE_LIST: bool = false;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
         assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
         assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
         assert!(full.contains("const BVH_STACK: u32 = 32u;"));
+        assert!(full.contains("const CANDIDATE_LIST: bool = true;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
         assert!(full.contains("fn place_wave("));
     }

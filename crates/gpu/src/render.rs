@@ -454,7 +454,7 @@ impl Gpu {
             aov.as_ref().unwrap_or(&aov_stub),
             &albedos,
         ]);
-        let needed = Features::of(&materials.materials).with_stack(geo.stack_depth());
+        let needed = Features::of(&materials.materials).fit_to(&geo);
         let random_walk = materials
             .materials
             .iter()

@@ -387,8 +387,9 @@ fn frames_choose_the_kernels_their_scenes_need() {
                 "{name}"
             );
             assert!(needed.has(tag::DIFFUSE) || wave, "{name}: {needed}");
-            // Every example's hierarchies are a few levels deep.
-            assert_eq!(needed.stack, 8, "{name}: {needed}");
+            // Every example's hierarchies are a few levels deep, and no
+            // object has more than 32 perturbations.
+            assert_eq!((needed.stack, needed.list), (8, false), "{name}: {needed}");
             for (_, t) in tag::ALL.iter().filter(|(_, t)| needed.has(*t)) {
                 let lacking = Features {
                     models: needed.models & !(1 << t),
@@ -522,7 +523,8 @@ fn same_paths(name: &str, (la, a): (&str, &Image), (lb, b): (&str, &Image)) {
 /// dispatch to it without a switch (`model` in `materials.wgsl`), and a
 /// sphere of 600 bumps under a point light, whose hierarchy needs a
 /// traversal stack of 16 entries (the others' fit in 8, the general
-/// kernels hold 32). That a stack holds what a scene's rays push is
+/// kernels hold 32) and whose object lists its candidates (the others keep
+/// theirs in a bit mask). That a stack holds what a scene's rays push is
 /// checked against a simulated traversal (layout.rs,
 /// `stack_depth_bounds_the_traversal`): a stack of 8 on the 600 bumps
 /// loses too few pushes to show at this size (measured: 100% agree).
@@ -536,7 +538,8 @@ fn specialized_kernels_trace_the_general_kernels_paths() {
     bumpy.geometry =
         isolux_geometry::Aggregate::new(vec![isolux_geometry::samples::bumpy_sphere(600)]);
     bumpy.object_material = vec![0];
-    assert_eq!(gpu.prepare(&bumpy).unwrap().features().stack, 16);
+    let fitted = gpu.prepare(&bumpy).unwrap().features();
+    assert_eq!((fitted.stack, fitted.list), (16, true));
     for (name, mut scene) in [
         ("600 bumps", bumpy),
         ("gallery", common::example("gallery.toml")),
