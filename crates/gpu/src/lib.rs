@@ -88,6 +88,7 @@ pub fn prelude() -> String {
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
          const ROOT_STACK: i32 = {ROOT_STACK};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
+         const MASK_CANDIDATES: u32 = {MASK_CANDIDATES}u;\n\
          const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
          const NO_NODE: u32 = {}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\

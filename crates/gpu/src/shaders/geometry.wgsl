@@ -355,9 +355,9 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
     var all = false;
     var mask = 0u;
     // CANDIDATE_LIST (generated, lib.rs `Features::list`) is false when no
-    // object of the scene has more than 32 perturbations: the list and its
-    // array are then dead code.
-    let masked = !CANDIDATE_LIST || count <= 32u;
+    // object of the scene has more than MASK_CANDIDATES (32, the mask's
+    // bits) perturbations: the list and its array are then dead code.
+    let masked = !CANDIDATE_LIST || count <= MASK_CANDIDATES;
     let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
     if (obj.range.w != NO_NODE && count <= LINEAR_CULL) {
         // A few supports: the same test on each, no traversal.
