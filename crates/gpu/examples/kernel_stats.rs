@@ -11,8 +11,8 @@
 //! scene (default: the furnace, the gallery, the translucent scene) and for
 //! every model at once (`all`, the general kernels) the path tracer
 //! (`main`), the wavefront step (`trace`) and the real-time kernel
-//! (`realtime`), each specialized to the scene's material models,
-//! traversal stack and candidate list as `isolux render --gpu` runs it
+//! (`realtime`), each specialized to the scene's material models and
+//! candidate list as `isolux render --gpu` runs it
 //! (`Features::of`, `Features::fit_to`). `--all` prints every
 //! statistic the driver reports, not only those about registers, spills,
 //! code size, instructions, scratch and occupancy.

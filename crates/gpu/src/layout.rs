@@ -63,7 +63,13 @@ pub struct GpuObject {
 pub const NO_NODE: u32 = u32::MAX;
 
 /// A node of a bounding volume hierarchy, depth-first (a node's first
-/// child follows it). WGSL: `struct BvhNode { bmin: vec4<f32>, bmax:
+/// child follows it, its second child follows the first's subtree), with
+/// a skip link: the node after its subtree. A traversal needs no stack
+/// (geometry.wgsl): from a node whose box the ray meets it goes on to the
+/// next node in the array (an interior node's first child) or, after a
+/// leaf's items, to the skip link; from one it misses, to the skip link.
+/// It visits the nodes in the order a stack (first child descended, second
+/// pushed) would. WGSL: `struct BvhNode { bmin: vec4<f32>, bmax:
 /// vec4<f32>, link: vec4<u32> }`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -72,9 +78,10 @@ pub struct GpuBvhNode {
     pub bmin: [f32; 4],
     /// Box maximum (`w` unused).
     pub bmax: [f32; 4],
-    /// Interior: `[second child, 0, 0, 0]`. Leaf: `[0, count (1 or 2),
-    /// item, item]` (object indices at the top level, absolute
-    /// perturbation indices under an object).
+    /// `[skip, count, item, item]`: `skip` the node after this one's
+    /// subtree ([`NO_NODE`] past the hierarchy's last node); `count` 0 for
+    /// an interior node, else the leaf's items (1 or 2: object indices at
+    /// the top level, absolute perturbation indices under an object).
     pub link: [u32; 4],
 }
 
@@ -125,12 +132,28 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
 /// returns its root.
 fn push_bvh(nodes: &mut Vec<GpuBvhNode>, boxes: &[Aabb], item: impl Fn(u32) -> u32) -> u32 {
     let root = nodes.len() as u32;
-    for (b, second, items) in Bvh::build(boxes).flatten() {
-        let (bmin, bmax) = clamp_box(&b);
+    let flat = Bvh::build(boxes).flatten();
+    // Subtree sizes, children (later in depth-first order) first: an
+    // interior node's second child follows its first child's subtree.
+    let mut size = vec![1u32; flat.len()];
+    for (i, (_, second, items)) in flat.iter().enumerate().rev() {
+        if items.is_empty() {
+            debug_assert_eq!(*second as usize, i + 1 + size[i + 1] as usize);
+            size[i] = 1 + size[i + 1] + size[*second as usize];
+        }
+    }
+    for (i, (b, _, items)) in flat.iter().enumerate() {
+        let (bmin, bmax) = clamp_box(b);
+        let end = i as u32 + size[i];
+        let skip = if end as usize == flat.len() {
+            NO_NODE
+        } else {
+            root + end
+        };
         let link = match items.as_slice() {
-            [] => [root + second, 0, 0, 0],
-            [a] => [0, 1, item(*a), 0],
-            [a, b] => [0, 2, item(*a), item(*b)],
+            [] => [skip, 0, 0, 0],
+            [a] => [skip, 1, item(*a), 0],
+            [a, b] => [skip, 2, item(*a), item(*b)],
             _ => unreachable!("BVH leaves hold at most {LEAF_SIZE} items"),
         };
         nodes.push(GpuBvhNode { bmin, bmax, link });
@@ -139,28 +162,6 @@ fn push_bvh(nodes: &mut Vec<GpuBvhNode>, boxes: &[Aabb], item: impl Fn(u32) -> u
 }
 
 impl GpuScene {
-    /// The most entries a traversal stack of the kernels holds in this
-    /// scene: the most interior nodes on a root-to-leaf path of any of its
-    /// hierarchies (the objects', and each object's over its supports),
-    /// since the traversal pushes one child at each interior node it
-    /// descends through and pops before it pushes again at that level.
-    pub fn stack_depth(&self) -> u32 {
-        fn depth(nodes: &[GpuBvhNode], i: u32) -> u32 {
-            let n = &nodes[i as usize];
-            if n.link[1] != 0 {
-                return 0;
-            }
-            1 + depth(nodes, i + 1).max(depth(nodes, n.link[0]))
-        }
-        let roots = (!self.objects.is_empty()).then_some(0).into_iter().chain(
-            self.objects
-                .iter()
-                .map(|o| o.range[3])
-                .filter(|&r| r != NO_NODE),
-        );
-        roots.map(|r| depth(&self.nodes, r)).max().unwrap_or(0)
-    }
-
     /// Flattens `objects` (material index 0 for all). Unbounded boxes are
     /// clamped to +-1e30.
     pub fn new(objects: &[Object]) -> Self {
@@ -1025,28 +1026,46 @@ mod tests {
         assert_eq!(g.data.len(), m1.idx[2] as usize + 3 + 243);
     }
 
-    /// `stack_depth` bounds what the kernels' traversal (geometry.wgsl:
-    /// push the second child, descend into the first, pop when a subtree
-    /// is done) holds on its stack when every box is met, the most a ray
-    /// can make it hold: simulated over hierarchies of 1 to 600 objects
-    /// and of one object's 1 to 600 perturbations. It is also the
-    /// median split's depth: at most ceil(log2(n)).
+    /// The skip links walk a hierarchy as a stack would (geometry.wgsl's
+    /// traversal, mirrored): over hierarchies of 1 to 600 objects and of
+    /// one object's 1 to 600 perturbations, with boxes met or missed at
+    /// random, the stackless walk visits exactly the nodes, in the same
+    /// order, that a recursive descent over `Bvh::flatten`'s second-child
+    /// indices visits (a box missed prunes its subtree), and with every
+    /// box met, every node once.
     #[test]
-    fn stack_depth_bounds_the_traversal() {
+    fn skip_links_walk_the_hierarchy_as_a_stack_would() {
         use isolux_geometry::samples::bumpy_sphere;
-        fn most_held(nodes: &[GpuBvhNode], root: u32) -> u32 {
-            let (mut stack, mut most, mut node) = (Vec::new(), 0, root);
-            loop {
+        // A node's box is "met" by ray r when this hash says so.
+        let met = |r: u32, node: u32| {
+            let h = (r.wrapping_mul(0x9E37_79B9) ^ node.wrapping_mul(0x85EB_CA6B)).rotate_left(13);
+            r == 0 || h.wrapping_mul(0xC2B2_AE35) >> 30 != 0
+        };
+        let stackless = |nodes: &[GpuBvhNode], root: u32, r: u32| {
+            let (mut seen, mut node) = (Vec::new(), root);
+            while node != NO_NODE {
                 let n = nodes[node as usize];
-                if n.link[1] == 0 {
-                    stack.push(n.link[0]);
-                    most = most.max(stack.len() as u32);
-                    node += 1;
-                } else if let Some(next) = stack.pop() {
-                    node = next;
+                seen.push(node);
+                node = if met(r, node) && n.link[1] == 0 {
+                    node + 1
                 } else {
-                    return most;
-                }
+                    n.link[0]
+                };
+            }
+            seen
+        };
+        fn descend(
+            flat: &[(Aabb, u32, Vec<u32>)],
+            i: u32,
+            root: u32,
+            met: &dyn Fn(u32) -> bool,
+            seen: &mut Vec<u32>,
+        ) {
+            seen.push(root + i);
+            let (_, second, items) = &flat[i as usize];
+            if met(root + i) && items.is_empty() {
+                descend(flat, i + 1, root, met, seen);
+                descend(flat, *second, root, met, seen);
             }
         }
         for n in [1usize, 2, 3, 5, 17, 64, 255, 256, 257, 600] {
@@ -1056,18 +1075,44 @@ mod tests {
                     Object::new(Quadric::sphere(c, 0.5), Vec::new(), None).unwrap()
                 })
                 .collect();
+            let bumpy = bumpy_sphere(n);
             let objects = GpuScene::new(&spheres);
-            let bumps = GpuScene::new(&[bumpy_sphere(n)]);
+            let bumps = GpuScene::new(std::slice::from_ref(&bumpy));
             let bumps_root = bumps.objects[0].range[3];
-            for (what, scene, root) in [
-                ("objects", objects, 0),
-                ("perturbations", bumps, bumps_root),
+            // The boxes as `with_materials` builds the hierarchies over
+            // them (rounded to f32).
+            let f32_box = |b: &Aabb| {
+                let (a, c) = clamp_box(b);
+                let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
+                Aabb::new(v(a), v(c))
+            };
+            let object_boxes: Vec<Aabb> = spheres.iter().map(|o| f32_box(&o.bbox())).collect();
+            let bump_boxes: Vec<Aabb> = bumpy
+                .perturbations()
+                .iter()
+                .filter_map(|p| {
+                    let b = p
+                        .quadric
+                        .positive_bounds()
+                        .map_or(bumpy.bbox(), |pb| pb.intersection(&bumpy.bbox()));
+                    (!b.is_empty()).then(|| f32_box(&b))
+                })
+                .collect();
+            for (what, scene, root, boxes) in [
+                ("objects", objects, 0, object_boxes),
+                ("perturbations", bumps, bumps_root, bump_boxes),
             ] {
-                let held = most_held(&scene.nodes, root);
-                let depth = scene.stack_depth();
-                assert!(held <= depth, "{n} {what}: holds {held}, depth {depth}");
-                let bound = (n as f64).log2().ceil() as u32;
-                assert!(depth <= bound.max(1), "{n} {what}: depth {depth} > {bound}");
+                let flat = Bvh::build(&boxes).flatten();
+                for r in 0..20 {
+                    let mut want = Vec::new();
+                    descend(&flat, 0, root, &|node| met(r, node), &mut want);
+                    let got = stackless(&scene.nodes, root, r);
+                    assert_eq!(got, want, "{n} {what}, ray {r}");
+                    if r == 0 {
+                        let all: Vec<u32> = (root..root + flat.len() as u32).collect();
+                        assert_eq!(got, all, "{n} {what}: every box met");
+                    }
+                }
             }
         }
     }

@@ -46,12 +46,6 @@ pub const NO_ROOT: f32 = 3.0e38;
 pub const MIN_WIDTH: f32 = 1.0 / 4096.0;
 /// Cap on subdivision steps per segment.
 pub const MAX_SUBDIVISIONS: i32 = 4096;
-/// Entries of the root isolation's interval stack (`first_root`, 16 bytes
-/// each in f32). Depth first, left first: while it descends, the stack
-/// holds one right sibling per level, and an interval of width 2^-k is a
-/// leaf at `k = 13` (below [`MIN_WIDTH`]), so it never holds more than 14.
-pub const ROOT_STACK: i32 = 16;
-const _: () = assert!((1u32 << (ROOT_STACK - 3)) as f32 * MIN_WIDTH >= 1.0);
 /// Rays leaving a surface start `SPAWN_OFFSET (1 + |p|_inf)` off it along
 /// the normal (the CPU's f64 path uses 1e-7; f32 hit points are good to
 /// about 1e-6 relative, so the margin is wider).
@@ -67,10 +61,6 @@ const _: () = assert!(LINEAR_CULL <= MAX_CANDIDATES);
 /// Perturbations an object may have and still keep its candidates as a
 /// bit mask (a `u32` in `geometry.wgsl`) rather than in a list.
 pub const MASK_CANDIDATES: u32 = u32::BITS;
-/// Entries of a BVH traversal's stack: the depth of a median-split
-/// hierarchy of up to 2^32 leaves. The render kernels take the smallest
-/// of [`Features::STACKS`] that their scene's hierarchies need.
-pub const BVH_STACK: u32 = 32;
 /// Environment kinds (`Params.counts.w`).
 pub const ENV_CONSTANT: u32 = 0;
 /// An equirectangular map, light-sampled.
@@ -86,7 +76,6 @@ pub fn prelude() -> String {
          const NO_ROOT = {NO_ROOT:e};\n\
          const MIN_WIDTH = {:e};\n\
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
-         const ROOT_STACK: i32 = {ROOT_STACK};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
          const MASK_CANDIDATES: u32 = {MASK_CANDIDATES}u;\n\
          const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
@@ -180,19 +169,19 @@ pub fn intersect_source() -> String {
     intersect_source_with(Precision::F32)
 }
 
-/// The intersection kernel computing in `precision` (with the largest
-/// traversal stack, [`BVH_STACK`]).
+/// The intersection kernel computing in `precision` (with the candidate
+/// list).
 pub fn intersect_source_with(precision: Precision) -> String {
     prelude()
-        + &stack_source(BVH_STACK, true)
+        + &list_source(true)
         + &geometry_source(precision)
         + include_str!("shaders/intersect.wgsl")
 }
 
-/// The WGSL constants `BVH_STACK` (the entries of each traversal stack)
-/// and `CANDIDATE_LIST` (whether an object may list its candidates).
-fn stack_source(entries: u32, list: bool) -> String {
-    format!("const BVH_STACK: u32 = {entries}u;\nconst CANDIDATE_LIST: bool = {list};\n")
+/// The WGSL constant `CANDIDATE_LIST` (whether an object may list its
+/// candidates).
+fn list_source(list: bool) -> String {
+    format!("const CANDIDATE_LIST: bool = {list};\n")
 }
 
 /// The material conformance kernel with its prelude.
@@ -240,23 +229,18 @@ pub fn render_source_with(precision: Precision) -> String {
 /// points and single scattering, a boundary's mirrored environment), which
 /// builds the two internal lobes `SSS_SINGLE_LOBE` and `SSS_ENTRY_LOBE`.
 ///
-/// The intersection's private arrays are fitted to the scene as well
-/// (`stack`, `list`): they are the bulk of its registers on a GPU compiler
-/// that keeps them in registers (RADV: the gallery's path tracer spills
-/// 206 VGPRs with stacks of 32 entries and the candidate list, 51 with
-/// the 8 entries it needs, 10 without the list it does not need), and
-/// naga clears them at every invocation (docs/gpu.md, "Register
-/// pressure").
+/// The intersection's one private array, the candidate list, is left out
+/// where the scene does not need it (`list`): private arrays are the bulk
+/// of its registers on a GPU compiler that keeps them in registers (RADV:
+/// the gallery's path tracer spilled 51 VGPRs with the list, 10 without),
+/// and naga clears them at every invocation (docs/gpu.md, "Register
+/// pressure"). The hierarchies and the root isolation need no stack.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Features {
     /// Bit `1 << tag` for each material tag ([`layout::tag`]) whose code
     /// the kernels carry (`MODELS` in the WGSL; `has_model` in
     /// `materials.wgsl`).
     pub models: u32,
-    /// Entries of each BVH traversal stack (`BVH_STACK` in the WGSL), one
-    /// of [`Features::STACKS`]: at least the deepest hierarchy's
-    /// [`layout::GpuScene::stack_depth`].
-    pub stack: u32,
     /// The run-time-indexed list of candidate perturbations
     /// (`CANDIDATE_LIST` in the WGSL), which only an object of more than
     /// [`MASK_CANDIDATES`] perturbations needs; without it every object
@@ -265,26 +249,23 @@ pub struct Features {
 }
 
 impl Features {
-    /// The traversal stack sizes kernels are built with, smallest first.
-    pub const STACKS: [u32; 3] = [8, 16, BVH_STACK];
-    /// Every model and the largest stack: runs any scene the GPU supports.
+    /// Every model and the candidate list: runs any scene the GPU
+    /// supports.
     pub const ALL: Features = Features {
         models: (1 << layout::tag::ALL.len()) - 1,
-        stack: BVH_STACK,
         list: true,
     };
-    /// No material code at all (what the AOV kernel reaches), the
-    /// smallest stack and no candidate list.
+    /// No material code at all (what the AOV kernel reaches) and no
+    /// candidate list.
     pub const NONE: Features = Features {
         models: 0,
-        stack: Self::STACKS[0],
         list: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
     /// records of their own), and the internal lobes of the subsurface
-    /// integrator with a `subsurface` material; with the largest stack and
-    /// the candidate list ([`Features::fit_to`] fits them to a scene).
+    /// integrator with a `subsurface` material; with the candidate list
+    /// ([`Features::fit_to`] fits it to a scene).
     pub fn of(materials: &[layout::GpuMaterial]) -> Self {
         let mut models = materials.iter().fold(0u32, |m, r| m | bit(r.tag[0]));
         if models & bit(layout::tag::SUBSURFACE) != 0 {
@@ -292,31 +273,17 @@ impl Features {
         }
         Features {
             models: models & Self::ALL.models,
-            stack: BVH_STACK,
             list: true,
         }
     }
 
-    /// `self` with the stack and the candidate list `scene` needs: the
-    /// smallest stack that holds its deepest hierarchy
-    /// ([`Features::with_stack`]), the list only if an object has more
-    /// than [`MASK_CANDIDATES`] perturbations.
+    /// `self` with the candidate list only if an object of `scene` has
+    /// more than [`MASK_CANDIDATES`] perturbations.
     pub fn fit_to(self, scene: &GpuScene) -> Self {
         Features {
             list: scene.objects.iter().any(|o| o.range[1] > MASK_CANDIDATES),
-            ..self.with_stack(scene.stack_depth())
+            ..self
         }
-    }
-
-    /// `self` with the smallest stack of [`Features::STACKS`] that holds
-    /// `depth` entries (hierarchies of a scene's [`GpuScene`]:
-    /// [`layout::GpuScene::stack_depth`]).
-    pub fn with_stack(self, depth: u32) -> Self {
-        let stack = Self::STACKS
-            .into_iter()
-            .find(|&s| s >= depth)
-            .unwrap_or(BVH_STACK);
-        Features { stack, ..self }
     }
 
     /// Whether the kernels carry model `tag`.
@@ -336,9 +303,7 @@ impl Features {
 
     /// Whether kernels built with `self` run everything `needed` asks for.
     pub fn covers(self, needed: Features) -> bool {
-        needed.models & !self.models == 0
-            && self.stack >= needed.stack
-            && (self.list || !needed.list)
+        needed.models & !self.models == 0 && (self.list || !needed.list)
     }
 
     /// The part of `self` that an entry point of the render module
@@ -347,7 +312,7 @@ impl Features {
     /// draws a medium black and never builds them; a `subsurface` leaf of
     /// a mix, which only the library API builds, is still its smooth
     /// boundary there); `aov_main` no material code (first hits and
-    /// albedos). Every entry keeps the stack. Kernels that differ only in
+    /// albedos). Every entry keeps the candidate list. Kernels that differ only in
     /// code their entry never reaches are one kernel, compiled once.
     fn reached_by(self, entry: &str) -> Features {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
@@ -371,29 +336,21 @@ fn bit(tag: u32) -> u32 {
 /// "all", "none", the models by name (`diffuse+dielectric`) up to four,
 /// else their count with the integrator's optional parts
 /// (`14 models`, `9 models with wave+subsurface`); then, for kernels
-/// fitted to a scene, the stack where it is below the largest and the
-/// candidate list where there is one (`diffuse, stack 8`, `ggx, stack 16,
-/// candidate list`). The internal lobes go unnamed: they come with
+/// fitted to a scene, the candidate list where there is one (`diffuse`,
+/// `ggx, candidate list`; "all" stands for every model, with or without
+/// it). The internal lobes go unnamed: they come with
 /// `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
-        let general = Features {
-            stack: BVH_STACK,
-            list: true,
-            ..*self
-        };
-        if *self != general {
-            write!(f, "{general}")?;
-            if self.stack < BVH_STACK {
-                write!(f, ", stack {}", self.stack)?;
-            }
-            if self.list {
-                f.write_str(", candidate list")?;
-            }
-            return Ok(());
+        if self.list && *self != Features::ALL {
+            let models = Features {
+                list: false,
+                ..*self
+            };
+            return write!(f, "{models}, candidate list");
         }
-        if *self == Features::ALL {
+        if self.models == Features::ALL.models {
             return f.write_str("all");
         }
         let names: Vec<String> = layout::tag::ALL
@@ -435,7 +392,7 @@ fn models_source(features: Features) -> String {
 pub fn render_source_variant(precision: Precision, features: Features) -> String {
     prelude()
         + &models_source(features)
-        + &stack_source(features.stack, features.list)
+        + &list_source(features.list)
         + &geometry_source(precision)
         + include_str!("shaders/materials.wgsl")
         + if features.wave() {
@@ -1088,16 +1045,12 @@ mod tests {
         use super::Features;
         let wave = 1 << tag::WAVE;
         let sss = 1 << tag::SUBSURFACE | 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
-        let set = |models: u32, stack: u32, list: bool| Features {
-            models,
-            stack,
-            list,
-        };
+        let set = |models: u32, list: bool| Features { models, list };
         let mut sets = vec![Features::NONE, Features::ALL];
-        sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, 8, false)));
+        sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, false)));
         for extra in [wave, sss, wave | sss] {
-            sets.push(set(extra, 16, true));
-            sets.push(set(Features::ALL.models & !(wave | sss) | extra, 32, false));
+            sets.push(set(extra, true));
+            sets.push(set(Features::ALL.models & !(wave | sss) | extra, false));
         }
         sets
     }
@@ -1116,62 +1069,53 @@ mod tests {
             let rt = f.reached_by("realtime");
             let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
             assert_eq!(rt.models, f.models & !lobes, "{f}");
-            assert_eq!((rt.stack, rt.list), (f.stack, f.list));
+            assert_eq!(rt.list, f.list);
             let aov = f.reached_by("aov_main");
-            assert_eq!((aov.models, aov.stack, aov.list), (0, f.stack, f.list));
+            assert_eq!((aov.models, aov.list), (0, f.list));
             for g in &all {
-                let by_parts = tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t))
-                    && f.stack >= g.stack
-                    && (f.list || !g.list);
+                let by_parts =
+                    tag::ALL.iter().all(|(_, t)| f.has(*t) || !g.has(*t)) && (f.list || !g.list);
                 assert_eq!(f.covers(*g), by_parts, "{f} covers {g}");
             }
-            for (depth, stack) in [(0, 8), (8, 8), (9, 16), (16, 16), (17, 32), (32, 32)] {
-                assert_eq!(f.with_stack(depth).stack, stack);
-                assert_eq!(f.with_stack(depth).models, f.models);
-            }
         }
-        assert_eq!(Features::NONE.to_string(), "none, stack 8");
+        assert_eq!(Features::NONE.to_string(), "none");
         assert_eq!(Features::ALL.to_string(), "all");
         let few = Features {
             models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
             ..Features::ALL
         };
-        assert_eq!(few.to_string(), "diffuse+dielectric");
-        assert_eq!(
-            few.with_stack(3).to_string(),
-            "diffuse+dielectric, stack 8, candidate list"
-        );
+        assert_eq!(few.to_string(), "diffuse+dielectric, candidate list");
         // Fitted to scenes: a sphere of 33 bumps needs the list, one of 32
-        // does not; both hierarchies fit in 8 entries.
+        // does not.
         for (bumps, list) in [(32, false), (33, true)] {
             let scene =
                 super::layout::GpuScene::new(&[isolux_geometry::samples::bumpy_sphere(bumps)]);
             let fitted = few.fit_to(&scene);
-            assert_eq!((fitted.stack, fitted.list), (8, list), "{bumps}");
+            assert_eq!(fitted.list, list, "{bumps}");
             assert_eq!(fitted.models, few.models);
         }
+        let fitted = Features { list: false, ..few };
+        assert_eq!(fitted.to_string(), "diffuse+dielectric");
         let sss = Features::of(&[super::layout::GpuMaterial {
             tag: [tag::SUBSURFACE, 0, 0, 0],
             ..Default::default()
         }]);
-        assert_eq!(sss.to_string(), "subsurface");
+        assert_eq!(sss.to_string(), "subsurface, candidate list");
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
         let many = Features {
             models: Features::ALL.models & !(1 << tag::SUBSURFACE),
             ..Features::ALL
         };
-        assert_eq!(many.to_string(), "17 models with wave");
+        assert_eq!(many.to_string(), "17 models with wave, candidate list");
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.
         let none = super::render_source_variant(super::Precision::F32, Features::NONE);
         assert!(none.contains("const MODELS: u32 = 0x0u;"));
-        assert!(none.contains("const BVH_STACK: u32 = 8u;"));
         assert!(none.contains("const CANDIDATE_LIST: bool = false;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
         assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
         assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
-        assert!(full.contains("const BVH_STACK: u32 = 32u;"));
         assert!(full.contains("const CANDIDATE_LIST: bool = true;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
         assert!(full.contains("fn place_wave("));

@@ -32,19 +32,17 @@ struct BvhNode { bmin: vec4<f32>, bmax: vec4<f32>, link: vec4<u32> }
 // The object of the hit `scene_first_hit` returned.
 var<private> hit_object: u32;
 
-// The intersection's work arrays, at module scope. WGSL zero-initializes
-// every variable: naga gives a function's local variables an
-// OpConstantNull initializer, so a local array is cleared on every call,
-// and one indexed at run time lives in memory, where the driver cannot
-// prove the stores dead (on NVIDIA, 32 to 64 stores to local memory per
-// `object_hit` and `first_root` call). Private arrays are cleared once per
-// invocation. No two live calls share one (WGSL has no recursion): the
-// scene's traversal, an object's traversal, its candidate perturbations,
-// and the root isolation's intervals.
-var<private> scene_stack: array<u32, BVH_STACK>;
-var<private> object_stack: array<u32, BVH_STACK>;
+// The candidate list of an object of more than MASK_CANDIDATES
+// perturbations, at module scope. WGSL zero-initializes every variable:
+// naga gives a function's local variables an OpConstantNull initializer,
+// so a local array would be cleared on every `object_hit` call, and one
+// indexed at run time lives in memory (local memory on NVIDIA), where the
+// driver cannot prove the stores dead. A private array is cleared once
+// per invocation. It is the intersection's only array: the hierarchies are
+// walked through skip links and the root isolation walks dyadic intervals,
+// neither with a stack (2026-12-02; RADV, docs/gpu.md "Register
+// pressure").
 var<private> candidates: array<u32, MAX_CANDIDATES>;
-var<private> root_stack: array<vec4<real>, ROOT_STACK>;
 
 // The candidate perturbations of the object `object_hit` is intersecting.
 // An object with at most 32 perturbations keeps them as a bit mask over
@@ -189,16 +187,25 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
 
 // First sign change of p on [0, 1], or -1.
 //
-// Each interval on the stack carries p at its two ends, `(u, v, p(u),
-// p(v))`, and a split evaluates p at the midpoint once for both halves: so
-// two neighbours agree exactly on their common end, and a sign change
-// there cannot be lost. (Recomputing the Bernstein coefficients of each
-// interval from the power basis gives end values off by rounding, about
-// 1e-5 where the coefficients reach 1e2 in f32, and a root near a split
-// point could fall between an interval whose hull rounds above zero and a
-// neighbour wholly below it: rays then missed a plain exit from a glass
-// object, `images.rs`, `conformance.rs`.) The hull is the Bernstein
-// coefficients' with their ends replaced by these values.
+// Bernstein subdivision, depth first and left first, without a stack:
+// the interval is the dyadic `[i, i + 1] * w` (`w = 2^-level`), the next
+// one after an interval is done is its right sibling, or its nearest
+// ancestor's right sibling (`i + 1`, halved while even), so the walk
+// visits intervals in the order of a stack of `(u, v, p(u), p(v))` and
+// holds four scalars instead of the stack (16 `vec4` in private memory:
+// registers on AMD, local memory on NVIDIA, cleared at every invocation).
+//
+// The walk goes left to right, so an interval's left end is the last
+// one's right end, and `p(u)` is carried over: every end value is computed
+// once, at the one call site of `poly_eval` for `p(v)`, and two
+// neighbours agree exactly on their common end, so a sign change there
+// cannot be lost. (Recomputing the Bernstein coefficients of each interval
+// from the power basis gives end values off by rounding, about 1e-5 where
+// the coefficients reach 1e2 in f32, and a root near a split point could
+// fall between an interval whose hull rounds above zero and a neighbour
+// wholly below it: rays then missed a plain exit from a glass object,
+// `images.rs`, `conformance.rs`.) The hull is the Bernstein coefficients'
+// with their ends replaced by these values.
 fn first_root(p: array<real, 7>) -> real {
     // What rounding can do to a control point: the Taylor shift, scaling
     // and basis change stay within about 1024 ulps of sum |p_k| on [0, 1].
@@ -207,22 +214,24 @@ fn first_root(p: array<real, 7>) -> real {
         size += abs(p[k]);
     }
     let tol = 1024.0 * REAL_EPS * size;
-    var top = 1;
-    root_stack[0] = vec4<real>(0.0, 1.0, p[0], poly_eval(p, 1.0));
+    var level = 0u;
+    var i = 0u;
+    var w: real = 1.0;
+    var fa = p[0];
     var guard = 0;
     loop {
-        if (top == 0 || guard > MAX_SUBDIVISIONS) {
+        if (guard > MAX_SUBDIVISIONS) {
             break;
         }
         guard++;
-        top--;
-        let iv = root_stack[top];
-        let fa = iv.z;
-        let fb = iv.w;
+        // Dyadic ends: exact (i < 2^14, w a power of two).
+        let u = real(i) * w;
+        let v = real(i + 1u) * w;
+        let fb = poly_eval(p, v);
         if (fa == 0.0) {
-            return iv.x;
+            return u;
         }
-        var b = bernstein(p, iv.x, iv.y);
+        var b = bernstein(p, u, v);
         b[0] = fa;
         b[6] = fb;
         var lo = min(fa, fb);
@@ -231,85 +240,104 @@ fn first_root(p: array<real, 7>) -> real {
             lo = min(lo, b[k]);
             hi = max(hi, b[k]);
         }
-        if (lo > 0.0 || hi < 0.0) {
-            continue;
-        }
-        // Exactly one root: one sign change of the control polygon between
-        // ends of opposite signs (Descartes' rule of signs in the Bernstein
-        // basis), decided as the CPU's `Poly::first_crossing` and `isolate`
-        // decide it, and refined at once instead of split down to
-        // MIN_WIDTH. Trusted only when every control point clears `tol`, so
-        // that no sign is rounding's; otherwise the interval is split as
-        // before.
-        var single = fa * fb < 0.0;
-        var changes = 0;
-        for (var k = 0; k < 6; k++) {
-            if (abs(b[k + 1]) <= tol) {
-                single = false;
-            }
-            if ((b[k] < 0.0) != (b[k + 1] < 0.0)) {
-                changes++;
-            }
-        }
-        single = single && abs(fa) > tol && changes == 1;
-        if (single || iv.y - iv.x < MIN_WIDTH) {
-            if (fa * fb <= 0.0) {
-                // Regula falsi, Illinois variant: an end kept twice in a
-                // row has its value halved, so both ends move (plain
-                // regula falsi on a convex stretch keeps one end fixed and
-                // converges from one side only). The answer is the last
-                // estimate, not the bracket's midpoint, which lay up to
-                // half the bracket from the root when one end stayed put.
-                // Stops at an exact zero, or when an estimate repeats.
-                var x0 = iv.x;
-                var x1 = iv.y;
-                var f0 = fa;
-                var f1 = fb;
-                var xm = 0.5 * (x0 + x1);
-                var kept = 0; // -1: x0 kept last step, 1: x1, 0: none yet
-                for (var it = 0; it < 40; it++) {
-                    if (f1 == f0) {
-                        break;
-                    }
-                    let x = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
-                    if (it > 0 && x == xm) {
-                        break;
-                    }
-                    xm = x;
-                    let fm = poly_eval(p, xm);
-                    if (fm == 0.0) {
-                        return xm;
-                    }
-                    if (f0 * fm < 0.0) {
-                        x1 = xm;
-                        f1 = fm;
-                        if (kept == -1) {
-                            f0 = 0.5 * f0;
-                        }
-                        kept = -1;
-                    } else {
-                        x0 = xm;
-                        f0 = fm;
-                        if (kept == 1) {
-                            f1 = 0.5 * f1;
-                        }
-                        kept = 1;
-                    }
+        var split = false;
+        if (lo <= 0.0 && hi >= 0.0) {
+            // Exactly one root: one sign change of the control polygon
+            // between ends of opposite signs (Descartes' rule of signs in
+            // the Bernstein basis), decided as the CPU's
+            // `Poly::first_crossing` and `isolate` decide it, and refined
+            // at once instead of split down to MIN_WIDTH. Trusted only when
+            // every control point clears `tol`, so that no sign is
+            // rounding's; otherwise the interval is split.
+            var single = fa * fb < 0.0;
+            var changes = 0;
+            for (var k = 0; k < 6; k++) {
+                if (abs(b[k + 1]) <= tol) {
+                    single = false;
                 }
-                return xm;
+                if ((b[k] < 0.0) != (b[k + 1] < 0.0)) {
+                    changes++;
+                }
             }
-            continue; // touches zero without crossing
+            single = single && abs(fa) > tol && changes == 1;
+            if (single || w < MIN_WIDTH) {
+                if (fa * fb <= 0.0) {
+                    return refine(p, u, v, fa, fb);
+                }
+                // Touches zero without crossing: done with it.
+            } else {
+                split = true;
+            }
         }
-        if (top + 2 > ROOT_STACK) {
+        if (split) {
+            // The left half next; p(u) stays.
+            level++;
+            i = 2u * i;
+            w = 0.5 * w;
             continue;
         }
-        let mid = 0.5 * (iv.x + iv.y);
-        let fm = poly_eval(p, mid);
-        root_stack[top] = vec4<real>(mid, iv.y, fm, fb);
-        root_stack[top + 1] = vec4<real>(iv.x, mid, fa, fm);
-        top += 2;
+        // Done with the interval: on to the next one to its right.
+        i++;
+        loop {
+            if (level == 0u || (i & 1u) == 1u) {
+                break;
+            }
+            i = i >> 1u;
+            level--;
+            w = 2.0 * w;
+        }
+        if (level == 0u) {
+            break;
+        }
+        fa = fb;
     }
     return -1.0;
+}
+
+// The root of p in [x0, x1], where p(x0) = f0 and p(x1) = f1 have opposite
+// signs (or one is zero), by regula falsi, Illinois variant: an end kept
+// twice in a row has its value halved, so both ends move (plain regula
+// falsi on a convex stretch keeps one end fixed and converges from one
+// side only). The answer is the last estimate, not the bracket's midpoint,
+// which lay up to half the bracket from the root when one end stayed put.
+// Stops at an exact zero, or when an estimate repeats.
+fn refine(p: array<real, 7>, a: real, b: real, fa: real, fb: real) -> real {
+    var x0 = a;
+    var x1 = b;
+    var f0 = fa;
+    var f1 = fb;
+    var xm = 0.5 * (x0 + x1);
+    var kept = 0; // -1: x0 kept last step, 1: x1, 0: none yet
+    for (var it = 0; it < 40; it++) {
+        if (f1 == f0) {
+            break;
+        }
+        let x = clamp(x0 - f0 * (x1 - x0) / (f1 - f0), x0, x1);
+        if (it > 0 && x == xm) {
+            break;
+        }
+        xm = x;
+        let fm = poly_eval(p, xm);
+        if (fm == 0.0) {
+            return xm;
+        }
+        if (f0 * fm < 0.0) {
+            x1 = xm;
+            f1 = fm;
+            if (kept == -1) {
+                f0 = 0.5 * f0;
+            }
+            kept = -1;
+        } else {
+            x0 = xm;
+            f0 = fm;
+            if (kept == 1) {
+                f1 = 0.5 * f1;
+            }
+            kept = 1;
+        }
+    }
+    return xm;
 }
 
 // Slab test: (t_near, t_far), empty when t_near > t_far.
@@ -367,20 +395,20 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
             }
         }
     } else if (obj.range.w != NO_NODE) {
-        var sp = 0u;
+        // Stackless: an interior node met goes on to its first child (the
+        // next node), a node missed or a leaf's items done to its skip
+        // link (layout.rs `GpuBvhNode`).
         var node = obj.range.w;
         loop {
+            if (node == NO_NODE) {
+                break;
+            }
             let nd = nodes[node];
             let bs = clip_box(o, d, vec3<real>(nd.bmin.xyz), vec3<real>(nd.bmax.xyz), span.x - slack, span.y + slack);
-            var descend = false;
+            var next = nd.link.x;
             if (bs.x <= bs.y) {
                 if (nd.link.y == 0u) {
-                    if (sp < BVH_STACK) {
-                        object_stack[sp] = nd.link.x;
-                        sp++;
-                    }
-                    node = node + 1u;
-                    descend = true;
+                    next = node + 1u;
                 } else {
                     for (var k = 0u; k < nd.link.y; k++) {
                         let pi = select(nd.link.z, nd.link.w, k == 1u);
@@ -398,13 +426,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
                     }
                 }
             }
-            if (!descend) {
-                if (sp == 0u) {
-                    break;
-                }
-                sp--;
-                node = object_stack[sp];
-            }
+            node = next;
         }
     }
     cand_first = first;
@@ -537,20 +559,19 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
         return best;
     }
     var t1 = t_max;
-    var sp = 0u;
+    // Stackless, as in `object_hit`: the skip links (layout.rs
+    // `GpuBvhNode`) visit the nodes in the order a stack would.
     var node = 0u;
     loop {
+        if (node == NO_NODE) {
+            break;
+        }
         let nd = nodes[node];
         let bs = clip_box(o, d, vec3<real>(nd.bmin.xyz), vec3<real>(nd.bmax.xyz), t0, t1);
-        var descend = false;
+        var next = nd.link.x;
         if (bs.x <= bs.y) {
             if (nd.link.y == 0u) {
-                if (sp < BVH_STACK) {
-                    scene_stack[sp] = nd.link.x;
-                    sp++;
-                }
-                node = node + 1u;
-                descend = true;
+                next = node + 1u;
             } else {
                 for (var k = 0u; k < nd.link.y; k++) {
                     let oi = select(nd.link.z, nd.link.w, k == 1u);
@@ -566,13 +587,7 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
                 }
             }
         }
-        if (!descend) {
-            if (sp == 0u) {
-                break;
-            }
-            sp--;
-            node = scene_stack[sp];
-        }
+        node = next;
     }
     return best;
 }
