@@ -5,6 +5,7 @@
 //!
 //! ```text
 //! cargo run --release -p isolux-gpu --example kernel_stats [-- SCENE.toml ...] [--all]
+//!     [--dump DIR] [--source FILE.wgsl ...]
 //! ```
 //!
 //! Kernels: the intersection alone (the conformance kernel), then for each
@@ -15,7 +16,18 @@
 //! candidate list as `isolux render --gpu` runs it
 //! (`Features::of`, `Features::fit_to`). `--all` prints every
 //! statistic the driver reports, not only those about registers, spills,
-//! code size, instructions, scratch and occupancy.
+//! code size, instructions, scratch and occupancy. `--dump DIR` also
+//! writes each scene's render kernel source to `DIR/<scene>.wgsl`, and
+//! `--source FILE` compiles the entry points of a WGSL file as it is
+//! (rows `FILE: main` and so on, after the others; `--source` alone skips
+//! the default scenes), so that an edit of a dumped kernel is weighed in
+//! seconds, without rebuilding:
+//!
+//! ```text
+//! kernel_stats examples/scenes/gallery.toml --dump /tmp/k
+//! sed -i 's/.../.../' /tmp/k/gallery.wgsl
+//! kernel_stats --source /tmp/k/gallery.wgsl
+//! ```
 //!
 //! wgpu does not expose the compiler's statistics, so this compiles the
 //! WGSL through naga to SPIR-V and creates the pipelines with `ash` on the
@@ -48,10 +60,20 @@ const KEYWORDS: [&str; 10] = [
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let every_stat = args.iter().any(|a| a == "--all");
-    let mut scenes: Vec<String> = args.into_iter().filter(|a| a != "--all").collect();
-    if scenes.is_empty() {
+    let mut every_stat = false;
+    let mut dump = None;
+    let mut sources = Vec::new();
+    let mut scenes = Vec::new();
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--all" => every_stat = true,
+            "--dump" => dump = Some(args.next().ok_or("--dump needs a directory")?),
+            "--source" => sources.push(args.next().ok_or("--source needs a file")?),
+            _ => scenes.push(a),
+        }
+    }
+    if scenes.is_empty() && sources.is_empty() {
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes");
         scenes = ["furnace.toml", "gallery.toml", "translucent.toml"]
             .iter()
@@ -80,13 +102,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let geometry = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
         sets.push((name, Features::of(&materials.materials).fit_to(&geometry)));
     }
-    sets.push(("every model".to_string(), Features::ALL));
+    if sources.is_empty() {
+        sets.push(("every model".to_string(), Features::ALL));
+    } else {
+        kernels.clear();
+    }
     for (name, features) in &sets {
         let src = render_source_variant(Precision::F32, *features);
+        if let Some(dir) = &dump {
+            std::fs::create_dir_all(dir)?;
+            let file = std::path::Path::new(dir).join(name.replace(".toml", ".wgsl"));
+            std::fs::write(&file, &src).map_err(|e| format!("{}: {e}", file.display()))?;
+        }
         for entry in ["main", "trace", "realtime"] {
             kernels.push((
                 format!("{name}: {entry}"),
                 features.to_string(),
+                entry,
+                src.clone(),
+            ));
+        }
+    }
+
+    for file in &sources {
+        let src = std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))?;
+        for entry in ["main", "trace", "realtime"] {
+            kernels.push((
+                format!("{file}: {entry}"),
+                "-".to_string(),
                 entry,
                 src.clone(),
             ));

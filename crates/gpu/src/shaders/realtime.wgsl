@@ -106,7 +106,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     if (wo_l.z == 0.0) {
         return vec3<f32>(0.0);
     }
-    var l = direct_light(p, ng, fr, m, wo_l, GATHER_LIGHTS, vec4<f32>(0.0), m);
+    var l = direct_light(p, ng, fr, m, wo_l, GATHER_LIGHTS, vec4<f32>(0.0), m, obj.range.z);
     let s = bsdf;
     if (s.ok && s.pdf > 0.0 && finite(s.pdf) && finite3(s.f) && s.wi.z != 0.0) {
         let wi = to_world(fr, s.wi);

@@ -214,9 +214,30 @@ const GATHER_COSINE: u32 = 4u; // one cosine-sampled direction toward the enviro
 // intersection and of the material library, whose switches over every
 // model are the bulk of the kernel (docs/gpu.md, "One call site per
 // switch over the library").
+//
+// The materials: `m` and `sm` as given where the kernel may shade with a
+// material that differs from its record (`OWN_MATERIALS`: a `wave` placed
+// at the hit, the subsurface integrator's lobes); otherwise both are the
+// record `materials[mi]`, reloaded at each use (`shading_material`), so
+// that no copy of it (7 vec4) stays live across the loop's shadow rays:
+// the exact intersection is the kernels' register peak, and on RADV the
+// gallery's path tracer then needs 163 VGPRs before scheduling instead of
+// 189 (6 waves per SIMD instead of 4; docs/gpu.md, "Register pressure").
 var<private> bsdf: BsdfSample;
 
-fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>, sm: Material) -> vec3<f32> {
+// Whether a vertex may shade with a material other than its record.
+const OWN_MATERIALS: bool = (MODELS & (1u << MAT_WAVE)) != 0u || SUBSURFACE;
+
+// The material to shade with: `m` where it may differ from its record,
+// else the record `materials[mi]` (a load, not a value kept live).
+fn shading_material(m: Material, mi: u32) -> Material {
+    if (OWN_MATERIALS) {
+        return m;
+    }
+    return materials[mi];
+}
+
+fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>, sm: Material, mi: u32) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     let env_map = params.counts.w == ENV_MAP;
     let n_lights = select(0u, params.counts.y, (what & GATHER_LIGHTS) != 0u);
@@ -234,19 +255,19 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var light_pdf = 0.0; // > 0: the map's sample, weighted by MIS here
         var cos_factor = true; // false: rad already holds the cosine / pdf
         var with_f = true;     // false: the mirror, weighted by Fresnel alone
-        var mm = m;
+        var mm = shading_material(m, mi);
         var flags = 0u;
         if (i == n) {
             // The BSDF sample, scored below unless its draw was (a plain
             // material's specular or closed-form sample) or failed.
             let uc = rand();
             let u = rand2();
-            let d = material_draw(sm, wo_l, uc, u);
+            let d = material_draw(shading_material(sm, mi), wo_l, uc, u);
             if (!d.ok || d.pdf >= 0.0) {
                 bsdf = d;
                 break;
             }
-            mm = sm;
+            mm = shading_material(sm, mi);
             wl = d.wi;
             flags = d.flags;
         } else if (i < n_lights) {
@@ -650,7 +671,7 @@ fn bounce() -> bool {
             mirror_env = true;
         }
     }
-    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m);
+    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m, mi);
     path.env_counted = false;
     let s = bsdf;
     if (!s.ok || !(s.pdf > 0.0) || !finite(s.pdf) || !finite3(s.f) || s.wi.z == 0.0) {
