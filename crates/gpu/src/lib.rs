@@ -1012,6 +1012,24 @@ impl Gpu {
     /// First hits of `rays` against the objects of `scene` (nearest over
     /// all objects): `[t, n]`, `t < 0` for a miss.
     pub fn intersect(&self, scene: &GpuScene, rays: &[GpuRay]) -> Result<Vec<GpuHit>, GpuError> {
+        self.hits(scene, rays, false)
+    }
+
+    /// Whether each of `rays` meets an object of `scene` on its `[t_min,
+    /// t_max]`: the render kernels' shadow rays (any hit, not the nearest;
+    /// `first_root` in geometry.wgsl stops at the first interval with a
+    /// sign change).
+    pub fn occluded(&self, scene: &GpuScene, rays: &[GpuRay]) -> Result<Vec<bool>, GpuError> {
+        Ok(self
+            .hits(scene, rays, true)?
+            .iter()
+            .map(|h| h.v[0] >= 0.0)
+            .collect())
+    }
+
+    /// The intersection kernel over `rays`: nearest hits, or with `any`
+    /// some hit (its normal unset).
+    fn hits(&self, scene: &GpuScene, rays: &[GpuRay], any: bool) -> Result<Vec<GpuHit>, GpuError> {
         if rays.is_empty() {
             return Ok(Vec::new());
         }
@@ -1023,7 +1041,7 @@ impl Gpu {
         let ray_buf = self.storage("rays", bytemuck::cast_slice(rays));
         let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&scene.nodes));
         let out = self.output("hits", (rays.len() * std::mem::size_of::<GpuHit>()) as u64);
-        let counts = [rays.len() as u32, scene.objects.len() as u32, 0, 0];
+        let counts = [rays.len() as u32, scene.objects.len() as u32, any as u32, 0];
         let uniform = self.params_buffer("counts", &counts);
         let groups = (rays.len() as u32).div_ceil(WORKGROUP_SIZE);
         self.run_and_read(

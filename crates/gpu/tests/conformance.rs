@@ -301,6 +301,89 @@ fn scene_of_many_objects_matches_the_cpu() {
     assert!(pct(t_ok, both) >= 99.9);
 }
 
+/// Shadow rays (`Gpu::occluded`, the render kernels' any-hit query, which
+/// stops at the first interval whose ends have opposite signs instead of
+/// isolating and refining the first root) report an occluder exactly when
+/// the nearest-hit query finds a hit on the same `[t_min, t_max]`, and
+/// agree with the CPU's f64 intersection there. Rays of random bumpy
+/// objects (each alone) and of a scene of 40 of them, with random spans:
+/// starting at 0 or partway in (inside objects, often), ending at random
+/// distances or unbounded.
+#[test]
+fn shadow_rays_find_what_first_hits_find() {
+    let Some(gpu) = common::open("GPU conformance, shadow rays") else {
+        return;
+    };
+    let mut rng = Pcg32::new(5, 11);
+    let mut scenes: Vec<(Vec<Object>, f64)> = (0..16)
+        .map(|_| (vec![random_object(&mut rng)], 3.0))
+        .collect();
+    scenes.push((vec![isolux_geometry::samples::bumpy_sphere(64)], 3.0));
+    let crowd: Vec<Object> = (0..40)
+        .map(|_| {
+            let at = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 6.0
+                - DVec3::splat(3.0);
+            random_object_at(&mut rng, at)
+        })
+        .collect();
+    scenes.push((crowd, 9.0));
+    let (mut total, mut occluded, mut same, mut cpu_agree) = (0, 0, 0, 0);
+    for (objects, distance) in scenes {
+        let scene = GpuScene::new(&objects);
+        let size = if objects.len() > 1 { 6.0 } else { 1.6 };
+        let cpu = isolux_geometry::Aggregate::new(objects);
+        let (mut rays, mut spans) = (Vec::new(), Vec::new());
+        for _ in 0..1500 {
+            let o = DMat3::from_rotation_y(rng.next_f64() * std::f64::consts::TAU)
+                * DMat3::from_rotation_x(rng.next_f64() - 0.5)
+                * DVec3::new(0.0, 0.0, distance);
+            let target = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * size;
+            let d = (target - o).normalize();
+            let t_min = if rng.next_f64() < 0.5 {
+                0.0
+            } else {
+                distance * rng.next_f64()
+            };
+            let t_max = if rng.next_f64() < 0.25 {
+                1e30
+            } else {
+                t_min + 1.5 * distance * rng.next_f64()
+            };
+            let (gpu_ray, cpu_ray) = kernel_ray(o, d);
+            rays.push(GpuRay {
+                o: [gpu_ray.o[0], gpu_ray.o[1], gpu_ray.o[2], t_min as f32],
+                d: [gpu_ray.d[0], gpu_ray.d[1], gpu_ray.d[2], t_max as f32],
+            });
+            spans.push((cpu_ray, t_min as f32 as f64, t_max as f32 as f64));
+        }
+        let nearest = gpu.intersect(&scene, &rays).unwrap();
+        let any = gpu.occluded(&scene, &rays).unwrap();
+        for ((h, &hit), (ray, t0, t1)) in nearest.iter().zip(&any).zip(&spans) {
+            total += 1;
+            occluded += hit as usize;
+            same += (hit == (h.v[0] >= 0.0)) as usize;
+            cpu_agree += (hit == cpu.intersect(ray, *t0, *t1).is_some()) as usize;
+        }
+    }
+    let pct = |a: usize| 100.0 * a as f64 / total as f64;
+    eprintln!(
+        "{total} shadow rays: {:.1}% occluded, nearest-hit query agrees {:.3}%, CPU {:.3}%",
+        pct(occluded),
+        pct(same),
+        pct(cpu_agree)
+    );
+    assert!(
+        (20.0..80.0).contains(&pct(occluded)),
+        "{:.1}%",
+        pct(occluded)
+    );
+    assert_eq!(
+        same, total,
+        "the any-hit query disagrees with the nearest hit"
+    );
+    assert!(pct(cpu_agree) >= 99.9);
+}
+
 /// Rays that start inside an object always leave it: the GPU finds an
 /// exit for every one. Origins are random points of the objects' boxes
 /// where `F' > 1e-4` (inside beyond the f32 rounding of the origin),

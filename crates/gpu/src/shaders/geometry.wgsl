@@ -206,7 +206,15 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
 // wholly below it: rays then missed a plain exit from a glass object,
 // `images.rs`, `conformance.rs`.) The hull is the Bernstein coefficients'
 // with their ends replaced by these values.
-fn first_root(p: array<real, 7>) -> real {
+//
+// With `any` (shadow rays: whether p has a root, not where), the first
+// interval whose ends have opposite signs answers its midpoint: it holds a
+// root, and the walk would return one from it or from an interval to its
+// left, so the answer "a root" is the walk's, without the subdivision and
+// refinement that place it. Isolation is rare (about one thread in six
+// per sample on the gallery) and so divergent: a warp waits for its one
+// thread that refines.
+fn first_root(p: array<real, 7>, any: bool) -> real {
     // What rounding can do to a control point: the Taylor shift, scaling
     // and basis change stay within about 1024 ulps of sum |p_k| on [0, 1].
     var size: real = 0.0;
@@ -230,6 +238,9 @@ fn first_root(p: array<real, 7>) -> real {
         let fb = poly_eval(p, v);
         if (fa == 0.0) {
             return u;
+        }
+        if (any && fa * fb < 0.0) {
+            return 0.5 * (u + v);
         }
         var b = bernstein(p, u, v);
         b[0] = fa;
@@ -364,7 +375,9 @@ fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack:
 }
 
 // First hit of object `oi` on [t0, t1]: (t, outward normal), t < 0 if none.
-fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4<real> {
+// With `any` (shadow rays), some hit on [t0, t1] if there is one, its
+// normal left unset (`first_root`).
+fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real, any: bool) -> vec4<real> {
     let obj = objects[oi];
     let span = clip_box(o, d, vec3<real>(obj.bmin.xyz), vec3<real>(obj.bmax.xyz), t0, t1);
     if (!(span.x <= span.y)) {
@@ -505,10 +518,13 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
                 s = r.y;
             }
         } else {
-            s = first_root(p);
+            s = first_root(p, any);
         }
         if (s >= 0.0) {
             let t = a + s * l;
+            if (any) {
+                return vec4<real>(t, 0.0, 0.0, 0.0);
+            }
             let x = o + t * d;
             var g = q_grad(obj.base, x);
             walk = vec2<u32>(cand_mask, 0u);
@@ -539,7 +555,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real) -> vec4
 
 // Nearest hit on [t0, t_max] over the `n` objects, through their
 // hierarchy (root: node 0): (t, normal), its object in `hit_object`. With
-// `any`, the first hit found (shadow rays).
+// `any`, the first hit found (shadow rays), its normal unset.
 fn scene_first_hit(o: vec3<f32>, d: vec3<f32>, t0: f32, t_max: f32, n: u32, any: bool) -> vec4<f32> {
     let h = scene_hit_real(vec3<real>(o), vec3<real>(d), real(t0), real(t_max), n, any);
     return vec4<f32>(h);
@@ -548,7 +564,7 @@ fn scene_first_hit(o: vec3<f32>, d: vec3<f32>, t0: f32, t_max: f32, n: u32, any:
 // First hit of object `oi` alone on [t0, t1] (f32 in and out): the probe
 // rays of the dipole BSSRDF (render.wgsl).
 fn object_first_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32> {
-    return vec4<f32>(object_hit(oi, vec3<real>(o), vec3<real>(d), real(t0), real(t1)));
+    return vec4<f32>(object_hit(oi, vec3<real>(o), vec3<real>(d), real(t0), real(t1), false));
 }
 
 // `scene_first_hit` in the precision `real` (f32, or f64 where the
@@ -575,7 +591,7 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
             } else {
                 for (var k = 0u; k < nd.link.y; k++) {
                     let oi = select(nd.link.z, nd.link.w, k == 1u);
-                    let h = object_hit(oi, o, d, t0, t1);
+                    let h = object_hit(oi, o, d, t0, t1, any);
                     if (h.x >= 0.0 && h.x <= t1) {
                         best = h;
                         t1 = h.x;
