@@ -10,7 +10,10 @@
 #      b93c7db), the material, real-time and AOV tests;
 #   3. the whole-image tests, the ignored ones included;
 #   4. the kernels' registers and spills (kernel_stats), where the driver
-#      reports them.
+#      reports them;
+# and, after the warm-up, where device-prepare.sh built one, the baseline
+# commit's `bench gpu` and this build's alternately, twice each, for the
+# change since then as a ratio of figures taken side by side.
 # The log lands in $OUT/device-check.log. Each step has its own time limit
 # so that a hang in one still reports the others; the whole stays inside
 # 9 minutes. QUICK=1 runs each step small (64 x 36, one repetition, no
@@ -66,6 +69,15 @@ fi
 # Warm the GPU first: a freshly started machine reads its first minutes'
 # real-time frames 3-5x slow (benchmarks.md, 2026-11-24).
 step 45 "$bin/isolux" bench gpu --skip-cpu "${size[@]}" "${repeat[@]}"
+if [ -x "$bin/isolux-baseline" ]; then
+    echo "device-check: baseline $(cat .device/baseline) against $(cat .device/commit)"
+    # The scene by its path here: the baseline's default is its build
+    # folder's (examples/ is unchanged since b93c7db).
+    for _ in 1 2; do
+        step 45 "$bin/isolux-baseline" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
+        step 45 "$bin/isolux" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
+    done
+fi
 step 200 "$bin/isolux" bench gpu --general --f64 --wavefront "${size[@]}" "${repeat[@]}"
 step 45 "$bin/conformance" --nocapture
 if [ "${QUICK:-0}" != 1 ]; then

@@ -5,9 +5,15 @@
 # binaries (conformance, images, materials, realtime, aov), built here,
 # stripped and gzipped, the Vulkan
 # loader's Debian package, the kernel_stats example (registers and spills
-# per kernel), and the commit they were built from.
+# per kernel), and the commit they were built from; and the release
+# `isolux` of a baseline commit (`isolux-baseline`), which device-check.sh
+# times beside this build in the same run, so that the change since the
+# last measurement reads as a ratio of one session's figures (the
+# machines are shared, and a freshly started one reads slow).
 #
-#   bash scripts/device-prepare.sh
+#   bash scripts/device-prepare.sh              # baseline: b93c7db, the last commit measured on an H100
+#   BASELINE=<commit> bash scripts/device-prepare.sh
+#   BASELINE= bash scripts/device-prepare.sh    # no baseline
 #   # then, with the device tool:
 #   #   run(command = "bash scripts/device-check.sh", carry = [".device"], timeout_s = 560)
 #
@@ -38,6 +44,23 @@ gzip -f .device/bin/isolux
 cargo build --release -p isolux-gpu --example kernel_stats
 strip -o .device/bin/kernel_stats target/release/examples/kernel_stats
 gzip -f .device/bin/kernel_stats
+# The baseline, from its own source tree and target folder (two checkouts
+# sharing one target folder can link one's crates into the other's
+# binary: cargo names path crates' artifacts by their path relative to
+# the workspace).
+baseline=${BASELINE-b93c7db}
+if [ -n "$baseline" ]; then
+    echo "device-prepare: baseline $baseline"
+    base_src=/tmp/isolux-baseline-src
+    rm -rf "$base_src"
+    mkdir -p "$base_src"
+    git archive "$baseline" | tar -x -C "$base_src"
+    CARGO_TARGET_DIR=/tmp/isolux-baseline-target \
+        cargo build --release --locked --manifest-path "$base_src/Cargo.toml" -p isolux
+    strip -o .device/bin/isolux-baseline /tmp/isolux-baseline-target/release/isolux
+    gzip -f .device/bin/isolux-baseline
+    git rev-parse --short "$baseline" >.device/baseline
+fi
 # The test binaries' paths, from cargo's own report of what it built.
 cargo test --release -p isolux-gpu --tests --no-run \
     --message-format=json 2>/dev/null |
