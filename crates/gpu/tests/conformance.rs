@@ -60,6 +60,17 @@ fn random_object_at(rng: &mut Pcg32, at: DVec3) -> Object {
     Object::new(base, perts, None).unwrap()
 }
 
+/// 40 random objects scattered over [-3, 3]^3 (scenes of many objects).
+fn crowd(rng: &mut Pcg32) -> Vec<Object> {
+    (0..40)
+        .map(|_| {
+            let at = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 6.0
+                - DVec3::splat(3.0);
+            random_object_at(rng, at)
+        })
+        .collect()
+}
+
 /// Agreement of one precision's kernel with the CPU.
 struct Agreement {
     total: usize,
@@ -252,13 +263,7 @@ fn scene_of_many_objects_matches_the_cpu() {
         return;
     };
     let mut rng = Pcg32::new(9, 3);
-    let objects: Vec<Object> = (0..40)
-        .map(|_| {
-            let at = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 6.0
-                - DVec3::splat(3.0);
-            random_object_at(&mut rng, at)
-        })
-        .collect();
+    let objects = crowd(&mut rng);
     let scene = GpuScene::new(&objects);
     let cpu = isolux_geometry::Aggregate::new(objects);
     let (mut rays, mut cpu_rays) = (Vec::new(), Vec::new());
@@ -319,14 +324,7 @@ fn shadow_rays_find_what_first_hits_find() {
         .map(|_| (vec![random_object(&mut rng)], 3.0))
         .collect();
     scenes.push((vec![isolux_geometry::samples::bumpy_sphere(64)], 3.0));
-    let crowd: Vec<Object> = (0..40)
-        .map(|_| {
-            let at = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 6.0
-                - DVec3::splat(3.0);
-            random_object_at(&mut rng, at)
-        })
-        .collect();
-    scenes.push((crowd, 9.0));
+    scenes.push((crowd(&mut rng), 9.0));
     let (mut total, mut occluded, mut same, mut cpu_agree) = (0, 0, 0, 0);
     for (objects, distance) in scenes {
         let scene = GpuScene::new(&objects);
