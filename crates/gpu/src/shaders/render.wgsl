@@ -849,6 +849,19 @@ fn wf_load(slot: u32) -> u32 {
     path = Path(w.o.xyz, w.d.xyz, w.l.xyz, w.beta.xyz, w.o.w, w.d.w, w.info.x, w.info.y,
         w.info.z & 255u, w.info.w, (w.info.z & 256u) != 0u, (w.info.z & 512u) != 0u,
         w.entry_n.xyz, bitcast<u32>(w.entry_n.w));
+    // Without the subsurface integrator its fields keep `start_path`'s
+    // values (every write to them is behind SUBSURFACE): constants, not
+    // values loaded and carried through the bounce to `wf_store` (RADV:
+    // the gallery's wavefront step needs 165 VGPRs before scheduling
+    // instead of 171, 6 waves per SIMD instead of 4).
+    if (!SUBSURFACE) {
+        path.medium = 0u;
+        path.channel = 3u;
+        path.events = 0u;
+        path.entry = false;
+        path.entry_n = vec3<f32>(0.0);
+        path.entry_m = 0u;
+    }
     rng_state = bitcast<u32>(w.l.w);
     return bitcast<u32>(w.beta.w);
 }
