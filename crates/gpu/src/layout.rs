@@ -128,6 +128,23 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
     )
 }
 
+/// `b` as the kernels see it: clamped and rounded to f32, back in f64 (the
+/// boxes the hierarchies are built over).
+fn uploaded_box(b: &Aabb) -> Aabb {
+    let (a, c) = clamp_box(b);
+    let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
+    Aabb::new(v(a), v(c))
+}
+
+/// Perturbation `p`'s support clipped to its object's box `bbox` (an
+/// unbounded support takes the whole box); empty when it misses the box,
+/// where it never acts.
+fn support_box(p: &isolux_geometry::Perturbation, bbox: &Aabb) -> Aabb {
+    p.quadric
+        .positive_bounds()
+        .map_or(*bbox, |pb| pb.intersection(bbox))
+}
+
 /// Appends `boxes`' hierarchy to `nodes`, leaf items mapped by `item`;
 /// returns its root.
 fn push_bvh(nodes: &mut Vec<GpuBvhNode>, boxes: &[Aabb], item: impl Fn(u32) -> u32) -> u32 {
@@ -171,22 +188,14 @@ impl GpuScene {
     /// Flattens `objects`, object `i` wearing material `material[i]`.
     pub fn with_materials(objects: &[Object], material: &[usize]) -> Self {
         let mut s = Self::default();
-        let boxes: Vec<Aabb> = objects
-            .iter()
-            .map(|o| {
-                let (a, b) = clamp_box(&o.bbox());
-                let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
-                Aabb::new(v(a), v(b))
-            })
-            .collect();
+        let boxes: Vec<Aabb> = objects.iter().map(|o| uploaded_box(&o.bbox())).collect();
         if !objects.is_empty() {
             push_bvh(&mut s.nodes, &boxes, |i| i);
         }
         for (o, &mi) in objects.iter().zip(material) {
             let first = s.perturbations.len() as u32;
             let bbox = o.bbox();
-            // Supports clipped to the object's box (an unbounded support
-            // takes the whole box); one that misses the box never acts.
+            // Supports clipped to the object's box.
             let mut live = Vec::new();
             let mut pboxes = Vec::new();
             for (i, p) in o.perturbations().iter().enumerate() {
@@ -194,15 +203,10 @@ impl GpuScene {
                     q: GpuQuadric::new(&p.quadric),
                     factor: [p.factor as f32, 0.0, 0.0, 0.0],
                 });
-                let b = p
-                    .quadric
-                    .positive_bounds()
-                    .map_or(bbox, |pb| pb.intersection(&bbox));
+                let b = support_box(p, &bbox);
                 if !b.is_empty() {
                     live.push(first + i as u32);
-                    let (a, c) = clamp_box(&b);
-                    let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
-                    pboxes.push(Aabb::new(v(a), v(c)));
+                    pboxes.push(uploaded_box(&b));
                 }
             }
             let root = if pboxes.is_empty() {
@@ -1079,24 +1083,14 @@ mod tests {
             let objects = GpuScene::new(&spheres);
             let bumps = GpuScene::new(std::slice::from_ref(&bumpy));
             let bumps_root = bumps.objects[0].range[3];
-            // The boxes as `with_materials` builds the hierarchies over
-            // them (rounded to f32).
-            let f32_box = |b: &Aabb| {
-                let (a, c) = clamp_box(b);
-                let v = |x: [f32; 4]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
-                Aabb::new(v(a), v(c))
-            };
-            let object_boxes: Vec<Aabb> = spheres.iter().map(|o| f32_box(&o.bbox())).collect();
+            // The boxes `with_materials` builds the hierarchies over.
+            let object_boxes: Vec<Aabb> = spheres.iter().map(|o| uploaded_box(&o.bbox())).collect();
             let bump_boxes: Vec<Aabb> = bumpy
                 .perturbations()
                 .iter()
-                .filter_map(|p| {
-                    let b = p
-                        .quadric
-                        .positive_bounds()
-                        .map_or(bumpy.bbox(), |pb| pb.intersection(&bumpy.bbox()));
-                    (!b.is_empty()).then(|| f32_box(&b))
-                })
+                .map(|p| support_box(p, &bumpy.bbox()))
+                .filter(|b| !b.is_empty())
+                .map(|b| uploaded_box(&b))
                 .collect();
             for (what, scene, root, boxes) in [
                 ("objects", objects, 0, object_boxes),

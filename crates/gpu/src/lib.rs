@@ -312,8 +312,9 @@ impl Features {
     /// draws a medium black and never builds them; a `subsurface` leaf of
     /// a mix, which only the library API builds, is still its smooth
     /// boundary there); `aov_main` no material code (first hits and
-    /// albedos). Every entry keeps the candidate list. Kernels that differ only in
-    /// code their entry never reaches are one kernel, compiled once.
+    /// albedos). Every entry keeps the candidate list. Kernels that differ
+    /// only in code their entry never reaches are one kernel, compiled
+    /// once.
     fn reached_by(self, entry: &str) -> Features {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
         match entry {
