@@ -81,12 +81,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect();
     }
     // (label, models, entry point, source)
-    let mut kernels = vec![(
-        "intersection".to_string(),
-        "-".to_string(),
-        "main",
-        isolux_gpu::intersect_source(),
-    )];
+    // With `--source`, the files' kernels and the named scenes' only.
+    let mut kernels = Vec::new();
+    if sources.is_empty() {
+        kernels.push((
+            "intersection".to_string(),
+            "-".to_string(),
+            "main",
+            isolux_gpu::intersect_source(),
+        ));
+    }
     let mut sets = Vec::new();
     for path in &scenes {
         let scene = isolux_scene::load(std::path::Path::new(path))?;
@@ -104,14 +108,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if sources.is_empty() {
         sets.push(("every model".to_string(), Features::ALL));
-    } else {
-        kernels.clear();
     }
     for (name, features) in &sets {
         let src = render_source_variant(Precision::F32, *features);
         if let Some(dir) = &dump {
             std::fs::create_dir_all(dir)?;
-            let file = std::path::Path::new(dir).join(name.replace(".toml", ".wgsl"));
+            let stem = name.strip_suffix(".toml").unwrap_or(name);
+            let file = std::path::Path::new(dir).join(format!("{stem}.wgsl"));
             std::fs::write(&file, &src).map_err(|e| format!("{}: {e}", file.display()))?;
         }
         for entry in ["main", "trace", "realtime"] {
