@@ -2,10 +2,11 @@
 # Runs on a lent NVIDIA machine (the `device` tool), over the folder that
 # scripts/device-prepare.sh filled here, everything issue 7 asks to be
 # measured on real hardware, in one call:
-#   1. `isolux bench gpu --general --f64 --wavefront` on the gallery at 1920 x 1080
-#      (real-time 4 spp, path traced 16 spp, direct light; the specialized
-#      and the general kernels, f32 and f64, the megakernel and the
-#      wavefront path tracer, and the CPU on all cores);
+#   1. `isolux bench gpu --general --f64 --wavefront --per-sample` on the
+#      gallery at 1920 x 1080 (real-time 4 spp, path traced 16 spp, direct
+#      light; the specialized and the general kernels, f32 and f64, the
+#      megakernel and the wavefront path tracer, a frame's samples in one
+#      dispatch and one dispatch each, and the CPU on all cores);
 #   2. the conformance suite (its f64 assertion failed on the H100 at
 #      b93c7db), the material, real-time and AOV tests;
 #   3. the whole-image tests, the ignored ones included;
@@ -80,7 +81,7 @@ if [ -x "$bin/isolux-baseline" ] && [ "${QUICK:-0}" != 1 ]; then
         step 45 "$bin/isolux" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
     done
 fi
-step 200 "$bin/isolux" bench gpu --general --f64 --wavefront "${size[@]}" "${repeat[@]}"
+step 230 "$bin/isolux" bench gpu --general --f64 --wavefront --per-sample "${size[@]}" "${repeat[@]}"
 step 45 "$bin/conformance" --nocapture
 if [ "${QUICK:-0}" != 1 ]; then
     step 60 "$bin/materials"

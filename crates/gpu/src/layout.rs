@@ -852,7 +852,8 @@ pub struct GpuParams {
     pub up: [f32; 4],
     /// `[width, height, grid m, grid n]`.
     pub film: [u32; 4],
-    /// `[first sample, sample count, seed low, seed high]`.
+    /// `[first sample, samples per pixel of a real-time frame (1 when path
+    /// tracing), seed low, seed high]`.
     pub pass_info: [u32; 4],
     /// `[objects, lights, max depth, environment kind]`.
     pub counts: [u32; 4],
@@ -864,6 +865,10 @@ pub struct GpuParams {
     /// first padded pixel of the tile, paths in the tile]` (`trace` in
     /// render.wgsl; zero for the other kernels).
     pub wave: [u32; 4],
+    /// `[sample layers of the dispatch, 1 when `resolve` replaces the
+    /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
+    /// render.wgsl).
+    pub layers: [u32; 4],
 }
 
 /// A material conformance query: `f`, `pdf` at `(wo, wi)` and a sample for
@@ -1123,7 +1128,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
         assert_eq!(std::mem::size_of::<GpuLight>(), 32);
-        assert_eq!(std::mem::size_of::<GpuParams>(), 160);
+        assert_eq!(std::mem::size_of::<GpuParams>(), 176);
         assert_eq!(std::mem::size_of::<GpuQuery>(), 80);
         assert_eq!(std::mem::size_of::<GpuAnswer>(), 48);
         // And naga agrees (layouts computed from the shader sources).

@@ -687,7 +687,7 @@ impl Gpu {
             // objects, perturbations, materials, lights, env texels,
             // env cdf, accum (rw), params (read-only storage, not
             // uniform: see `params_buffer`), material data, env levels,
-            // BVH nodes, AOVs (rw), material albedos.
+            // BVH nodes, AOVs (rw), material albedos, sample layers (rw).
             let kinds = [
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -702,6 +702,7 @@ impl Gpu {
                 B::Storage { read_only: true },
                 B::Storage { read_only: false },
                 B::Storage { read_only: true },
+                B::Storage { read_only: false },
             ];
             let bgl = self.buffer_layout("render bindings", &kinds);
             let pl = self
@@ -720,6 +721,11 @@ impl Gpu {
     /// `features`.
     fn render_pipeline(&self, realtime: bool, features: Features) -> wgpu::ComputePipeline {
         self.render_entry(if realtime { "realtime" } else { "main" }, features)
+    }
+
+    /// The sum of a dispatch's sample layers (`resolve` of `render.wgsl`).
+    fn resolve_pipeline(&self) -> wgpu::ComputePipeline {
+        self.render_entry("resolve", Features::NONE)
     }
 
     /// The AOV kernel (`aov_main` of `render.wgsl`).

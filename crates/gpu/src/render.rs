@@ -34,6 +34,17 @@ const WF_MEDIUM_STEPS: u32 = 128;
 /// Paths per wavefront tile at most (a 2048 x 2048 film in one tile).
 const WF_TILE_MAX: u64 = 1 << 22;
 
+/// Sample layers of one dispatch of `main` or `realtime` at most: a run of
+/// more samples takes several dispatches ([`Gpu::render`] runs a film's
+/// samples in up to 16 passes, for its progress reports: passes of
+/// `spp / 16` samples).
+const LAYERS_MAX: u32 = 16;
+
+/// Bytes of sample layers a frame holds at most (16 layers at 1920 x 1080
+/// fit), so that a large film takes fewer samples per dispatch rather than
+/// more memory.
+const LAYER_BYTES_MAX: u64 = 512 << 20;
+
 /// A compute pass of a frame, with the frame's timestamps (`ts`, when
 /// timed) at its start if it is the `first` and at its end if the `last`.
 fn begin_pass<'e>(
@@ -155,6 +166,16 @@ pub struct GpuFrame {
     /// What the scene needs.
     needed: Features,
     bind: wgpu::BindGroup,
+    /// The buffers of `bind` but the last, the sample layers (for a new
+    /// `bind` when the layers grow).
+    buffers: Vec<wgpu::Buffer>,
+    /// `layer_count` sample layers of `width x height` `vec4<f32>`
+    /// (`layers` in render.wgsl), grown on first use
+    /// ([`GpuFrame::dispatch_samples`]).
+    layers: wgpu::Buffer,
+    layer_count: u32,
+    /// Samples per dispatch at most ([`GpuFrame::set_max_layers`]).
+    max_layers: u32,
     accum: wgpu::Buffer,
     params_buf: wgpu::Buffer,
     params: GpuParams,
@@ -295,6 +316,13 @@ impl Gpu {
         Ok((image, stats))
     }
 
+    /// The render bind group of a frame: `buffers` at bindings 0-12, the
+    /// sample layers at 13.
+    fn frame_bind_group(&self, buffers: &[wgpu::Buffer], layers: &wgpu::Buffer) -> wgpu::BindGroup {
+        let all: Vec<&wgpu::Buffer> = buffers.iter().chain([layers]).collect();
+        self.render_bind_group(&all)
+    }
+
     fn prepare_mode(
         &self,
         scene: &Scene,
@@ -384,6 +412,7 @@ impl Gpu {
             env: env_rgb,
             env_size,
             wave: [0; 4],
+            layers: [0; 4],
         };
 
         let limit = self.binding_limit();
@@ -439,21 +468,24 @@ impl Gpu {
         let albedos = self.storage("albedos", bytemuck::cast_slice(&albedos));
         let aov = with_aov.then(|| self.output("aov", npix * 32));
         let aov_stub = self.output("aov stub", 32);
-        let bind = self.render_bind_group(&[
-            &objects,
-            &perts,
-            &mats,
-            &lights,
-            &texels,
-            &cdf,
-            &accum,
-            &params_buf,
-            &data,
-            &levels,
-            &nodes,
-            aov.as_ref().unwrap_or(&aov_stub),
-            &albedos,
-        ]);
+        let buffers = vec![
+            objects,
+            perts,
+            mats,
+            lights,
+            texels,
+            cdf,
+            accum.clone(),
+            params_buf.clone(),
+            data,
+            levels,
+            nodes,
+            aov.clone().unwrap_or(aov_stub),
+            albedos,
+        ];
+        // No layers until a run needs them (the wavefront never does).
+        let layers = self.output("sample layers (none yet)", 16);
+        let bind = self.frame_bind_group(&buffers, &layers);
         let needed = Features::of(&materials.materials).fit_to(&geo);
         let random_walk = materials
             .materials
@@ -464,6 +496,10 @@ impl Gpu {
             features: needed,
             needed,
             bind,
+            buffers,
+            layers,
+            layer_count: 0,
+            max_layers: LAYERS_MAX,
             accum,
             params_buf,
             params,
@@ -591,10 +627,11 @@ impl GpuFrame {
             self.samples += count;
             return;
         }
-        // One dispatch per sample, all in one submission: a kernel
-        // looping over several samples of its pixel lost many of them on
-        // long paths (the loop defect of docs/gpu.md: a random-walk medium
-        // at 16 samples per dispatch came out 38% dark).
+        // One thread per sample, up to `LAYERS_MAX` samples per dispatch,
+        // all in one submission: a kernel looping over several samples of
+        // its pixel lost many of them on long paths (the loop defect of
+        // docs/gpu.md: a random-walk medium at 16 samples per dispatch
+        // came out 38% dark).
         self.dispatch_samples(
             gpu,
             &gpu.render_pipeline(false, self.features),
@@ -747,15 +784,50 @@ impl GpuFrame {
         gpu.queue.submit(Some(enc.finish()));
     }
 
-    /// Queues `count` dispatches of `pipeline` in one submission, sample
-    /// `first + s` in the `s`-th (`pass_info = [first + s, field]`); each
-    /// dispatch's parameters are copied into the parameter buffer from a staging
-    /// buffer inside the command stream, so no submission waits on a
-    /// `write_buffer` (on an H100 four submissions cost about 2 ms).
-    /// `timed`: timestamps at the start of the first dispatch and the end of
-    /// the last, resolved for [`GpuFrame::run_timed`].
+    /// Samples of one dispatch of the path tracer or the real-time mode
+    /// at most, `n` from 1 (one dispatch per sample, as before
+    /// 2026-12-02) to 16 (the default). The image is the same whatever
+    /// `n`: the layers are added in sample order. For comparisons
+    /// (`isolux bench gpu --per-sample`) and tests.
+    pub fn set_max_layers(&mut self, n: u32) {
+        self.max_layers = n.clamp(1, LAYERS_MAX);
+    }
+
+    /// Sample layers per dispatch for a run of `count` samples: all of
+    /// them up to [`GpuFrame::set_max_layers`], fewer where their memory
+    /// would pass [`LAYER_BYTES_MAX`] or the device's largest binding; at
+    /// least one.
+    fn layers_per_dispatch(&self, gpu: &Gpu, count: u32) -> u32 {
+        let layer = self.params.film[0] as u64 * self.params.film[1] as u64 * 16;
+        let fit = gpu.binding_limit().min(LAYER_BYTES_MAX) / layer.max(1);
+        (fit.min(self.max_layers as u64) as u32).min(count).max(1)
+    }
+
+    /// Makes room for `n` sample layers (a new buffer and bind group when
+    /// there are fewer).
+    fn grow_layers(&mut self, gpu: &Gpu, n: u32) {
+        if n <= self.layer_count {
+            return;
+        }
+        let layer = self.params.film[0] as u64 * self.params.film[1] as u64 * 16;
+        self.layers = gpu.output("sample layers", n as u64 * layer);
+        self.layer_count = n;
+        self.bind = gpu.frame_bind_group(&self.buffers, &self.layers);
+    }
+
+    /// Queues samples `first .. first + count` of `pipeline` (`main` or
+    /// `realtime`) in one submission: dispatches of up to
+    /// [`GpuFrame::layers_per_dispatch`] samples, a thread per pixel and
+    /// sample (`pass_info = [first + s, field]` and `gid.z` the sample's
+    /// layer), each followed by `resolve`, which adds its layers to the
+    /// pixels' sums in sample order (replacing them on a real-time
+    /// frame's first dispatch). One dispatch for many samples pays the
+    /// GPU's drain between dependent dispatches (the wait for the slowest
+    /// workgroup) once: on the H100 at b93c7db a frame's time had a part
+    /// that did not grow with its pixels, about 27 ms in 16 path-traced
+    /// dispatches and 2.3 ms in 4 real-time ones (benchmarks.md).
     fn dispatch_samples(
-        &self,
+        &mut self,
         gpu: &Gpu,
         pipeline: &wgpu::ComputePipeline,
         first: u32,
@@ -763,13 +835,54 @@ impl GpuFrame {
         field: u32,
         timed: bool,
     ) {
+        let per = self.layers_per_dispatch(gpu, count);
+        self.grow_layers(gpu, per);
+        let resolve = gpu.resolve_pipeline();
+        self.queue_dispatches(
+            gpu,
+            pipeline,
+            first,
+            count,
+            field,
+            per,
+            Some(&resolve),
+            timed,
+        );
+    }
+
+    /// Queues dispatches of `pipeline` over samples `first .. first +
+    /// count`, `per` samples each (`gid.z`), each followed by `resolve`
+    /// when there is one, in one submission. Each dispatch's parameters
+    /// are copied into the parameter buffer from a staging buffer inside
+    /// the command stream, so no submission waits on a `write_buffer` (on
+    /// an H100 four submissions cost about 2 ms). `timed`: timestamps at
+    /// the start of the first dispatch and the end of the last, resolved
+    /// for [`GpuFrame::run_timed`].
+    #[allow(clippy::too_many_arguments)]
+    fn queue_dispatches(
+        &self,
+        gpu: &Gpu,
+        pipeline: &wgpu::ComputePipeline,
+        first: u32,
+        count: u32,
+        field: u32,
+        per: u32,
+        resolve: Option<&wgpu::ComputePipeline>,
+        timed: bool,
+    ) {
         let ts = gpu.timestamps.as_ref().filter(|_| timed);
         let size = std::mem::size_of::<GpuParams>() as u64;
-        let blocks: Vec<GpuParams> = (0..count)
-            .map(|s| {
+        let chunks: Vec<(u32, u32)> = (0..count)
+            .step_by(per as usize)
+            .map(|s| (s, per.min(count - s)))
+            .collect();
+        let blocks: Vec<GpuParams> = chunks
+            .iter()
+            .map(|&(s, n)| {
                 let mut p = self.params;
                 p.pass_info[0] = first + s;
                 p.pass_info[1] = field;
+                p.layers = [n, u32::from(self.realtime && s == 0), 0, 0];
                 p
             })
             .collect();
@@ -785,16 +898,20 @@ impl GpuFrame {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("samples"),
             });
-        for s in 0..count as u64 {
-            enc.copy_buffer_to_buffer(&staging, s * size, &self.params_buf, 0, size);
-            let mut pass = begin_pass(&mut enc, "sample", ts, s == 0, s + 1 == count as u64);
-            pass.set_pipeline(pipeline);
+        let groups = (
+            self.params.film[0].div_ceil(TILE),
+            self.params.film[1].div_ceil(TILE),
+        );
+        for (i, &(_, n)) in chunks.iter().enumerate() {
+            enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
+            let mut pass = begin_pass(&mut enc, "samples", ts, i == 0, i + 1 == chunks.len());
             pass.set_bind_group(0, &self.bind, &[]);
-            pass.dispatch_workgroups(
-                self.params.film[0].div_ceil(TILE),
-                self.params.film[1].div_ceil(TILE),
-                1,
-            );
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(groups.0, groups.1, n);
+            if let Some(resolve) = resolve {
+                pass.set_pipeline(resolve);
+                pass.dispatch_workgroups(groups.0, groups.1, 1);
+            }
         }
         if let Some(ts) = ts {
             enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
@@ -810,7 +927,7 @@ impl GpuFrame {
             .as_ref()
             .ok_or_else(|| GpuError::Setup("the frame was prepared without AOVs".into()))?;
         // Cleared first (submissions on one queue run in order), then one
-        // dispatch per sample (see `aov_main`).
+        // dispatch per sample (see `aov_main`), adding in place.
         let count = self.samples.max(1);
         let mut enc = gpu
             .device
@@ -819,7 +936,8 @@ impl GpuFrame {
             });
         enc.clear_buffer(buf, 0, None);
         gpu.queue.submit(Some(enc.finish()));
-        self.dispatch_samples(gpu, &gpu.aov_pipeline(self.features), 0, count, 1, false);
+        let aov = gpu.aov_pipeline(self.features);
+        self.queue_dispatches(gpu, &aov, 0, count, 1, 1, None, false);
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();

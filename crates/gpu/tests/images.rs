@@ -575,3 +575,66 @@ fn specialized_kernels_trace_the_general_kernels_paths() {
         }
     }
 }
+
+/// A run's samples go to the GPU as dispatches of up to 16 samples, a
+/// thread per pixel and sample writing its own layer, which `resolve`
+/// adds to the pixel in sample order (`GpuFrame::set_max_layers`). The
+/// image does not depend on how the samples are grouped: one dispatch per
+/// sample, dispatches of 3 and one of all of them give the same bits, in
+/// the path tracer (also across runs: 7 then 2 samples) and in the
+/// real-time mode (each run a whole frame that replaces the last: a
+/// second run gives the first's image). A layer read twice, skipped, or
+/// added out of order, or a real-time frame added to the last, fails it.
+#[test]
+fn sample_layers_sum_as_one_dispatch_per_sample_would() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = common::example("gallery.toml");
+    scene.film.width = 61;
+    scene.film.height = 35;
+    scene.film.spp = 7;
+    let bits =
+        |img: &Image| -> Vec<u32> { img.rgb.iter().flatten().map(|c| c.to_bits()).collect() };
+    for realtime in [false, true] {
+        let run = |layers: u32| {
+            let mut frame = if realtime {
+                gpu.prepare_realtime(&scene).unwrap()
+            } else {
+                gpu.prepare(&scene).unwrap()
+            };
+            frame.set_max_layers(layers);
+            frame.run(&gpu, 7);
+            if realtime {
+                let (first, _) = frame.image(&gpu).unwrap();
+                frame.run(&gpu, 7);
+                let (second, _) = frame.image(&gpu).unwrap();
+                assert_eq!(
+                    bits(&first),
+                    bits(&second),
+                    "a real-time frame replaces the last"
+                );
+            } else {
+                frame.run(&gpu, 2);
+            }
+            let (img, stats) = frame.image(&gpu).unwrap();
+            assert_eq!(stats.rejected_samples, 0);
+            assert!(img.rgb.iter().flatten().any(|&c| c > 0.0));
+            img
+        };
+        let one = bits(&run(1));
+        for layers in [3, 16] {
+            let same = one
+                .iter()
+                .zip(bits(&run(layers)))
+                .filter(|(a, b)| **a == *b)
+                .count();
+            assert_eq!(
+                same,
+                one.len(),
+                "{}: {layers} samples per dispatch against one",
+                if realtime { "real time" } else { "path traced" }
+            );
+        }
+    }
+}

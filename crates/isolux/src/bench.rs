@@ -64,6 +64,12 @@ pub struct BenchArgs {
     /// megakernel, with their ratio (`-` in the real-time mode).
     #[arg(long)]
     pub wavefront: bool,
+    /// `gpu`: also time the frames with one dispatch per sample (as before
+    /// 2026-12-02) instead of up to 16 samples per dispatch, in a column
+    /// beside them, with their ratio: what the GPU's drain between
+    /// dispatches costs.
+    #[arg(long)]
+    pub per_sample: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -476,6 +482,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU wavefront (ms/frame) | wavefront / megakernel |";
         rule += "---:|---:|";
     }
+    if a.per_sample {
+        extra += " GPU one sample per dispatch (ms/frame) | per sample / layered |";
+        rule += "---:|---:|";
+    }
     println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
     println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
@@ -566,6 +576,12 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     frame.set_wavefront(false);
                     cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);
                 }
+            }
+            if a.per_sample {
+                frame.set_max_layers(1);
+                let gs = time(&gpu, &mut frame)?.0;
+                frame.set_max_layers(16);
+                cols += &format!(" {:.2} | {:.2} |", gs * 1e3, gs / g);
             }
             let (c, ratio) = if a.skip_cpu {
                 ("-".to_string(), "-".to_string())

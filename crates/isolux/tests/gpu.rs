@@ -133,6 +133,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "1",
         "--skip-cpu",
         "--wavefront",
+        "--per-sample",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
@@ -147,7 +148,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "{out}"
     );
     assert!(
-        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel |"),
+        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel | GPU one sample per dispatch (ms/frame) | per sample / layered |"),
         "{out}"
     );
     let rows: Vec<&str> = out
@@ -175,5 +176,10 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
             assert!(wf.is_finite() && wf > 0.0, "{row}");
             assert!((ratio - wf / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
         }
+        // `--per-sample`: in every mode.
+        let one: f64 = cells[9].parse().unwrap();
+        let ratio: f64 = cells[10].parse().unwrap();
+        assert!(one.is_finite() && one > 0.0, "{row}");
+        assert!((ratio - one / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
     }
 }

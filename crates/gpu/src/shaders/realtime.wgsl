@@ -1,9 +1,9 @@
 // The real-time mode on the GPU, mirroring crates/render/src/realtime.rs
 // (appended to render.wgsl: same bindings, random numbers, geometry and
 // environment helpers):
-//   * one thread per pixel, all `pass_info.y` samples (4-25) of the pixel
-//     on the stratified sub-pixel grid, written (not accumulated) to
-//     `accum`: each dispatch is one whole frame;
+//   * one thread per pixel and sample, `pass_info.y` samples (4-25) of
+//     the pixel on the stratified sub-pixel grid, which `resolve` writes
+//     (not accumulates) to `accum`: each run is one whole frame;
 //   * at the first hit: point lights with shadow rays (the seed's eq. 2),
 //     plus one BSDF sample reading the prefiltered environment pyramid
 //     (`env_levels`) at the level of detail of the sample's density
@@ -116,29 +116,14 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     return l;
 }
 
-// One sample per dispatch (`pass_info.x`, of `pass_info.y` per pixel),
-// added to the pixel's sum (the first one replaces it): no loop around
+// One sample per thread (`pass_info.x + gid.z`, of `pass_info.y` per
+// pixel), written to its layer for `resolve` (render.wgsl), which
+// replaces the pixel's sum with the frame's first layers: no loop around
 // the shading (see the known defect in docs/gpu.md).
 @compute @workgroup_size(8, 8)
 fn realtime(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let width = params.film.x;
-    let height = params.film.y;
-    if (gid.x >= width || gid.y >= height) {
+    if (gid.x >= params.film.x || gid.y >= params.film.y) {
         return;
     }
-    let pixel = gid.y * width + gid.x;
-    let v = realtime_shade(params.origin.xyz, camera_sample(gid));
-    // The pixel's sum read after the shading, not kept live across it
-    // (4 registers fewer at the kernel's peak, the shadow ray's
-    // intersection: RADV 143 -> 139 VGPRs before scheduling).
-    var acc = vec4<f32>(0.0);
-    if (params.pass_info.x > 0u) {
-        acc = accum[pixel];
-    }
-    if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
-        acc = vec4<f32>(acc.rgb + v, acc.w);
-    } else {
-        acc.w += 1.0;
-    }
-    accum[pixel] = acc;
+    store_sample(gid, realtime_shade(params.origin.xyz, camera_sample(gid)));
 }

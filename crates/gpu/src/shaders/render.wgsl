@@ -1,11 +1,14 @@
 // The path tracer on the GPU, mirroring crates/render/src/integrator.rs
 // for surface materials (materials.wgsl) on exact perturbation-function
 // geometry (geometry.wgsl):
-//   * one thread per pixel; a dispatch adds sample `pass_info.x` of every
-//     pixel to the accumulation buffer (the host queues one dispatch per
-//     sample, in sample order, so the sum is the same however the samples
-//     are split into submissions; a loop over samples here lost some of
-//     them, docs/gpu.md);
+//   * one thread per pixel and sample: a dispatch of `layers.x` layers
+//     (z) writes sample `pass_info.x + z` of every pixel to layer z of
+//     `layers`, then `resolve` adds the layers to the accumulation buffer
+//     in sample order (so the sum is the same however the samples are
+//     split into dispatches; one dispatch for many samples pays a GPU's
+//     drain, the wait for its slowest workgroup, once instead of once a
+//     sample; a loop over samples inside a thread lost some of them,
+//     docs/gpu.md);
 //   * sample s of a pixel takes cell (s + offset) mod (m n) of the m x n
 //     sub-pixel grid (offset random per pixel), jittered inside the cell:
 //     distinct cells for distinct samples, each sample uniform over the
@@ -27,13 +30,17 @@ struct Params {
     right: vec4<f32>,
     up: vec4<f32>,
     film: vec4<u32>,      // width, height, grid m, grid n
-    pass_info: vec4<u32>, // first sample, sample count, seed (low, high)
+    pass_info: vec4<u32>, // first sample, samples per pixel of the frame (realtime.wgsl), seed (low, high)
     counts: vec4<u32>,    // objects, lights, max depth, environment kind
     env: vec4<f32>,       // constant radiance (rgb)
     env_size: vec4<u32>,  // map width, height, pyramid levels (realtime.wgsl)
     // The wavefront path tracer (`trace`): step, 1 on the last step (which
     // takes every bounce left), first padded pixel of the tile, its paths.
     wave: vec4<u32>,
+    // The sample layers of `main` and `realtime` (z of the dispatch) and
+    // `resolve`: layer count, 1 when `resolve` replaces the sum (a
+    // real-time frame's first layers) instead of adding to it.
+    layers: vec4<u32>,
 }
 
 struct Light { position: vec4<f32>, intensity: vec4<f32> }
@@ -52,6 +59,9 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 // AOVs (aov_main): per pixel (albedo, depth) then (normal, 0).
 @group(0) @binding(11) var<storage, read_write> aov: array<vec4<f32>>;
 @group(0) @binding(12) var<storage, read> albedos: array<vec4<f32>>; // per material
+// One sample of every pixel per layer (`sample_value`), layer z from z of
+// the dispatch, added up by `resolve`.
+@group(0) @binding(13) var<storage, read_write> layers: array<vec4<f32>>;
 
 var<private> rng_state: u32;
 
@@ -756,8 +766,8 @@ fn radiance(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     return path.l;
 }
 
-// The camera ray of sample s = `pass_info.x` of pixel gid (one sample per
-// dispatch, in every entry point): seeds the random stream of (seed,
+// The camera ray of sample s = `pass_info.x + gid.z` of pixel gid (one
+// sample per thread, in every entry point): seeds the random stream of (seed,
 // pixel, s) and returns the ray's direction from `params.origin`. Sample s
 // takes cell (s + offset) mod (m n) of the m x n sub-pixel grid (offset
 // random per pixel), jittered inside the cell.
@@ -770,7 +780,7 @@ fn camera_sample(gid: vec3<u32>) -> vec3<f32> {
     let cells = gm * gn;
     let seed = params.pass_info.z;
     let offset = pcg_hash(pixel ^ pcg_hash(seed)) % cells;
-    let s = params.pass_info.x;
+    let s = params.pass_info.x + gid.z;
     rng_state = pcg_hash(seed ^ pcg_hash(pixel ^ pcg_hash(s ^ params.pass_info.w)));
     let c = (s + offset) % cells;
     let j = rand2();
@@ -788,17 +798,48 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= width || gid.y >= height) {
         return;
     }
-    add_sample(gid.y * width + gid.x, radiance(params.origin.xyz, camera_sample(gid)));
+    store_sample(gid, radiance(params.origin.xyz, camera_sample(gid)));
 }
 
-// Adds a sample's radiance v to the pixel's sum, or counts it dropped
-// (`.w`) when it is not finite or is negative.
-fn add_sample(pixel: u32, v: vec3<f32>) {
-    var acc = accum[pixel];
+// What a sample's radiance v adds to its pixel's sum: (v, 0), or
+// (0, 0, 0, 1) when v is not finite or is negative (`.w` counts the
+// samples dropped).
+fn sample_value(v: vec3<f32>) -> vec4<f32> {
     if (finite3(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0) {
-        acc = vec4<f32>(acc.rgb + v, acc.w);
-    } else {
-        acc.w += 1.0;
+        return vec4<f32>(v, 0.0);
+    }
+    return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+}
+
+// Sample v of pixel gid.xy into layer gid.z (`main`, `realtime`).
+fn store_sample(gid: vec3<u32>, v: vec3<f32>) {
+    let width = params.film.x;
+    layers[(gid.z * params.film.y + gid.y) * width + gid.x] = sample_value(v);
+}
+
+// Adds a sample's radiance v to the pixel's sum (the wavefront's paths,
+// which end in any order of pixels, not by layers).
+fn add_sample(pixel: u32, v: vec3<f32>) {
+    accum[pixel] = accum[pixel] + sample_value(v);
+}
+
+// The layers of one dispatch of `main` or `realtime`, added in sample
+// order to each pixel's sum (replacing it when `layers.y` is 1): the same
+// floating-point sums as one dispatch per sample adding to the pixel.
+@compute @workgroup_size(8, 8)
+fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = params.film.x;
+    let height = params.film.y;
+    if (gid.x >= width || gid.y >= height) {
+        return;
+    }
+    let pixel = gid.y * width + gid.x;
+    var acc = vec4<f32>(0.0);
+    if (params.layers.y == 0u) {
+        acc = accum[pixel];
+    }
+    for (var z = 0u; z < params.layers.x; z++) {
+        acc += layers[z * width * height + pixel];
     }
     accum[pixel] = acc;
 }
