@@ -155,8 +155,19 @@ fn poly_eval(p: array<real, 7>, s: real) -> real {
     return v;
 }
 
-// Bernstein control points of p on [u, v] (s = u + (v - u) x, x in [0, 1]).
-fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
+// What the control polygon of p on [u, v] (s = u + (v - u) x, x in
+// [0, 1]) says about its roots there, its end points replaced by the
+// values fa = p(u), fb = p(v): bit 0 (HULL_ZERO), the control points'
+// hull contains zero (a root is possible); bit 1 (HULL_SINGLE), exactly
+// one root: ends of opposite signs, one sign change of the polygon
+// (Descartes' rule of signs in the Bernstein basis), and every point
+// clear of `tol`, so that no sign is rounding's. The points are made one
+// at a time and folded into those answers at once, not kept as an array
+// (RADV: 2 VGPRs fewer at the kernels' peak, 3-6% less code; docs/gpu.md
+// "Register pressure").
+const HULL_ZERO: u32 = 1u;
+const HULL_SINGLE: u32 = 2u;
+fn hull(p: array<real, 7>, u: real, v: real, fa: real, fb: real, tol: real) -> u32 {
     // Taylor shift to u (synthetic division), then scale by (v - u)^k.
     var g = p;
     for (var i = 0; i < 6; i++) {
@@ -172,17 +183,46 @@ fn bernstein(p: array<real, 7>, u: real, v: real) -> array<real, 7> {
     }
     // b_k = sum_{j <= k} C(k, j) / C(6, j) g_j, the weights written out
     // as products with constants (a division by 6 is not a product with
-    // 1/6 in IEEE arithmetic, so a driver may not fold it into one).
-    var b: array<real, 7>;
-    b[0] = g[0];
-    b[1] = g[0] + g[1] * (1.0 / 6.0);
-    b[2] = g[0] + g[1] * (1.0 / 3.0) + g[2] * (1.0 / 15.0);
-    b[3] = g[0] + g[1] * 0.5 + g[2] * 0.2 + g[3] * 0.05;
-    b[4] = g[0] + g[1] * (2.0 / 3.0) + g[2] * 0.4 + g[3] * 0.2 + g[4] * (1.0 / 15.0);
-    b[5] = g[0] + g[1] * (5.0 / 6.0) + g[2] * (2.0 / 3.0) + g[3] * 0.5 + g[4] * (1.0 / 3.0)
+    // 1/6 in IEEE arithmetic, so a driver may not fold it into one); b_0
+    // and b_6 are fa and fb.
+    var lo = min(fa, fb);
+    var hi = max(fa, fb);
+    var clear = abs(fa) > tol && abs(fb) > tol;
+    var changes = 0u;
+    let b1 = g[0] + g[1] * (1.0 / 6.0);
+    lo = min(lo, b1);
+    hi = max(hi, b1);
+    clear = clear && abs(b1) > tol;
+    changes += select(0u, 1u, (fa < 0.0) != (b1 < 0.0));
+    let b2 = g[0] + g[1] * (1.0 / 3.0) + g[2] * (1.0 / 15.0);
+    lo = min(lo, b2);
+    hi = max(hi, b2);
+    clear = clear && abs(b2) > tol;
+    changes += select(0u, 1u, (b1 < 0.0) != (b2 < 0.0));
+    let b3 = g[0] + g[1] * 0.5 + g[2] * 0.2 + g[3] * 0.05;
+    lo = min(lo, b3);
+    hi = max(hi, b3);
+    clear = clear && abs(b3) > tol;
+    changes += select(0u, 1u, (b2 < 0.0) != (b3 < 0.0));
+    let b4 = g[0] + g[1] * (2.0 / 3.0) + g[2] * 0.4 + g[3] * 0.2 + g[4] * (1.0 / 15.0);
+    lo = min(lo, b4);
+    hi = max(hi, b4);
+    clear = clear && abs(b4) > tol;
+    changes += select(0u, 1u, (b3 < 0.0) != (b4 < 0.0));
+    let b5 = g[0] + g[1] * (5.0 / 6.0) + g[2] * (2.0 / 3.0) + g[3] * 0.5 + g[4] * (1.0 / 3.0)
         + g[5] * (1.0 / 6.0);
-    b[6] = g[0] + g[1] + g[2] + g[3] + g[4] + g[5] + g[6];
-    return b;
+    lo = min(lo, b5);
+    hi = max(hi, b5);
+    clear = clear && abs(b5) > tol;
+    changes += select(0u, 1u, (b4 < 0.0) != (b5 < 0.0)) + select(0u, 1u, (b5 < 0.0) != (fb < 0.0));
+    var r = 0u;
+    if (lo <= 0.0 && hi >= 0.0) {
+        r = HULL_ZERO;
+        if (fa * fb < 0.0 && clear && changes == 1u) {
+            r |= HULL_SINGLE;
+        }
+    }
+    return r;
 }
 
 // First sign change of p on [0, 1], or -1.
@@ -242,36 +282,14 @@ fn first_root(p: array<real, 7>, any: bool) -> real {
         if (any && fa * fb < 0.0) {
             return 0.5 * (u + v);
         }
-        var b = bernstein(p, u, v);
-        b[0] = fa;
-        b[6] = fb;
-        var lo = min(fa, fb);
-        var hi = max(fa, fb);
-        for (var k = 1; k < 6; k++) {
-            lo = min(lo, b[k]);
-            hi = max(hi, b[k]);
-        }
+        let hc = hull(p, u, v, fa, fb, tol);
         var split = false;
-        if (lo <= 0.0 && hi >= 0.0) {
-            // Exactly one root: one sign change of the control polygon
-            // between ends of opposite signs (Descartes' rule of signs in
-            // the Bernstein basis), decided as the CPU's
-            // `Poly::first_crossing` and `isolate` decide it, and refined
-            // at once instead of split down to MIN_WIDTH. Trusted only when
-            // every control point clears `tol`, so that no sign is
-            // rounding's; otherwise the interval is split.
-            var single = fa * fb < 0.0;
-            var changes = 0;
-            for (var k = 0; k < 6; k++) {
-                if (abs(b[k + 1]) <= tol) {
-                    single = false;
-                }
-                if ((b[k] < 0.0) != (b[k + 1] < 0.0)) {
-                    changes++;
-                }
-            }
-            single = single && abs(fa) > tol && changes == 1;
-            if (single || w < MIN_WIDTH) {
+        if ((hc & HULL_ZERO) != 0u) {
+            // Exactly one root (`hull`), decided as the CPU's
+            // `Poly::first_crossing` and `isolate` decide it, is refined
+            // at once instead of split down to MIN_WIDTH; otherwise the
+            // interval is split.
+            if ((hc & HULL_SINGLE) != 0u || w < MIN_WIDTH) {
                 if (fa * fb <= 0.0) {
                     return refine(p, u, v, fa, fb);
                 }
