@@ -37,7 +37,7 @@ const WF_TILE_MAX: u64 = 1 << 22;
 /// Sample layers of one dispatch of `main` or `realtime` at most: a run of
 /// more samples takes several dispatches ([`Gpu::render`] runs a film's
 /// samples in up to 16 passes, for its progress reports: passes of
-/// `spp / 16` samples).
+/// `spp / 16` samples, at least 4).
 const LAYERS_MAX: u32 = 16;
 
 /// Bytes of sample layers a frame holds at most (16 layers at 1920 x 1080
@@ -516,9 +516,10 @@ impl Gpu {
     }
 
     /// Renders `scene` on the GPU: the film's samples in passes (at most
-    /// 16), `progress(done, total)` after each. The image is the mean of
-    /// the samples; dropped (non-finite) samples count as black, as on
-    /// the CPU, and in [`RenderStats::rejected_samples`].
+    /// 16, of at least 4 samples), `progress(done, total)` after each. The
+    /// image is the mean of the samples; dropped (non-finite) samples
+    /// count as black, as on the CPU, and in
+    /// [`RenderStats::rejected_samples`].
     pub fn render(
         &self,
         scene: &Scene,
@@ -538,7 +539,11 @@ impl Gpu {
     ) -> Result<(Image, RenderStats), GpuError> {
         let mut frame = self.prepare_mode(scene, false, aov)?;
         let spp = scene.film.spp;
-        let per_pass = spp.div_ceil(16);
+        // Up to 16 passes for the progress reports, of at least 4 samples
+        // each: a pass is a dispatch of its samples and a wait for it, and
+        // the image is the same however the samples are grouped
+        // (`GpuFrame::set_max_layers`).
+        let per_pass = spp.div_ceil(16).max(4).min(spp);
         let passes = spp.div_ceil(per_pass) as usize;
         for k in 0..passes {
             let count = per_pass.min(spp - frame.samples);
