@@ -104,7 +104,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .file_name()
             .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
         let geometry = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
-        sets.push((name, Features::of(&materials.materials).fit_to(&geometry)));
+        sets.push((
+            name,
+            Features::of(&materials.materials).fit_to(&geometry, scene.lights.len()),
+        ));
     }
     if sources.is_empty() {
         sets.push(("every model".to_string(), Features::ALL));
@@ -239,8 +242,10 @@ impl Compiler {
                 None,
             )?;
             let exec = ash::khr::pipeline_executable_properties::Device::new(&instance, &device);
-            // The render kernels' groups: 13 storage buffers, then the
-            // wavefront's 3 (the intersection kernel uses the first 6).
+            // The render kernels' groups: their storage buffers, then the
+            // wavefront's (the intersection kernel uses the first 6). A
+            // binding the kernel uses and the layout lacks is undefined
+            // behaviour: RADV crashed on it.
             let binding = |i: u32| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(i)
@@ -249,8 +254,8 @@ impl Compiler {
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             };
             let mut sets = Vec::new();
-            for n in [13, 3] {
-                let b: Vec<_> = (0..n).map(binding).collect();
+            for n in [isolux_gpu::RENDER_BINDINGS, isolux_gpu::WAVEFRONT_BINDINGS] {
+                let b: Vec<_> = (0..n as u32).map(binding).collect();
                 sets.push(device.create_descriptor_set_layout(
                     &vk::DescriptorSetLayoutCreateInfo::default().bindings(&b),
                     None,

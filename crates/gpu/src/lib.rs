@@ -61,10 +61,21 @@ const _: () = assert!(LINEAR_CULL <= MAX_CANDIDATES);
 /// Perturbations an object may have and still keep its candidates as a
 /// bit mask (a `u32` in `geometry.wgsl`) rather than in a list.
 pub const MASK_CANDIDATES: u32 = u32::BITS;
+/// Point lights whose shadow rays a vertex traces before it is shaded, at
+/// most (a bit mask; `MASK_LIGHTS` in `render.wgsl`); a scene with more
+/// traces the rest in the shading loop ([`Features::many_lights`]).
+pub const MASK_LIGHTS: u32 = u32::BITS;
 /// Environment kinds (`Params.counts.w`).
 pub const ENV_CONSTANT: u32 = 0;
 /// An equirectangular map, light-sampled.
 pub const ENV_MAP: u32 = 1;
+/// Storage buffers of `render.wgsl`'s group 0 (bindings 0 to 13: scene,
+/// environment, accumulation, parameters, AOVs, sample layers), shared by
+/// its entry points (`Gpu::render_layout`).
+pub const RENDER_BINDINGS: usize = 14;
+/// Storage buffers of the wavefront's group 1 (paths, queues, step
+/// counters).
+pub const WAVEFRONT_BINDINGS: usize = 3;
 
 /// WGSL constants generated from the Rust values above and the tags of
 /// [`layout`].
@@ -78,6 +89,7 @@ pub fn prelude() -> String {
          const MAX_SUBDIVISIONS: i32 = {MAX_SUBDIVISIONS};\n\
          const MAX_CANDIDATES: u32 = {MAX_CANDIDATES}u;\n\
          const MASK_CANDIDATES: u32 = {MASK_CANDIDATES}u;\n\
+         const MASK_LIGHTS: u32 = {MASK_LIGHTS}u;\n\
          const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
          const NO_NODE: u32 = {}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
@@ -246,6 +258,13 @@ pub struct Features {
     /// [`MASK_CANDIDATES`] perturbations needs; without it every object
     /// keeps its candidates as a bit mask in a register.
     pub list: bool,
+    /// Shadow rays traced in the shading loop (`MANY_LIGHTS` in the WGSL),
+    /// which only a scene of more than [`MASK_LIGHTS`] point lights needs:
+    /// the shadow rays of the first [`MASK_LIGHTS`] are traced before the
+    /// vertex is shaded, their answers kept as a bit mask (`trace_shadows`
+    /// in `render.wgsl`), so that the shading state is not live across
+    /// an intersection.
+    pub many_lights: bool,
 }
 
 impl Features {
@@ -254,18 +273,21 @@ impl Features {
     pub const ALL: Features = Features {
         models: (1 << layout::tag::ALL.len()) - 1,
         list: true,
+        many_lights: true,
     };
     /// No material code at all (what the AOV kernel reaches) and no
     /// candidate list.
     pub const NONE: Features = Features {
         models: 0,
         list: false,
+        many_lights: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
     /// records of their own), and the internal lobes of the subsurface
     /// integrator with a `subsurface` material; with the candidate list
-    /// ([`Features::fit_to`] fits it to a scene).
+    /// and the shadow rays of many lights ([`Features::fit_to`] fits them
+    /// to a scene).
     pub fn of(materials: &[layout::GpuMaterial]) -> Self {
         let mut models = materials.iter().fold(0u32, |m, r| m | bit(r.tag[0]));
         if models & bit(layout::tag::SUBSURFACE) != 0 {
@@ -274,14 +296,17 @@ impl Features {
         Features {
             models: models & Self::ALL.models,
             list: true,
+            many_lights: true,
         }
     }
 
     /// `self` with the candidate list only if an object of `scene` has
-    /// more than [`MASK_CANDIDATES`] perturbations.
-    pub fn fit_to(self, scene: &GpuScene) -> Self {
+    /// more than [`MASK_CANDIDATES`] perturbations, and the shadow rays of
+    /// many lights only if it has more than [`MASK_LIGHTS`] point lights.
+    pub fn fit_to(self, scene: &GpuScene, lights: usize) -> Self {
         Features {
             list: scene.objects.iter().any(|o| o.range[1] > MASK_CANDIDATES),
+            many_lights: lights > MASK_LIGHTS as usize,
             ..self
         }
     }
@@ -303,7 +328,9 @@ impl Features {
 
     /// Whether kernels built with `self` run everything `needed` asks for.
     pub fn covers(self, needed: Features) -> bool {
-        needed.models & !self.models == 0 && (self.list || !needed.list)
+        needed.models & !self.models == 0
+            && (self.list || !needed.list)
+            && (self.many_lights || !needed.many_lights)
     }
 
     /// The part of `self` that an entry point of the render module
@@ -337,19 +364,27 @@ fn bit(tag: u32) -> u32 {
 /// "all", "none", the models by name (`diffuse+dielectric`) up to four,
 /// else their count with the integrator's optional parts
 /// (`14 models`, `9 models with wave+subsurface`); then, for kernels
-/// fitted to a scene, the candidate list where there is one (`diffuse`,
-/// `ggx, candidate list`; "all" stands for every model, with or without
-/// it). The internal lobes go unnamed: they come with
+/// fitted to a scene, the candidate list and the shadow rays of many
+/// lights where there are (`diffuse`, `ggx, candidate list`, `diffuse,
+/// many lights`; "all" stands for every model, with or without them). The internal lobes go unnamed: they come with
 /// `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
-        if self.list && *self != Features::ALL {
+        if *self != Features::ALL && (self.list || self.many_lights) {
             let models = Features {
                 list: false,
+                many_lights: false,
                 ..*self
             };
-            return write!(f, "{models}, candidate list");
+            write!(f, "{models}")?;
+            if self.list {
+                f.write_str(", candidate list")?;
+            }
+            if self.many_lights {
+                f.write_str(", many lights")?;
+            }
+            return Ok(());
         }
         if self.models == Features::ALL.models {
             return f.write_str("all");
@@ -402,6 +437,7 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
             include_str!("shaders/wave_stub.wgsl")
         }
         + &format!("const SUBSURFACE: bool = {};\n", features.subsurface())
+        + &format!("const MANY_LIGHTS: bool = {};\n", features.many_lights)
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -688,7 +724,7 @@ impl Gpu {
             // env cdf, accum (rw), params (read-only storage, not
             // uniform: see `params_buffer`), material data, env levels,
             // BVH nodes, AOVs (rw), material albedos, sample layers (rw).
-            let kinds = [
+            let kinds: [B; RENDER_BINDINGS] = [
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -744,7 +780,7 @@ impl Gpu {
     fn wavefront_layout(&self) -> &(wgpu::BindGroupLayout, wgpu::PipelineLayout) {
         self.wavefront_layout.get_or_init(|| {
             let rw = wgpu::BufferBindingType::Storage { read_only: false };
-            let bgl = self.buffer_layout("wavefront bindings", &[rw; 3]);
+            let bgl = self.buffer_layout("wavefront bindings", &[rw; WAVEFRONT_BINDINGS]);
             let pl = self
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -1070,7 +1106,11 @@ mod tests {
         use super::Features;
         let wave = 1 << tag::WAVE;
         let sss = 1 << tag::SUBSURFACE | 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
-        let set = |models: u32, list: bool| Features { models, list };
+        let set = |models: u32, list: bool| Features {
+            models,
+            list,
+            many_lights: list,
+        };
         let mut sets = vec![Features::NONE, Features::ALL];
         sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, false)));
         for extra in [wave, sss, wave | sss] {
@@ -1109,39 +1149,61 @@ mod tests {
             models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
             ..Features::ALL
         };
-        assert_eq!(few.to_string(), "diffuse+dielectric, candidate list");
+        assert_eq!(
+            few.to_string(),
+            "diffuse+dielectric, candidate list, many lights"
+        );
         // Fitted to scenes: a sphere of 33 bumps needs the list, one of 32
         // does not.
         for (bumps, list) in [(32, false), (33, true)] {
             let scene =
                 super::layout::GpuScene::new(&[isolux_geometry::samples::bumpy_sphere(bumps)]);
-            let fitted = few.fit_to(&scene);
+            let fitted = few.fit_to(&scene, 1);
             assert_eq!(fitted.list, list, "{bumps}");
             assert_eq!(fitted.models, few.models);
+            assert!(!fitted.many_lights);
         }
-        let fitted = Features { list: false, ..few };
+        // And to their point lights: 32 keep their answers in the mask,
+        // 33 need the shading loop's shadow rays.
+        let sphere = super::layout::GpuScene::new(&[isolux_geometry::samples::bumpy_sphere(0)]);
+        for (lights, many) in [(0, false), (32, false), (33, true)] {
+            assert_eq!(few.fit_to(&sphere, lights).many_lights, many, "{lights}");
+        }
+        let fitted = Features {
+            list: false,
+            many_lights: false,
+            ..few
+        };
         assert_eq!(fitted.to_string(), "diffuse+dielectric");
+        let lit = Features { list: false, ..few };
+        assert_eq!(lit.to_string(), "diffuse+dielectric, many lights");
+        assert!(!fitted.covers(lit) && lit.covers(fitted));
         let sss = Features::of(&[super::layout::GpuMaterial {
             tag: [tag::SUBSURFACE, 0, 0, 0],
             ..Default::default()
         }]);
-        assert_eq!(sss.to_string(), "subsurface, candidate list");
+        assert_eq!(sss.to_string(), "subsurface, candidate list, many lights");
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
         let many = Features {
             models: Features::ALL.models & !(1 << tag::SUBSURFACE),
             ..Features::ALL
         };
-        assert_eq!(many.to_string(), "17 models with wave, candidate list");
+        assert_eq!(
+            many.to_string(),
+            "17 models with wave, candidate list, many lights"
+        );
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.
         let none = super::render_source_variant(super::Precision::F32, Features::NONE);
         assert!(none.contains("const MODELS: u32 = 0x0u;"));
         assert!(none.contains("const CANDIDATE_LIST: bool = false;"));
+        assert!(none.contains("const MANY_LIGHTS: bool = false;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
         assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
         assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
         assert!(full.contains("const CANDIDATE_LIST: bool = true;"));
+        assert!(full.contains("const MANY_LIGHTS: bool = true;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
         assert!(full.contains("fn place_wave("));
     }

@@ -638,3 +638,53 @@ fn sample_layers_sum_as_one_dispatch_per_sample_would() {
         }
     }
 }
+
+/// The real-time kernel traces the shadow rays of up to 32 point lights
+/// before it shades the vertex, their answers in a bit mask
+/// (`trace_shadows`); a scene of more lights gets kernels that trace them
+/// in the shading loop (`Features::many_lights`), as the general kernels
+/// do for every scene. With 32 lights (the mask's last bit) and 33, each
+/// lighting the sphere from its own side, the fitted kernels render what
+/// the general ones do, value for value. A light's bit read from the
+/// wrong place (a shift off by one, the mask cut at 31) fails it.
+#[test]
+fn lights_up_to_the_mask_and_beyond_shade_as_the_general_kernels() {
+    use isolux_core::Rgb;
+    use isolux_gpu::Features;
+    use isolux_render::PointLight;
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = common::example("perturbed-sphere.toml");
+    scene.film.width = 40;
+    scene.film.height = 24;
+    scene.film.spp = 4;
+    for n in [32usize, 33] {
+        scene.lights = (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                let y = 0.3 + 3.0 * (k % 4) as f64 / 3.0;
+                PointLight {
+                    position: glam::DVec3::new(3.0 * a.cos(), y, 3.0 * a.sin()),
+                    intensity: Rgb::new(30.0, 28.0, 25.0) * (4.0 / n as f64),
+                }
+            })
+            .collect();
+        let run = |general: bool| {
+            let mut frame = gpu.prepare_realtime(&scene).unwrap();
+            assert_eq!(frame.features().many_lights, n > 32, "{n} lights");
+            if general {
+                frame.set_features(Features::ALL).unwrap();
+            }
+            frame.run(&gpu, 4);
+            let (img, stats) = frame.image(&gpu).unwrap();
+            assert_eq!(stats.rejected_samples, 0);
+            img
+        };
+        same_paths(
+            &format!("{n} lights, real time"),
+            ("general", &run(true)),
+            ("fitted", &run(false)),
+        );
+    }
+}

@@ -78,18 +78,23 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     if (h.x < 0.0) {
         return env_eval(d);
     }
-    let obj = objects[hit_object];
-    var m = materials[obj.range.z];
+    let mi = objects[hit_object].range.z;
     // No real-time model for a medium (its light comes from elsewhere on
     // the surface), black as on the CPU; subsurface_brdf previews it.
-    if (m.tag.x == MAT_SUBSURFACE) {
+    if (materials[mi].tag.x == MAT_SUBSURFACE) {
         return vec3<f32>(0.0);
     }
     let p = o + h.x * d;
+    let ng = h.yzw;
+    // The point lights' shadow rays before the material is loaded
+    // (render.wgsl `trace_shadows`).
+    if (SHADOWS_FIRST) {
+        trace_shadows(p, ng);
+    }
+    var m = materials[mi];
     if (has_wave(m)) {
         m = place_material(m, p, pixel_footprint(h.x), rand());
     }
-    let ng = h.yzw;
     let wo = -d;
     let flags = material_flags(m);
     var ns = ng;
@@ -106,7 +111,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     if (wo_l.z == 0.0) {
         return vec3<f32>(0.0);
     }
-    var l = direct_light(p, ng, fr, m, wo_l, GATHER_LIGHTS, vec4<f32>(0.0), m, obj.range.z);
+    var l = direct_light(p, ng, fr, m, wo_l, GATHER_LIGHTS, vec4<f32>(0.0), m, mi, SHADOWS_FIRST);
     let s = bsdf;
     if (s.ok && s.pdf > 0.0 && finite(s.pdf) && finite3(s.f) && s.wi.z != 0.0) {
         let wi = to_world(fr, s.wi);

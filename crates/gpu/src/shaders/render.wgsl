@@ -247,7 +247,47 @@ fn shading_material(m: Material, mi: u32) -> Material {
     return materials[mi];
 }
 
-fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>, sm: Material, mi: u32) -> vec3<f32> {
+// The real-time kernel traces a vertex's shadow rays before it shades it
+// (`trace_shadows`), so that the shading state (material, frame,
+// directions) is not live across an intersection, the kernel's register
+// peak (RADV: the gallery's real-time kernel 138 -> 109 VGPRs before
+// scheduling, 8 waves per SIMD instead of 6; docs/gpu.md "Register
+// pressure"): bit i of `shadow_lights`, point light i is visible from the
+// vertex. `direct_light` reads it when its caller traced them (`first`).
+// Not in kernels of more than MASK_LIGHTS lights, nor in kernels with the
+// candidate list, which Mesa 22.3's lavapipe miscompiled this way (a
+// sphere of 600 bumps 0.9% dark; Mesa 25 exact). The path tracer keeps
+// its shadow rays in `direct_light`'s loop: the same change took its
+// peak from 162 to 160 only (what its loop carries across bounces is
+// live anyway), for shadow rays toward lights the shading would skip.
+var<private> shadow_lights: u32;
+const SHADOWS_FIRST: bool = !MANY_LIGHTS && !CANDIDATE_LIST;
+
+// The point lights' shadow rays from vertex p (geometric normal ng), into
+// `shadow_lights`: the rays `direct_light` would trace, in one loop with
+// one call site of the intersection.
+fn trace_shadows(p: vec3<f32>, ng: vec3<f32>) {
+    let n_lights = min(params.counts.y, MASK_LIGHTS);
+    var vis = 0u;
+    for (var i = 0u; i < n_lights; i++) {
+        let light = lights[i].position.xyz;
+        let origin = offset_origin(p, ng, light - p);
+        let d = light - origin;
+        let dist2 = dot(d, d);
+        if (dist2 > 0.0) {
+            let t_max = sqrt(dist2);
+            if (!occluded(origin, d / t_max, t_max)) {
+                vis |= 1u << i;
+            }
+        }
+    }
+    shadow_lights = vis;
+}
+
+// Direct light at vertex p: with `first` (a constant at each call site),
+// its shadow rays were traced by `trace_shadows`, and it gathers only
+// point lights (the real-time kernel); else they are traced here.
+fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>, sm: Material, mi: u32, first: bool) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     let env_map = params.counts.w == ENV_MAP;
     let n_lights = select(0u, params.counts.y, (what & GATHER_LIGHTS) != 0u);
@@ -265,6 +305,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var light_pdf = 0.0; // > 0: the map's sample, weighted by MIS here
         var cos_factor = true; // false: rad already holds the cosine / pdf
         var with_f = true;     // false: the mirror, weighted by Fresnel alone
+        var visible = false;   // `trace_shadows` found it visible (`first`)
         var mm = shading_material(m, mi);
         var flags = 0u;
         if (i == n) {
@@ -291,6 +332,13 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             t_max = sqrt(dist2);
             wi = d / t_max;
             rad = light.intensity.rgb / dist2;
+            if (first) {
+                // Occluded: no need to shade it.
+                if (((shadow_lights >> i) & 1u) == 0u) {
+                    continue;
+                }
+                visible = true;
+            }
         } else if (i < n_lights + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
@@ -345,7 +393,16 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         if (max3(fc) <= 0.0 || max3(rad) <= 0.0) {
             continue;
         }
-        if (!occluded(origin, wi, t_max)) {
+        // The shadow ray here unless `trace_shadows` traced them all:
+        // dead code where `first` is. (An `if` on the constant, not
+        // `visible || !occluded(..)`: naga emits a call inside an
+        // expression unconditionally, and RADV kept the intersection
+        // there, 160 -> 188 VGPRs before scheduling.)
+        var lit = visible;
+        if (!first) {
+            lit = !occluded(origin, wi, t_max);
+        }
+        if (lit) {
             l += fc * rad;
         }
     }
@@ -681,7 +738,7 @@ fn bounce() -> bool {
             mirror_env = true;
         }
     }
-    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m, mi);
+    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m, mi, false);
     path.env_counted = false;
     let s = bsdf;
     if (!s.ok || !(s.pdf > 0.0) || !finite(s.pdf) || !finite3(s.f) || s.wi.z == 0.0) {
