@@ -120,7 +120,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let file = std::path::Path::new(dir).join(format!("{stem}.wgsl"));
             std::fs::write(&file, &src).map_err(|e| format!("{}: {e}", file.display()))?;
         }
-        for entry in ["main", "trace", "realtime"] {
+        for entry in ["main", "trace", "trace_last", "realtime"] {
             kernels.push((
                 format!("{name}: {entry}"),
                 features.to_string(),
@@ -132,7 +132,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     for file in &sources {
         let src = std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))?;
-        for entry in ["main", "trace", "realtime"] {
+        for entry in ["main", "trace", "trace_last", "realtime"] {
             kernels.push((
                 format!("{file}: {entry}"),
                 "-".to_string(),

@@ -345,7 +345,7 @@ impl Features {
     fn reached_by(self, entry: &str) -> Features {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
         match entry {
-            "main" | "trace" => self,
+            "main" | "trace" | "trace_last" => self,
             "realtime" => Features {
                 models: self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE)),
                 ..self
@@ -769,10 +769,11 @@ impl Gpu {
         self.render_entry("aov_main", features)
     }
 
-    /// The wavefront path tracer (`trace` of `render.wgsl`), bound with
-    /// the render group and [`Gpu::wavefront_layout`]'s group 1.
-    fn trace_pipeline(&self, features: Features) -> wgpu::ComputePipeline {
-        self.render_entry("trace", features)
+    /// The wavefront path tracer's step (`trace` of `render.wgsl`: one
+    /// bounce; `trace_last` on the `last` step: every bounce left), bound
+    /// with the render group and [`Gpu::wavefront_layout`]'s group 1.
+    fn trace_pipeline(&self, features: Features, last: bool) -> wgpu::ComputePipeline {
+        self.render_entry(if last { "trace_last" } else { "trace" }, features)
     }
 
     /// Group 1 of `trace` (paths, queues, step counters, all read-write
@@ -873,7 +874,7 @@ impl Gpu {
                 self.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                         label: Some(entry),
-                        layout: Some(if entry == "trace" {
+                        layout: Some(if entry.starts_with("trace") {
                             &self.wavefront_layout().1
                         } else {
                             &self.render_layout().1
@@ -1131,6 +1132,7 @@ mod tests {
             // Each entry point keeps what it reaches, and never more.
             assert_eq!(f.reached_by("main"), *f);
             assert_eq!(f.reached_by("trace"), *f);
+            assert_eq!(f.reached_by("trace_last"), *f);
             let rt = f.reached_by("realtime");
             let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
             assert_eq!(rt.models, f.models & !lobes, "{f}");

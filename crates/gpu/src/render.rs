@@ -733,7 +733,8 @@ impl GpuFrame {
     fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, timed: bool) {
         let first = self.samples;
         let params = self.params;
-        let pipeline = gpu.trace_pipeline(self.features);
+        let pipeline = gpu.trace_pipeline(self.features, false);
+        let last_pipeline = gpu.trace_pipeline(self.features, true);
         self.make_wavefront(gpu);
         let Some(wf) = self.wf.as_ref() else {
             return;
@@ -774,7 +775,11 @@ impl GpuFrame {
             }
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
             let mut pass = begin_pass(&mut enc, "wavefront step", ts, i == 0, i + 1 == total);
-            pass.set_pipeline(&pipeline);
+            pass.set_pipeline(if k + 1 == wf.steps {
+                &last_pipeline
+            } else {
+                &pipeline
+            });
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
             if k == 0 {

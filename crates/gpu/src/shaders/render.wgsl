@@ -964,8 +964,14 @@ fn wf_load(slot: u32) -> u32 {
     return bitcast<u32>(w.beta.w);
 }
 
-@compute @workgroup_size(64)
-fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
+// Step `params.wave.x` of the wavefront for the path in slot `gid.x` (of
+// the tile's pixels on step 0, of the last step's queue after). `last`, a
+// constant at each entry point: the step takes every bounce left, in a
+// loop; otherwise exactly one bounce and no loop, so that nothing is
+// carried around a loop across the bounce's intersections (RADV, the
+// gallery's step 163 -> 144 VGPRs before scheduling; docs/gpu.md
+// "Register pressure").
+fn wf_step(gid: vec3<u32>, last: bool) {
     let step = params.wave.x;
     let tile = params.wave.w;
     var slot = gid.x;
@@ -994,8 +1000,13 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         slot = wf_queue[(step % 2u) * tile + gid.x];
         pixel = wf_load(slot);
     }
-    let last = params.wave.y != 0u;
-    if (bounces(select(1u, bounce_bound() - step, last)) && !last) {
+    var alive: bool;
+    if (last) {
+        alive = bounces(bounce_bound() - step);
+    } else {
+        alive = bounce();
+    }
+    if (alive && !last) {
         wf_store(slot, pixel);
         let next = 4u * (step + 1u);
         let at = atomicAdd(&wf_ctl[next + 3u], 1u);
@@ -1006,6 +1017,18 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     add_sample(pixel, path.l);
+}
+
+// Every step of the wavefront but the last (render.rs `dispatch_wavefront`).
+@compute @workgroup_size(64)
+fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
+    wf_step(gid, false);
+}
+
+// The wavefront's last step (`params.wave.y` is 1).
+@compute @workgroup_size(64)
+fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
+    wf_step(gid, true);
 }
 
 // AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
