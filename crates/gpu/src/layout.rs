@@ -861,9 +861,10 @@ pub struct GpuParams {
     pub env: [f32; 4],
     /// `[map width, map height, 0, 0]`.
     pub env_size: [u32; 4],
-    /// The wavefront path tracer's `[step, last step (1) or not (0),
-    /// first padded pixel of the tile, paths in the tile]` (`trace` in
-    /// render.wgsl; zero for the other kernels).
+    /// The wavefront path tracer's `[step, 0, first padded pixel of the
+    /// tile, paths in the tile]` (`trace` and `trace_last` in render.wgsl,
+    /// whose entry point says whether a step is the last; zero for the
+    /// other kernels).
     pub wave: [u32; 4],
     /// `[sample layers of the dispatch, 1 when `resolve` replaces the
     /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in

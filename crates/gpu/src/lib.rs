@@ -366,8 +366,8 @@ fn bit(tag: u32) -> u32 {
 /// (`14 models`, `9 models with wave+subsurface`); then, for kernels
 /// fitted to a scene, the candidate list and the shadow rays of many
 /// lights where there are (`diffuse`, `ggx, candidate list`, `diffuse,
-/// many lights`; "all" stands for every model, with or without them). The internal lobes go unnamed: they come with
-/// `subsurface`.
+/// many lights`; "all" stands for every model, with or without them).
+/// The internal lobes go unnamed: they come with `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};

@@ -748,7 +748,7 @@ impl GpuFrame {
                     let mut p = params;
                     p.pass_info[0] = first + s;
                     p.pass_info[1] = 1;
-                    p.wave = [k, (k + 1 == wf.steps) as u32, t * wf.tile, wf.tile];
+                    p.wave = [k, 0, t * wf.tile, wf.tile];
                     blocks.push(p);
                 }
             }
@@ -808,9 +808,13 @@ impl GpuFrame {
     /// would pass [`LAYER_BYTES_MAX`] or the device's largest binding; at
     /// least one.
     fn layers_per_dispatch(&self, gpu: &Gpu, count: u32) -> u32 {
-        let layer = self.params.film[0] as u64 * self.params.film[1] as u64 * 16;
-        let fit = gpu.binding_limit().min(LAYER_BYTES_MAX) / layer.max(1);
+        let fit = gpu.binding_limit().min(LAYER_BYTES_MAX) / self.layer_bytes().max(1);
         (fit.min(self.max_layers as u64) as u32).min(count).max(1)
+    }
+
+    /// Bytes of one sample layer: a `vec4<f32>` per pixel.
+    fn layer_bytes(&self) -> u64 {
+        self.params.film[0] as u64 * self.params.film[1] as u64 * 16
     }
 
     /// Makes room for `n` sample layers (a new buffer and bind group when
@@ -819,8 +823,7 @@ impl GpuFrame {
         if n <= self.layer_count {
             return;
         }
-        let layer = self.params.film[0] as u64 * self.params.film[1] as u64 * 16;
-        self.layers = gpu.output("sample layers", n as u64 * layer);
+        self.layers = gpu.output("sample layers", n as u64 * self.layer_bytes());
         self.layer_count = n;
         self.bind = gpu.frame_bind_group(&self.buffers, &self.layers);
     }

@@ -34,8 +34,8 @@ struct Params {
     counts: vec4<u32>,    // objects, lights, max depth, environment kind
     env: vec4<f32>,       // constant radiance (rgb)
     env_size: vec4<u32>,  // map width, height, pyramid levels (realtime.wgsl)
-    // The wavefront path tracer (`trace`): step, 1 on the last step (which
-    // takes every bounce left), first padded pixel of the tile, its paths.
+    // The wavefront path tracer (`trace`, `trace_last`): step, 0, first
+    // padded pixel of the tile, its paths.
     wave: vec4<u32>,
     // The sample layers of `main` and `realtime` (z of the dispatch) and
     // `resolve`: layer count, 1 when `resolve` replaces the sum (a
@@ -259,7 +259,8 @@ fn shading_material(m: Material, mi: u32) -> Material {
 // sphere of 600 bumps 0.9% dark; Mesa 25 exact). The path tracer keeps
 // its shadow rays in `direct_light`'s loop: the same change took its
 // peak from 162 to 160 only (what its loop carries across bounces is
-// live anyway), for shadow rays toward lights the shading would skip.
+// live anyway), and it would trace rays toward lights below the
+// horizon, which the shading skips.
 var<private> shadow_lights: u32;
 const SHADOWS_FIRST: bool = !MANY_LIGHTS && !CANDIDATE_LIST;
 
@@ -305,7 +306,6 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var light_pdf = 0.0; // > 0: the map's sample, weighted by MIS here
         var cos_factor = true; // false: rad already holds the cosine / pdf
         var with_f = true;     // false: the mirror, weighted by Fresnel alone
-        var visible = false;   // `trace_shadows` found it visible (`first`)
         var mm = shading_material(m, mi);
         var flags = 0u;
         if (i == n) {
@@ -337,7 +337,6 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
                 if (((shadow_lights >> i) & 1u) == 0u) {
                     continue;
                 }
-                visible = true;
             }
         } else if (i < n_lights + n_env) {
             let s = env_sample(rand2());
@@ -393,12 +392,13 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         if (max3(fc) <= 0.0 || max3(rad) <= 0.0) {
             continue;
         }
-        // The shadow ray here unless `trace_shadows` traced them all:
-        // dead code where `first` is. (An `if` on the constant, not
-        // `visible || !occluded(..)`: naga emits a call inside an
-        // expression unconditionally, and RADV kept the intersection
-        // there, 160 -> 188 VGPRs before scheduling.)
-        var lit = visible;
+        // The shadow ray here unless `trace_shadows` traced them all (then
+        // every gather still here is a visible light): dead code where
+        // `first` is. (An `if` on the constant, not `first ||
+        // !occluded(..)`: naga emits a call inside an expression
+        // unconditionally, and RADV kept the intersection there, 160 ->
+        // 188 VGPRs before scheduling.)
+        var lit = true;
         if (!first) {
             lit = !occluded(origin, wi, t_max);
         }
@@ -1025,7 +1025,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     wf_step(gid, false);
 }
 
-// The wavefront's last step (`params.wave.y` is 1).
+// The wavefront's last step.
 @compute @workgroup_size(64)
 fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
     wf_step(gid, true);
