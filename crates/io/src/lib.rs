@@ -95,6 +95,50 @@ impl Tonemap {
     }
 }
 
+/// Checks, before any long work, that `path` can be written the way
+/// [`atomic_write`] will write it: its directory exists and takes a new
+/// file (one is created there and removed at once), and `path` itself is
+/// not a directory. Commands call it first, so that a typo in `-o` fails
+/// in a second instead of after the render.
+pub fn check_output(path: &Path) -> Result<(), IoError> {
+    let dir = output_dir(path);
+    let fail = |message: String| {
+        Err(IoError::Format {
+            path: path.to_path_buf(),
+            message,
+        })
+    };
+    if !dir.is_dir() {
+        return fail(format!(
+            "cannot write here: the directory {} does not exist",
+            dir.display()
+        ));
+    }
+    if path.is_dir() {
+        return fail("is a directory; give a file name".into());
+    }
+    if let Err(e) = tempfile::Builder::new()
+        .prefix(".isolux-")
+        .suffix(".tmp")
+        .tempfile_in(&dir)
+    {
+        return fail(format!(
+            "cannot create a file in {}: {}",
+            dir.display(),
+            std::io::Error::from(e.kind())
+        ));
+    }
+    Ok(())
+}
+
+/// The directory a file is written into (`.` for a bare file name).
+fn output_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
 /// Writes via a temporary file in the same directory, then renames.
 pub fn atomic_write(
     path: &Path,
@@ -104,10 +148,7 @@ pub fn atomic_write(
         path: path.to_path_buf(),
         source,
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = output_dir(path);
     let mut tmp = tempfile::Builder::new()
         .prefix(".isolux-")
         .suffix(".tmp")
@@ -363,6 +404,36 @@ mod tests {
         let r = atomic_write(&p, |_| Err(format_err(&p, "boom")));
         assert!(r.is_err());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn output_checks_fail_before_the_work_and_leave_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let ok = dir.path().join("out.png");
+        check_output(&ok).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        let missing = dir.path().join("no/such/dir/out.png");
+        let e = check_output(&missing).unwrap_err().to_string();
+        assert!(
+            e.contains("does not exist") && e.contains("no/such/dir"),
+            "{e}"
+        );
+        let e = check_output(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("is a directory"), "{e}");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let ro = dir.path().join("ro");
+            std::fs::create_dir(&ro).unwrap();
+            std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+            // Root may write anyway; the check must then agree with a write.
+            let r = check_output(&ro.join("out.png"));
+            let writable = std::fs::File::create(ro.join("probe")).is_ok();
+            assert_eq!(r.is_ok(), writable, "{r:?}");
+            if let Err(e) = r {
+                assert!(e.to_string().contains("cannot create a file"), "{e}");
+            }
+        }
     }
 
     #[test]

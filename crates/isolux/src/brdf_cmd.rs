@@ -283,6 +283,7 @@ pub fn local_dir(theta_deg: f64, phi_deg: f64) -> DVec3 {
 }
 
 fn plot(a: PlotArgs) -> Result<()> {
+    isolux_io::check_output(&a.output)?;
     if !(a.theta_i >= 0.0 && a.theta_i < 90.0) {
         bail!("--theta-i must lie in [0, 90) degrees, got {}", a.theta_i);
     }
@@ -360,6 +361,7 @@ pub fn albedo_curve(m: &Material, samples: usize) -> Vec<(f64, f64)> {
 }
 
 fn albedo(a: AlbedoArgs) -> Result<()> {
+    isolux_io::check_output(&a.output)?;
     let mats = materials(&a.scene, &a.materials)?;
     let curves: Vec<Curve> = mats
         .iter()
@@ -409,6 +411,7 @@ fn albedo(a: AlbedoArgs) -> Result<()> {
 }
 
 fn sphere(a: SphereArgs) -> Result<()> {
+    isolux_io::check_output(&a.output)?;
     if a.size == 0 || a.size > 8192 {
         bail!("--size must lie in 1..=8192");
     }

@@ -97,6 +97,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if !a.exposure.is_finite() {
         bail!("--exposure must be a finite number");
     }
+    isolux_io::check_output(&a.output)?;
     let mut scene = isolux_scene::load(&a.scene)?;
     if a.realtime {
         use isolux_render::realtime::{MAX_SPP, MIN_SPP};

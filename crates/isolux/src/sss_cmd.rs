@@ -69,6 +69,7 @@ pub fn run(a: SssArgs) -> Result<()> {
 }
 
 fn profile(a: ProfileArgs) -> Result<()> {
+    isolux_io::check_output(&a.output)?;
     let m = Medium::by_name(&a.medium).with_context(|| {
         format!(
             "unknown medium \"{}\" (valid: {})",

@@ -192,6 +192,7 @@ pub fn run_heightfield(a: HeightfieldArgs) -> Result<()> {
     if !ext.eq_ignore_ascii_case("exr") {
         bail!("{}: heightfields are written as .exr", g.output.display());
     }
+    isolux_io::check_output(&g.output)?;
     let kind = match g.kind {
         GenKind::Noise => Kind::Noise {
             rms_um: g.rms_um,
@@ -259,6 +260,7 @@ fn parse_raw_size(s: &str) -> Result<(usize, usize)> {
 }
 
 fn brdf(b: BrdfArgs) -> Result<()> {
+    isolux_io::check_output(&b.output)?;
     if b.center_um.len() != 2 || b.center_um.iter().any(|v| !v.is_finite()) {
         bail!("--center-um needs two finite numbers X,Y");
     }

@@ -150,6 +150,12 @@ fn usage_errors_are_clear() {
             vec!["render", "/missing.toml", "-o", "x.png"],
             "/missing.toml: cannot read scene file",
         ),
+        // An output that cannot be written fails before the render.
+        (
+            vec!["render", s, "-o", "no/such/dir/x.png", "--spp", "100000"],
+            "no/such/dir/x.png: cannot write here: the directory no/such/dir does not exist",
+        ),
+        (vec!["render", s, "-o", "."], "unknown output format"),
     ] {
         let st = isolux()
             .args(&args)
