@@ -749,3 +749,71 @@ fn crossing_within_rounding_of_a_breakpoint() {
         "{ours:?} vs reference {want}"
     );
 }
+
+/// The scale the scene loader allows (`MAX_EXTENT`, 1e7 units across the
+/// camera and every bounded object, so no ray origin lies farther than
+/// its diagonal, 1.74e7, from an object): spheres of radius 1e-3 to 1e7
+/// are found from every distance up to that, from outside and inside, at
+/// the distance that a cancellation-free closed form gives. (Beyond about
+/// 3e7 units the closed form treats the quadratic as linear and misses:
+/// docs/geometry.md, "Scene scale".)
+#[test]
+fn spheres_are_found_across_the_scene_extent() {
+    let diagonal = 1.0e7 * 3f64.sqrt();
+    let mut rng = Pcg32::new(11, 3);
+    for r in [1e-3, 1.0, 1e3, 1e7] {
+        let obj = Object::new(Quadric::sphere(DVec3::ZERO, r), vec![], None).unwrap();
+        for d in [2.0 * r, 1e3, 1e6, diagonal] {
+            // A sphere under a millionth of a radian across is lost to
+            // that cancellation (its discriminant's terms agree to 1e-12
+            // and more): nearer than 1e6 radii only.
+            if d <= r || d > 1e6 * r {
+                continue;
+            }
+            for _ in 0..8 {
+                // From distance d, aimed at a point within r/2 of the
+                // centre, in a random direction.
+                let at = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]) * d;
+                let aim = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]) * (0.5 * r);
+                let dir = (aim - at).normalize();
+                let ray = Ray::new(at, dir);
+                // Independent: the nearer root of |at + t dir|^2 = r^2 in
+                // the cancellation-free form (b' = at.dir, the offset of
+                // the line from the centre h^2 = |at|^2 - b'^2).
+                let b = at.dot(dir);
+                let h2 = (at - b * dir).length_squared();
+                let want = -b - (r * r - h2).sqrt();
+                let hit = obj
+                    .intersect(&ray, 0.0, f64::INFINITY)
+                    .unwrap_or_else(|| panic!("r {r:e}, d {d:e}: missed"));
+                // The power basis loses digits to cancellation as the
+                // sphere shrinks in view: its discriminant's two terms
+                // agree to about (r / d)^2, so t carries an error of
+                // about eps d^2 / r (1e-4 of the radius at d / r = 1e6).
+                let tol = 1e-9 * (r + d) + 4.0 * f64::EPSILON * d * d / r;
+                assert!(
+                    (hit.t - want).abs() <= tol,
+                    "r {r:e}, d {d:e}: t {} want {want}",
+                    hit.t
+                );
+            }
+        }
+        // From inside, at a random point within r/2 of the centre: the
+        // far root.
+        for _ in 0..8 {
+            let at = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]) * (0.5 * r);
+            let dir = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
+            let b = at.dot(dir);
+            let h2 = (at - b * dir).length_squared();
+            let want = -b + (r * r - h2).sqrt();
+            let hit = obj
+                .intersect(&Ray::new(at, dir), 0.0, f64::INFINITY)
+                .unwrap_or_else(|| panic!("r {r:e}: missed from inside"));
+            assert!(
+                (hit.t - want).abs() <= 1e-9 * r,
+                "r {r:e}: t {} want {want}",
+                hit.t
+            );
+        }
+    }
+}

@@ -109,9 +109,29 @@ pub fn parse_str(
         }
     }
     let mut objects = Vec::new();
+    // The box holding the camera and every bounded object so far.
+    let mut extent = Aabb {
+        min: scene.camera.position,
+        max: scene.camera.position,
+    };
     if let Some(v) = t.get("object") {
         for o in v.tables()? {
             let (obj, mat) = object(&o, &scene.material_names)?;
+            let b = obj.bbox();
+            if b.min.is_finite() && b.max.is_finite() {
+                extent = Aabb {
+                    min: extent.min.min(b.min),
+                    max: extent.max.max(b.max),
+                };
+                let size = (extent.max - extent.min).max_element();
+                if size > MAX_EXTENT {
+                    return Err(o.error(format!(
+                        "the scene reaches {size:.3e} units across with this object (camera \
+                         included); the exact intersection holds to {MAX_EXTENT:e} \
+                         (docs/geometry.md, \"Scene scale\"): choose a larger unit"
+                    )));
+                }
+            }
             objects.push(obj);
             scene.object_material.push(mat);
         }
@@ -119,6 +139,16 @@ pub fn parse_str(
     scene.geometry = Aggregate::new(objects);
     Ok(scene)
 }
+
+/// The largest side of the box that holds the camera and every bounded
+/// object. The closed form of a quadric along a ray treats its t^2
+/// coefficient as zero below 1e-15 of its other coefficients; for a
+/// sphere from a point at distance D that ratio is 1 / D^2 (in the
+/// sphere's normalization, whatever its radius), so rays lose spheres
+/// from about 3e7 units away (docs/geometry.md, "Scene scale"). A scene
+/// that large is refused with its object's line rather than rendered
+/// with objects missing.
+pub(crate) const MAX_EXTENT: f64 = 1.0e7;
 
 /// Parses one material from TOML text holding its keys at the top level
 /// (`name = "gold"`, `type = "ggx"`, ...), as `[[material]]` would in a
