@@ -24,7 +24,9 @@
 pub mod layout;
 mod render;
 
-pub use render::{replace_unsupported, unsupported_material, GpuFrame};
+pub use render::{
+    f32_shortfall, replace_unsupported, unsupported_material, GpuFrame, MAX_SCALE_RATIO,
+};
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
 
@@ -484,6 +486,10 @@ pub enum GpuError {
     /// Invalid camera or film.
     #[error("{0}")]
     Setup(String),
+    /// The scene's coordinates are beyond what the GPU's f32 buffers
+    /// resolve for its smallest object ([`f32_shortfall`]).
+    #[error("{0}")]
+    Precision(String),
     /// Scene data larger than the adapter can bind in one storage buffer.
     #[error("{what} takes {}, more than this adapter binds in one storage buffer ({}){hint}", size(*.bytes), size(*.limit))]
     TooLarge {

@@ -192,6 +192,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 gpu.adapter
             );
         }
+        if let Some(why) = isolux_gpu::f32_shortfall(&scene) {
+            bail!("--gpu: {why}");
+        }
         start = Instant::now();
         if a.realtime {
             gpu.render_realtime_with_aov(&scene, a.aov)

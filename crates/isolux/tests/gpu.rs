@@ -183,3 +183,54 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         assert!((ratio - one / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
     }
 }
+
+/// A scene too far from the origin for the size of its objects in the
+/// GPU's f32 (`isolux_gpu::f32_shortfall`) is refused by `--gpu` with the
+/// reason and no image, and renders on the CPU.
+#[test]
+fn render_gpu_refuses_a_scene_beyond_f32() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("far.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[camera]
+position = [5000, 1, 5]
+look_at = [5000, 0, 0]
+fov_y = 40
+
+[film]
+width = 16
+height = 12
+spp = 1
+
+[[material]]
+name = "m"
+type = "diffuse"
+reflectance = [0.7, 0.7, 0.7]
+
+[[object]]
+material = "m"
+base = { type = "sphere", center = [5000, 0, 0], radius = 1 }
+"#,
+    )
+    .unwrap();
+    let out = dir.path().join("far.png");
+    let s = scene.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let r = run(&["render", s, "--gpu", "-o", o]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        return;
+    }
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--gpu: object[0] reaches 5.0010e3 units from the origin")
+            && err.contains("render without --gpu"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let r = run(&["render", s, "--quiet", "-o", o]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(out.exists());
+}

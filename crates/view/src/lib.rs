@@ -112,6 +112,9 @@ pub fn run(opts: Options) -> anyhow::Result<()> {
              show it (docs/gpu.md lists the models that do; `isolux render` renders it on the CPU)"
         );
     }
+    if let Some(why) = isolux_gpu::f32_shortfall(&state.scene) {
+        bail!("{why}");
+    }
     check_display()?;
     #[allow(unused_mut)]
     let mut builder = EventLoop::builder();
