@@ -6,7 +6,9 @@
 #      gallery at 1920 x 1080 (real-time 4 spp, path traced 16 spp, direct
 #      light; the specialized and the general kernels, f32 and f64, the
 #      megakernel and the wavefront path tracer, a frame's samples in one
-#      dispatch and one dispatch each, and the CPU on all cores);
+#      dispatch and one dispatch each, and the CPU on all cores), then
+#      the same geometry with every material diffuse (a control: what the
+#      material library costs);
 #   2. the conformance suite (its f64 assertion failed on the H100 at
 #      b93c7db), the material, real-time and AOV tests;
 #   3. the whole-image tests, the ignored ones included;
@@ -63,9 +65,11 @@ step() {
 
 size=(--width 1920 --height 1080)
 repeat=(--repeat 10)
+few=(--repeat 5)
 if [ "${QUICK:-0}" = 1 ]; then
     size=(--width 64 --height 36)
     repeat=(--repeat 1)
+    few=(--repeat 1)
 fi
 # Warm the GPU first: a freshly started machine reads its first minutes'
 # real-time frames 3-5x slow (benchmarks.md, 2026-11-24).
@@ -82,6 +86,9 @@ if [ -x "$bin/isolux-baseline" ] && [ "${QUICK:-0}" != 1 ]; then
     done
 fi
 step 230 "$bin/isolux" bench gpu --general --f64 --wavefront --per-sample "${size[@]}" "${repeat[@]}"
+# The gallery's geometry with every material diffuse (examples/bench): how
+# much of the frame the material library costs on this GPU.
+step 60 "$bin/isolux" bench gpu examples/bench/gallery-diffuse.toml --skip-cpu "${size[@]}" "${few[@]}"
 step 45 "$bin/conformance" --nocapture
 if [ "${QUICK:-0}" != 1 ]; then
     step 60 "$bin/materials"

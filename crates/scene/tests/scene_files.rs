@@ -246,16 +246,39 @@ fn defaults_fill_a_minimal_scene() {
 
 #[test]
 fn every_example_scene_loads() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     let mut n = 0;
-    for e in std::fs::read_dir(&dir).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().is_some_and(|x| x == "toml") {
-            isolux_scene::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-            n += 1;
+    for dir in ["scenes", "bench"] {
+        for e in std::fs::read_dir(root.join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "toml") {
+                isolux_scene::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                n += 1;
+            }
         }
     }
-    assert!(n >= 2);
+    assert!(n >= 3);
+}
+
+/// The benchmark's control scene (examples/bench/gallery-diffuse.toml)
+/// is the gallery with every material diffuse: the same objects, in the
+/// same order with the same materials' names, camera, lights and film.
+#[test]
+fn the_diffuse_gallery_keeps_the_gallerys_geometry() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    let g = isolux_scene::load(&root.join("scenes/gallery.toml")).unwrap();
+    let d = isolux_scene::load(&root.join("bench/gallery-diffuse.toml")).unwrap();
+    assert_eq!(g.material_names, d.material_names);
+    assert_eq!(g.object_material, d.object_material);
+    assert!(d.materials.iter().all(|m| m.type_name() == "diffuse"));
+    assert_eq!(format!("{:?}", g.camera), format!("{:?}", d.camera));
+    assert_eq!(format!("{:?}", g.lights), format!("{:?}", d.lights));
+    assert_eq!(g.film.width, d.film.width);
+    let (go, dobj) = (g.geometry.objects(), d.geometry.objects());
+    assert_eq!(go.len(), dobj.len());
+    for (a, b) in go.iter().zip(dobj) {
+        assert_eq!(format!("{:?}", a.bbox()), format!("{:?}", b.bbox()));
+    }
 }
 
 #[test]
