@@ -86,51 +86,44 @@ struct Wavefront {
     padded: u32,
 }
 
-/// The largest ratio of the bounded objects' farthest coordinate to the
-/// smallest bounded object's size that the GPU accepts (its buffers hold
-/// f32, whose spacing at a coordinate M is M 2^-23; the quadric's
-/// coefficients, expanded about the origin, lose as much). Measured on
-/// lavapipe (2026-12-02; a sphere of radius 1 with a bump, 2.3 units
-/// across, on a sphere of radius 100, the whole scene moved T units along
-/// x, 96 x 64, 16 spp; the mean difference of 8 x 8 block means, GPU
-/// against CPU, over the CPU's own between two seeds, as the image tests
-/// measure noise): T = 0 to 200 (ratio up to 130) 1.14-1.18, 300 (174)
-/// 1.36, 500 (260) 1.48, 736 (380) 2.1; per 8-bit pixel the GPU left the
-/// CPU's noise from T = 1000 and was far off at 1e5 (a third of the
-/// image's mean). The example scenes' ratios are 0.5 to 27 (the gallery).
-pub const MAX_SCALE_RATIO: f64 = 150.0;
+/// The largest ratio of a bounded object's distance from the origin (the
+/// farthest coordinate of its box) to its size (its box's longest side)
+/// that the GPU accepts: its buffers hold f32, whose spacing at a
+/// coordinate M is M 2^-23, and a quadric's coefficients, expanded about
+/// the origin, lose as much. Measured on lavapipe (2026-12-02; a sphere
+/// of radius 1 with a bump, 2.2 units across, on a sphere of radius 100,
+/// the whole scene moved T units along x, 96 x 64, 16 spp; the mean
+/// difference of 8 x 8 block means, GPU against CPU, over the CPU's own
+/// between two seeds, as the image tests measure noise; the small
+/// sphere's ratio in brackets): T = 0 to 200 (91) 1.14-1.18, 300 (137)
+/// 1.36, 500 (228) 1.48, 736 (335) 2.1; per 8-bit pixel the GPU left the
+/// CPU's noise from T = 1000 and was a third of the image's mean off at
+/// T = 1e5. The example scenes' largest ratios are 0.5 to 2.7.
+pub const MAX_SCALE_RATIO: f64 = 100.0;
 
-/// Why f32 cannot hold `scene` on the GPU, if it cannot: its bounded
-/// objects lie too far from the origin for the size of the smallest of
-/// them ([`MAX_SCALE_RATIO`]). The message names that object and the
-/// farthest one, and what to do.
+/// Why f32 cannot hold `scene` on the GPU, if it cannot: a bounded object
+/// lies farther from the origin than [`MAX_SCALE_RATIO`] times its own
+/// size. The message names the object with the largest ratio, and what
+/// to do. (A large object far out, a floor, is no obstacle to small ones
+/// near the origin: each is weighed against its own size.)
 pub fn f32_shortfall(scene: &Scene) -> Option<String> {
-    let mut far: Option<(usize, f64)> = None;
-    let mut small: Option<(usize, f64)> = None;
+    let mut worst: Option<(usize, f64, f64, f64)> = None;
     for (i, o) in scene.geometry.objects().iter().enumerate() {
         let b = o.bbox();
         if !(b.min.is_finite() && b.max.is_finite()) {
             continue;
         }
-        let m = b.min.abs().max(b.max.abs()).max_element();
+        let reach = b.min.abs().max(b.max.abs()).max_element();
         let size = (b.max - b.min).max_element();
-        if far.is_none_or(|(_, v)| m > v) {
-            far = Some((i, m));
-        }
-        if small.is_none_or(|(_, v)| size < v) {
-            small = Some((i, size));
+        let ratio = reach / size.max(f64::MIN_POSITIVE);
+        if worst.is_none_or(|(.., r)| ratio > r) {
+            worst = Some((i, reach, size, ratio));
         }
     }
-    let ((fi, m), (si, size)) = (far?, small?);
-    let ratio = m / size.max(f64::MIN_POSITIVE);
+    let (i, reach, size, ratio) = worst?;
     (ratio > MAX_SCALE_RATIO).then(|| {
-        let small = if si == fi {
-            String::new()
-        } else {
-            format!(" object[{si}]")
-        };
         format!(
-            "object[{fi}] reaches {m:.4e} units from the origin and{small} is {size:.4e} across: \
+            "object[{i}] is {size:.4e} units across and reaches {reach:.4e} from the origin: \
              {ratio:.0} times its size, more than the GPU's f32 coordinates resolve \
              ({MAX_SCALE_RATIO}; docs/gpu.md, \"Precision\"): move the scene nearer the origin, \
              or render without --gpu"

@@ -225,8 +225,9 @@ base = { type = "sphere", center = [5000, 0, 0], radius = 1 }
     }
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("--gpu: object[0] reaches 5.0010e3 units from the origin")
-            && err.contains("render without --gpu"),
+        err.contains(
+            "--gpu: object[0] is 2.0000e0 units across and reaches 5.0010e3 from the origin"
+        ) && err.contains("render without --gpu"),
         "{err}"
     );
     assert!(!out.exists());
