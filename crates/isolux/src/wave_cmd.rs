@@ -193,6 +193,19 @@ pub fn run_heightfield(a: HeightfieldArgs) -> Result<()> {
         bail!("{}: heightfields are written as .exr", g.output.display());
     }
     isolux_io::check_output(&g.output)?;
+    let height = g.height.unwrap_or(g.width);
+    for (flag, v) in [("--width", g.width), ("--height", height)] {
+        if v == 0 {
+            bail!("{flag} must be at least 1 texel");
+        }
+    }
+    let max = isolux_wave::heightfield::MAX_TEXELS;
+    if g.width.saturating_mul(height) > max {
+        bail!(
+            "--width x --height: {} x {height} texels, more than the {max} a heightfield may hold",
+            g.width
+        );
+    }
     let kind = match g.kind {
         GenKind::Noise => Kind::Noise {
             rms_um: g.rms_um,
@@ -219,13 +232,7 @@ pub fn run_heightfield(a: HeightfieldArgs) -> Result<()> {
         },
     };
     let t = Instant::now();
-    let h = generate(
-        &kind,
-        g.width,
-        g.height.unwrap_or(g.width),
-        g.texel_um,
-        g.seed,
-    )?;
+    let h = generate(&kind, g.width, height, g.texel_um, g.seed)?;
     h.write_exr(&g.output)?;
     eprintln!(
         "wrote {} ({} x {} texels of {} um, RMS height {:.4} um) in {:.2} s",

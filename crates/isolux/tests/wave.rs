@@ -87,6 +87,34 @@ fn heightfield_gen_writes_an_exr_with_its_texel_size() {
     ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(!bad.exists());
+    // Sizes: named by their flags, nothing written.
+    let out = dir.path().join("z.exr");
+    for (size, want) in [
+        (&["--width", "0"][..], "--width must be at least 1 texel"),
+        (
+            &["--width", "8", "--height", "0"][..],
+            "--height must be at least 1 texel",
+        ),
+        (
+            &["--width", "100000"][..],
+            "--width x --height: 100000 x 100000 texels, more than the 268435456",
+        ),
+    ] {
+        let mut args = vec![
+            "heightfield",
+            "gen",
+            "--kind",
+            "noise",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(size);
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{size:?}: {err}");
+        assert!(err.contains(want), "{size:?}: {err}");
+        assert!(!out.exists());
+    }
 }
 
 #[test]
