@@ -41,22 +41,31 @@ pub struct GpuPerturbation {
     pub factor: [f32; 4],
 }
 
-/// An object: base quadric, bounding box, and its range of perturbations.
+/// An object: base quadric, bounding box, and its range of perturbations,
+/// all in the object's own frame: world coordinates less `origin` (the
+/// centre of its box, rounded to f32; the world origin for an unbounded
+/// object). f32 quadric coefficients expanded about the world origin lose
+/// about `M^2 2^-24` at distance `M` from it, and an object far from the
+/// origin for its size came out visibly wrong (docs/gpu.md,
+/// "Precision"); about its own centre they hold its size's precision.
 /// WGSL: `struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>,
-/// range: vec4<u32> }` (`range.x` first perturbation, `range.y` count,
-/// `range.z` material, `range.w` the root of its perturbations' hierarchy
-/// in [`GpuScene::nodes`], [`NO_NODE`] when it has none).
+/// range: vec4<u32>, origin: vec4<f32> }` (`range.x` first perturbation,
+/// `range.y` count, `range.z` material, `range.w` the root of its
+/// perturbations' hierarchy in [`GpuScene::nodes`], [`NO_NODE`] when it
+/// has none).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuObject {
-    /// Base quadric `F`.
+    /// Base quadric `F`, in the object's frame.
     pub base: GpuQuadric,
-    /// Box minimum (`w` unused).
+    /// Box minimum in the object's frame (`w` unused).
     pub bmin: [f32; 4],
-    /// Box maximum (`w` unused).
+    /// Box maximum in the object's frame (`w` unused).
     pub bmax: [f32; 4],
     /// `[first perturbation, count, material index, hierarchy root]`.
     pub range: [u32; 4],
+    /// The object's frame: its origin in world coordinates (`w` unused).
+    pub origin: [f32; 4],
 }
 
 /// `GpuObject.range.w` of an object without perturbations.
@@ -128,6 +137,23 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
     )
 }
 
+/// The origin of an object's frame (`GpuObject::origin`): the centre of
+/// its box `b`, rounded to f32 (the kernels subtract that f32 value, so the
+/// quadrics are moved by exactly it), or the world origin when the box is
+/// unbounded.
+fn object_origin(b: &Aabb) -> DVec3 {
+    if !(b.min.is_finite() && b.max.is_finite()) {
+        return DVec3::ZERO;
+    }
+    let c = 0.5 * (b.min + b.max);
+    DVec3::new(c.x as f32 as f64, c.y as f32 as f64, c.z as f32 as f64)
+}
+
+/// `b` moved by `v` (an unbounded side stays unbounded).
+fn translated_box(b: &Aabb, v: DVec3) -> Aabb {
+    Aabb::new(b.min + v, b.max + v)
+}
+
 /// `b` as the kernels see it: clamped and rounded to f32, back in f64 (the
 /// boxes the hierarchies are built over).
 fn uploaded_box(b: &Aabb) -> Aabb {
@@ -194,16 +220,23 @@ impl GpuScene {
         }
         for (o, &mi) in objects.iter().zip(material) {
             let first = s.perturbations.len() as u32;
-            let bbox = o.bbox();
+            // Everything of the object in its own frame (`GpuObject`).
+            let origin = object_origin(&o.bbox());
+            let local = glam::DMat4::from_translation(-origin);
+            let bbox = translated_box(&o.bbox(), -origin);
             // Supports clipped to the object's box.
             let mut live = Vec::new();
             let mut pboxes = Vec::new();
             for (i, p) in o.perturbations().iter().enumerate() {
+                let p = isolux_geometry::Perturbation {
+                    quadric: p.quadric.transformed(&local),
+                    factor: p.factor,
+                };
                 s.perturbations.push(GpuPerturbation {
                     q: GpuQuadric::new(&p.quadric),
                     factor: [p.factor as f32, 0.0, 0.0, 0.0],
                 });
-                let b = support_box(p, &bbox);
+                let b = support_box(&p, &bbox);
                 if !b.is_empty() {
                     live.push(first + i as u32);
                     pboxes.push(uploaded_box(&b));
@@ -216,10 +249,11 @@ impl GpuScene {
             };
             let (bmin, bmax) = clamp_box(&bbox);
             s.objects.push(GpuObject {
-                base: GpuQuadric::new(o.base()),
+                base: GpuQuadric::new(&o.base().transformed(&local)),
                 bmin,
                 bmax,
                 range: [first, o.perturbations().len() as u32, mi as u32, root],
+                origin: [origin.x as f32, origin.y as f32, origin.z as f32, 0.0],
             });
         }
         s
@@ -1120,10 +1154,10 @@ mod tests {
     #[test]
     fn sizes_match_the_wgsl_declarations() {
         // Quadric: 3 vec4 = 48 bytes; Perturbation: Quadric + vec4 = 64;
-        // Object: Quadric + 3 vec4 = 96; Ray: 2 vec4 = 32; hit: vec4 = 16.
+        // Object: Quadric + 4 vec4 = 112; Ray: 2 vec4 = 32; hit: vec4 = 16.
         assert_eq!(std::mem::size_of::<GpuQuadric>(), 48);
         assert_eq!(std::mem::size_of::<GpuPerturbation>(), 64);
-        assert_eq!(std::mem::size_of::<GpuObject>(), 96);
+        assert_eq!(std::mem::size_of::<GpuObject>(), 112);
         assert_eq!(std::mem::size_of::<GpuBvhNode>(), 48);
         assert_eq!(std::mem::size_of::<GpuRay>(), 32);
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);

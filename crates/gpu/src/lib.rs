@@ -48,10 +48,18 @@ pub const NO_ROOT: f32 = 3.0e38;
 pub const MIN_WIDTH: f32 = 1.0 / 4096.0;
 /// Cap on subdivision steps per segment.
 pub const MAX_SUBDIVISIONS: i32 = 4096;
-/// Rays leaving a surface start `SPAWN_OFFSET (1 + |p|_inf)` off it along
-/// the normal (the CPU's f64 path uses 1e-7; f32 hit points are good to
-/// about 1e-6 relative, so the margin is wider).
+/// Rays leaving a surface start `SPAWN_OFFSET + SPAWN_OFFSET_WORLD
+/// |p|_inf` off it along the normal (the CPU's f64 path uses `1e-7 (1 +
+/// |p|_inf)`). The intersection works in each object's frame
+/// (`layout::GpuObject`), so a hit is good to about 1e-7 of its object's
+/// size there; the world point `p` adds its own f32 rounding, about
+/// `6e-8 |p|`, which the second term covers 16 times over. (Until
+/// 2026-12-02 the margin was `1e-4 (1 + |p|_inf)`: 0.1 units at 1000 units
+/// from the origin, which lost the contact shadows of small objects
+/// there; docs/gpu.md, "Precision".)
 pub const SPAWN_OFFSET: f32 = 1e-4;
+/// See [`SPAWN_OFFSET`].
+pub const SPAWN_OFFSET_WORLD: f32 = 1e-6;
 /// Perturbations a ray keeps per object after culling (those active on its
 /// span); a ray that meets more uses all of the object's perturbations.
 pub const MAX_CANDIDATES: u32 = 32;
@@ -95,6 +103,7 @@ pub fn prelude() -> String {
          const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
          const NO_NODE: u32 = {}u;\n\
          const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
+         const SPAWN_OFFSET_WORLD: f32 = {SPAWN_OFFSET_WORLD:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n\
          const LOD_BIAS: f32 = {:?};\n",

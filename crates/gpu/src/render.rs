@@ -88,22 +88,22 @@ struct Wavefront {
 
 /// The largest ratio of a bounded object's distance from the origin (the
 /// farthest coordinate of its box) to its size (its box's longest side)
-/// that the GPU accepts: its buffers hold f32, whose spacing at a
-/// coordinate M is M 2^-23, and a quadric's coefficients, expanded about
-/// the origin, lose as much. Measured on lavapipe (2026-12-02; a sphere
-/// of radius 1 with a bump, 2.2 units across, on a sphere of radius 100,
-/// the whole scene moved T units along x, 96 x 64, 16 spp; the mean
-/// difference of 8 x 8 block means, GPU against CPU, over the CPU's own
-/// between two seeds, as the image tests measure noise; the small
-/// sphere's ratio in brackets): T = 0 to 200 (91) 1.14-1.18, 300 (137)
-/// 1.36, 500 (228) 1.48, 736 (335) 2.1; per 8-bit pixel the GPU left the
-/// CPU's noise from T = 1000 and was a third of the image's mean off at
-/// T = 1e5. The example scenes' largest ratios are 0.5 to 2.7.
-pub const MAX_SCALE_RATIO: f64 = 100.0;
+/// that the GPU accepts. The intersection works in each object's frame
+/// (`layout::GpuObject`), but shading points, lights, the camera and
+/// spawned rays are world f32, whose spacing at a coordinate M is M 2^-23.
+/// Measured on lavapipe (2026-12-02; a sphere of radius 1 with a bump, 2.2
+/// units across, on a sphere of radius 100, camera and all moved T units
+/// along x, 96 x 64, 16 spp; the mean difference of 8 x 8 block means, GPU
+/// against CPU, over the CPU's own between two seeds, as the image tests
+/// measure noise; the small sphere's ratio in brackets): T = 0 to 1e4
+/// (4500) 1.13-1.14, 2e4 (9100) 1.21, 3e4 (13600) 1.32, 5e4 (22700) 1.62,
+/// 1e5 (45000) 2.8. (Before the object frames: 1.36 at T = 300, 35 at
+/// 1e4.) The example scenes' largest ratios are 0.5 to 2.7.
+pub const MAX_SCALE_RATIO: f64 = 1.0e4;
 
 /// Why f32 cannot hold `scene` on the GPU, if it cannot: a bounded object
 /// lies farther from the origin than [`MAX_SCALE_RATIO`] times its own
-/// size. The message names the object with the largest ratio, and what
+/// size (10 km from the origin for a 1 m object). The message names the object with the largest ratio, and what
 /// to do. (A large object far out, a floor, is no obstacle to small ones
 /// near the origin: each is weighed against its own size.)
 pub fn f32_shortfall(scene: &Scene) -> Option<String> {

@@ -125,11 +125,21 @@ fn intersection_matches_the_cpu() {
     let a = agreement(&gpu);
     a.report("f32");
     a.check();
+    // Each object is intersected in its own frame, from where the ray
+    // enters its box (geometry.wgsl `object_hit`). Measured on lavapipe
+    // (Mesa 22.3, 2026-12-02): |dt| median 9.3e-8, 99th percentile
+    // 8.7e-7, 99.9th 3.1e-6, against 7.2e-7, 9.5e-6 and 2.8e-5 with the
+    // quadrics expanded about the world origin and the ray from its own
+    // origin; the bounds leave about three times the margin.
+    assert!(a.quantile(0.5) < 3e-7, "median {}", a.quantile(0.5));
+    assert!(a.quantile(0.99) < 3e-6, "99th {}", a.quantile(0.99));
+    assert!(a.quantile(0.999) < 1e-5, "99.9th {}", a.quantile(0.999));
 }
 
 /// The f64 variant of the intersection (`Precision::F64`), where the
 /// adapter offers it (lavapipe does), against the same CPU reference: the
-/// same tolerances, and its errors no larger than f32's. Both kernels read
+/// same tolerances, and its errors no larger than f32's (half of them in
+/// the tail). Both kernels read
 /// the scene and rays in f32, so the CPU intersects the f32-rounded rays
 /// and neither can beat the f32 rounding of the quadrics (~1e-7).
 #[test]
@@ -163,9 +173,14 @@ fn f64_intersection_matches_the_cpu() {
         "f64: t within 1e-3 on {:.3}% of the common hits",
         Agreement::pct(double.t_ok, double.both)
     );
-    assert!(double.quantile(0.5) < 0.25 * single.quantile(0.5));
-    assert!(double.quantile(0.99) < 0.25 * single.quantile(0.99));
-    assert!(double.quantile(0.999) < 0.25 * single.quantile(0.999));
+    // Since each object is intersected in its own frame (2026-12-02) f32
+    // sits near the floor both share, the f32 rounding of the quadrics and
+    // rays: lavapipe, f64 against f32, median 6.1e-8 against 9.3e-8, 99th
+    // percentile 2.1e-7 against 8.7e-7, 99.9th 4.5e-7 against 3.1e-6. So
+    // f64 is no worse at the median and at most half of f32 in the tail.
+    assert!(double.quantile(0.5) <= single.quantile(0.5));
+    assert!(double.quantile(0.99) < 0.5 * single.quantile(0.99));
+    assert!(double.quantile(0.999) < 0.5 * single.quantile(0.999));
 }
 
 fn agreement(gpu: &isolux_gpu::Gpu) -> Agreement {

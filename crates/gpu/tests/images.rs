@@ -732,16 +732,18 @@ fn moved_scene(shift: f64) -> Scene {
     scene
 }
 
-/// The GPU holds coordinates in f32 (docs/gpu.md, "Precision"), so an
-/// object far from the origin for its size loses detail there;
-/// `f32_shortfall` refuses a scene with one beyond `MAX_SCALE_RATIO`,
-/// measured where the GPU's image leaves the CPU's noise. Just inside the
-/// limit the GPU still renders the CPU's image within noise (block
-/// differences at most 1.5 times the CPU's own between seeds, as the
-/// gallery's; 1.2 measured at this ratio, 2.1 at 3.4 times it, where a
-/// limit of 335 would have let it through); just beyond, `--gpu` refuses
-/// it, naming the small sphere. The large sphere alone (100 units
-/// across) could go much farther.
+/// The GPU intersects each object in its own frame, but shading points,
+/// lights, the camera and spawned rays are world f32 (docs/gpu.md,
+/// "Precision"), so an object far from the origin for its size loses
+/// detail there; `f32_shortfall` refuses a scene with one beyond
+/// `MAX_SCALE_RATIO`, measured where the GPU's image leaves the CPU's
+/// noise. Just inside the limit (about 21,000 units out) the GPU still
+/// renders the CPU's image within noise (block differences at most 1.5
+/// times the CPU's own between seeds, as the gallery's; 1.2 measured
+/// there; without the object frames 35 at 10,000 units, and 2.8 with them
+/// at a limit five times this one); just beyond, `--gpu` refuses it,
+/// naming the small sphere. The large sphere alone (200 units across)
+/// could go 100 times farther.
 #[test]
 fn scenes_far_from_the_origin_render_up_to_the_f32_limit_and_are_refused_beyond() {
     // The small object is 2.2 units across (its bump reaches 1.2 above

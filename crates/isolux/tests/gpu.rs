@@ -195,8 +195,8 @@ fn render_gpu_refuses_a_scene_beyond_f32() {
         &scene,
         r#"
 [camera]
-position = [5000, 1, 5]
-look_at = [5000, 0, 0]
+position = [500000, 1, 5]
+look_at = [500000, 0, 0]
 fov_y = 40
 
 [film]
@@ -211,7 +211,7 @@ reflectance = [0.7, 0.7, 0.7]
 
 [[object]]
 material = "m"
-base = { type = "sphere", center = [5000, 0, 0], radius = 1 }
+base = { type = "sphere", center = [500000, 0, 0], radius = 1 }
 "#,
     )
     .unwrap();
@@ -226,7 +226,7 @@ base = { type = "sphere", center = [5000, 0, 0], radius = 1 }
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(
         err.contains(
-            "--gpu: object[0] is 2.0000e0 units across and reaches 5.0010e3 from the origin"
+            "--gpu: object[0] is 2.0000e0 units across and reaches 5.0000e5 from the origin"
         ) && err.contains("render without --gpu"),
         "{err}"
     );

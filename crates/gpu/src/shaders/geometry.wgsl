@@ -22,7 +22,9 @@
 
 struct Quadric { c: array<vec4<f32>, 3> }
 struct Perturbation { q: Quadric, factor: vec4<f32> }
-struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>, range: vec4<u32> }
+// An object's quadrics and box are in its own frame: world coordinates
+// less `origin` (layout.rs `GpuObject`).
+struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>, range: vec4<u32>, origin: vec4<f32> }
 struct Ray { o: vec4<f32>, d: vec4<f32> }
 // Depth-first BVH node (layout.rs `GpuBvhNode`): interior `link = (second
 // child, 0, _, _)`, the first child follows; leaf `link = (_, count,
@@ -395,12 +397,24 @@ fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack:
 // First hit of object `oi` on [t0, t1]: (t, outward normal), t < 0 if none.
 // With `any` (shadow rays), some hit on [t0, t1] if there is one, its
 // normal left unset (`first_root`).
-fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real, any: bool) -> vec4<real> {
+//
+// The ray is taken into the object's frame (`Object.origin`) and restarted
+// where it enters the object's box, so that every coefficient below is
+// computed near the object, at the object's own scale: a quadric along a
+// ray from far away is a difference of large terms (its value at the
+// origin, |o - c|^2 - r^2 for a sphere), which f32 resolves only to about
+// |o - c|^2 2^-24. Parameters `t` inside are from the entry point; the
+// answer is the world ray's.
+fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, any: bool) -> vec4<real> {
     let obj = objects[oi];
-    let span = clip_box(o, d, vec3<real>(obj.bmin.xyz), vec3<real>(obj.bmax.xyz), t0, t1);
-    if (!(span.x <= span.y)) {
+    let o_obj = o_world - vec3<real>(obj.origin.xyz);
+    let entry = clip_box(o_obj, d, vec3<real>(obj.bmin.xyz), vec3<real>(obj.bmax.xyz), t0, t1);
+    if (!(entry.x <= entry.y)) {
         return vec4<real>(MISS, 0.0, 0.0, 0.0);
     }
+    let shift = entry.x;
+    let o = o_obj + shift * d;
+    let span = vec2<real>(0.0, entry.y - shift);
     let first = obj.range.x;
     let count = obj.range.y;
     let base = q_along(obj.base, o, d);
@@ -541,7 +555,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real, any: bo
         if (s >= 0.0) {
             let t = a + s * l;
             if (any) {
-                return vec4<real>(t, 0.0, 0.0, 0.0);
+                return vec4<real>(shift + t, 0.0, 0.0, 0.0);
             }
             let x = o + t * d;
             var g = q_grad(obj.base, x);
@@ -563,7 +577,7 @@ fn object_hit(oi: u32, o: vec3<real>, d: vec3<real>, t0: real, t1: real, any: bo
             } else {
                 n = -normalize(d);
             }
-            return vec4<real>(t, n);
+            return vec4<real>(shift + t, n);
         }
         a = b;
     }

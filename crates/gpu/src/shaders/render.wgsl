@@ -118,11 +118,17 @@ fn occluded(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
     return scene_first_hit(o, d, 0.0, t_max, params.counts.x, true).x >= 0.0;
 }
 
-// The hit point moved off the surface along n to the side of w (f32: a
-// wider margin than the CPU's 1e-7).
-fn offset_origin(p: vec3<f32>, n: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+// How far a ray leaving the surface at p starts off it (lib.rs
+// `SPAWN_OFFSET`).
+fn spawn_offset(p: vec3<f32>) -> f32 {
     let a = abs(p);
-    let eps = SPAWN_OFFSET * (1.0 + max(a.x, max(a.y, a.z)));
+    return SPAWN_OFFSET + SPAWN_OFFSET_WORLD * max(a.x, max(a.y, a.z));
+}
+
+// The hit point moved off the surface along n to the side of w (f32: a
+// wider margin than the CPU's 1e-7; lib.rs `SPAWN_OFFSET`).
+fn offset_origin(p: vec3<f32>, n: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+    let eps = spawn_offset(p);
     return select(p - n * eps, p + n * eps, dot(w, n) >= 0.0);
 }
 
@@ -570,8 +576,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
         if (rand() * f32(k) < 1.0) {
             chosen = x;
         }
-        let q = abs(start + x.x * dir);
-        t0 = x.x + SPAWN_OFFSET * (1.0 + max(q.x, max(q.y, q.z)));
+        t0 = x.x + spawn_offset(start + x.x * dir);
     }
     if (k == 0u) {
         return false;
