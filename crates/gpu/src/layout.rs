@@ -139,7 +139,7 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
 
 /// The origin of an object's frame (`GpuObject::origin`): the centre of
 /// its box `b`, rounded to f32 (the kernels subtract that f32 value, so the
-/// quadrics are moved by exactly it), or the world origin when the box is
+/// quadrics are moved by exactly it), or the origin when the box is
 /// unbounded.
 fn object_origin(b: &Aabb) -> DVec3 {
     if !(b.min.is_finite() && b.max.is_finite()) {
@@ -213,17 +213,30 @@ impl GpuScene {
 
     /// Flattens `objects`, object `i` wearing material `material[i]`.
     pub fn with_materials(objects: &[Object], material: &[usize]) -> Self {
+        Self::with_materials_at(objects, material, DVec3::ZERO)
+    }
+
+    /// [`GpuScene::with_materials`] with the world moved by `-at`: what the
+    /// kernels call the origin is the world point `at` (the camera, for a
+    /// frame: `render::rebase_point`), so that f32 coordinates are finest
+    /// around it. `at` should be representable in f32.
+    pub fn with_materials_at(objects: &[Object], material: &[usize], at: DVec3) -> Self {
         let mut s = Self::default();
-        let boxes: Vec<Aabb> = objects.iter().map(|o| uploaded_box(&o.bbox())).collect();
+        let boxes: Vec<Aabb> = objects
+            .iter()
+            .map(|o| uploaded_box(&translated_box(&o.bbox(), -at)))
+            .collect();
         if !objects.is_empty() {
             push_bvh(&mut s.nodes, &boxes, |i| i);
         }
         for (o, &mi) in objects.iter().zip(material) {
             let first = s.perturbations.len() as u32;
-            // Everything of the object in its own frame (`GpuObject`).
-            let origin = object_origin(&o.bbox());
-            let local = glam::DMat4::from_translation(-origin);
-            let bbox = translated_box(&o.bbox(), -origin);
+            // Everything of the object in its own frame (`GpuObject`):
+            // `origin` from `at` as uploaded, the frame's world point
+            // `at + origin` exactly.
+            let origin = object_origin(&translated_box(&o.bbox(), -at));
+            let local = glam::DMat4::from_translation(-(at + origin));
+            let bbox = translated_box(&o.bbox(), -(at + origin));
             // Supports clipped to the object's box.
             let mut live = Vec::new();
             let mut pboxes = Vec::new();

@@ -86,34 +86,37 @@ struct Wavefront {
     padded: u32,
 }
 
-/// The largest ratio of a bounded object's distance from the origin (the
-/// farthest coordinate of its box) to its size (its box's longest side)
-/// that the GPU accepts. The intersection works in each object's frame
-/// (`layout::GpuObject`), but shading points, lights, the camera and
-/// spawned rays are world f32, whose spacing at a coordinate M is M 2^-23.
-/// Measured on lavapipe (2026-12-02; a sphere of radius 1 with a bump, 2.2
-/// units across, on a sphere of radius 100, camera and all moved T units
-/// along x, 96 x 64, 16 spp; the mean difference of 8 x 8 block means, GPU
-/// against CPU, over the CPU's own between two seeds, as the image tests
-/// measure noise; the small sphere's ratio in brackets): T = 0 to 1e4
-/// (4500) 1.13-1.14, 2e4 (9100) 1.21, 3e4 (13600) 1.32, 5e4 (22700) 1.62,
-/// 1e5 (45000) 2.8. (Before the object frames: 1.36 at T = 300, 35 at
-/// 1e4.) The example scenes' largest ratios are 0.5 to 2.7.
+/// The largest ratio of a bounded object's distance from the GPU's origin
+/// (the camera, [`rebase_point`]; the farthest coordinate of its box) to
+/// its size (its box's longest side) that the GPU accepts. Objects are
+/// intersected in their own frames (`layout::GpuObject`) and positions
+/// uploaded relative to the camera, but hit points, lights and spawned
+/// rays are f32, whose spacing at a coordinate M is M 2^-23. Measured on
+/// lavapipe (2026-12-02; a sphere of radius 1 with a bump, 2.2 units
+/// across, on a sphere of radius 100, the whole scene and the camera moved
+/// T units along x from the world origin, which the GPU took as its own;
+/// 96 x 64, 16 spp; the mean difference of 8 x 8 block means, GPU against
+/// CPU, over the CPU's own between two seeds, as the image tests measure
+/// noise; the small sphere's ratio in brackets): T = 0 to 1e4 (4500)
+/// 1.13-1.14, 2e4 (9100) 1.21, 3e4 (13600) 1.32, 5e4 (22700) 1.62, 1e5
+/// (45000) 2.8. The example scenes' largest ratios, from their cameras, are
+/// below 10.
 pub const MAX_SCALE_RATIO: f64 = 1.0e4;
 
 /// Why f32 cannot hold `scene` on the GPU, if it cannot: a bounded object
-/// lies farther from the origin than [`MAX_SCALE_RATIO`] times its own
-/// size (10 km from the origin for a 1 m object). The message names the object with the largest ratio, and what
+/// lies farther from the GPU's origin ([`rebase_point`], the camera) than
+/// [`MAX_SCALE_RATIO`] times its own size (10 km for a 1 m object). The message names the object with the largest ratio, and what
 /// to do. (A large object far out, a floor, is no obstacle to small ones
 /// near the origin: each is weighed against its own size.)
 pub fn f32_shortfall(scene: &Scene) -> Option<String> {
+    let at = rebase_point(scene);
     let mut worst: Option<(usize, f64, f64, f64)> = None;
     for (i, o) in scene.geometry.objects().iter().enumerate() {
         let b = o.bbox();
         if !(b.min.is_finite() && b.max.is_finite()) {
             continue;
         }
-        let reach = b.min.abs().max(b.max.abs()).max_element();
+        let reach = (b.min - at).abs().max((b.max - at).abs()).max_element();
         let size = (b.max - b.min).max_element();
         let ratio = reach / size.max(f64::MIN_POSITIVE);
         if worst.is_none_or(|(.., r)| ratio > r) {
@@ -122,13 +125,73 @@ pub fn f32_shortfall(scene: &Scene) -> Option<String> {
     }
     let (i, reach, size, ratio) = worst?;
     (ratio > MAX_SCALE_RATIO).then(|| {
+        let (from, fix) = if at == glam::DVec3::ZERO && scene.camera.position != at {
+            (
+                "the origin (a planar `wave` mapping keeps the GPU's origin there)",
+                "move the scene nearer the origin",
+            )
+        } else {
+            ("the camera", "bring the camera nearer it")
+        };
         format!(
-            "object[{i}] is {size:.4e} units across and reaches {reach:.4e} from the origin: \
+            "object[{i}] is {size:.4e} units across and reaches {reach:.4e} from {from}: \
              {ratio:.0} times its size, more than the GPU's f32 coordinates resolve \
-             ({MAX_SCALE_RATIO}; docs/gpu.md, \"Precision\"): move the scene nearer the origin, \
-             or render without --gpu"
+             ({MAX_SCALE_RATIO}; docs/gpu.md, \"Precision\"): {fix}, or render without --gpu"
         )
     })
+}
+
+/// The world point the GPU takes as its origin for `scene`: the camera
+/// (rounded to f32), so that f32 coordinates are finest where the image
+/// is seen from, whatever the scene's place in the world; the world
+/// origin when a material of the scene maps a `wave` heightfield by plain
+/// world coordinates (`Mapping::Planar`), which would move with it.
+/// Lights, the camera, the objects' frames and the `wave` mappings'
+/// centres are uploaded relative to it (`GpuScene::with_materials_at`).
+pub fn rebase_point(scene: &Scene) -> glam::DVec3 {
+    fn planar(m: &isolux_materials::Material) -> bool {
+        use isolux_materials::wave::Mapping;
+        match m {
+            isolux_materials::Material::Wave(w) => matches!(w.mapping, Mapping::Planar(_)),
+            isolux_materials::Material::Mix(x) => x.components.iter().any(|(c, _)| planar(c)),
+            _ => false,
+        }
+    }
+    if scene
+        .object_material
+        .iter()
+        .any(|&m| planar(&scene.materials[m]))
+    {
+        return glam::DVec3::ZERO;
+    }
+    let p = scene.camera.position;
+    glam::DVec3::new(p.x as f32 as f64, p.y as f32 as f64, p.z as f32 as f64)
+}
+
+/// `m` with its world positions (a `wave` mapping's centre) moved by
+/// `-at` ([`rebase_point`]).
+fn rebased_material(m: &isolux_materials::Material, at: glam::DVec3) -> isolux_materials::Material {
+    use isolux_materials::wave::Mapping;
+    use isolux_materials::Material as M;
+    match m {
+        M::Wave(w) => {
+            let mut w = w.clone();
+            w.mapping = match w.mapping {
+                Mapping::Spherical(c) => Mapping::Spherical(c - at),
+                Mapping::Cylindrical(c) => Mapping::Cylindrical(c - at),
+                planar => planar,
+            };
+            M::Wave(w)
+        }
+        M::Mix(x) => {
+            let mut x = x.clone();
+            for (c, _) in x.components.iter_mut() {
+                *c = rebased_material(c, at);
+            }
+            M::Mix(x)
+        }
+        other => other.clone(),
+    }
 }
 
 /// The first material used by an object of `scene` that has no GPU
@@ -205,6 +268,9 @@ pub struct GpuFrame {
     /// The real-time mode (each [`GpuFrame::run`] renders a whole frame)
     /// rather than the progressive path tracer.
     realtime: bool,
+    /// The world point the frame's buffers take as their origin
+    /// ([`rebase_point`]).
+    rebase: glam::DVec3,
     /// The optional code the kernels carry: by default what the scene
     /// needs ([`Features::of`]), more after [`GpuFrame::set_features`].
     features: Features,
@@ -392,13 +458,16 @@ impl Gpu {
             .map_err(GpuError::Setup)?
             .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+        // World positions go up relative to the camera (`rebase_point`).
+        let at = rebase_point(scene);
+        let origin = origin - at;
 
         // Unused materials may be unsupported (checked above for the used
         // ones): those become a black diffuse no object refers to.
         let used: Vec<_> = (0..scene.materials.len())
             .map(|i| {
                 if layout::supported(&scene.materials[i]) {
-                    scene.materials[i].clone()
+                    rebased_material(&scene.materials[i], at)
                 } else {
                     isolux_materials::Material::Diffuse(isolux_materials::Diffuse {
                         reflectance: Rgb::BLACK,
@@ -407,12 +476,12 @@ impl Gpu {
             })
             .collect();
         let materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
-        let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
+        let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
         let lights: Vec<GpuLight> = scene
             .lights
             .iter()
             .map(|l| GpuLight {
-                position: v4(l.position),
+                position: v4(l.position - at),
                 intensity: [
                     l.intensity.r as f32,
                     l.intensity.g as f32,
@@ -541,6 +610,7 @@ impl Gpu {
             .any(|m| m.tag[0] == layout::tag::SUBSURFACE && m.tag[3] == 1);
         Ok(GpuFrame {
             realtime,
+            rebase: at,
             features: needed,
             needed,
             bind,
@@ -1021,7 +1091,7 @@ impl GpuFrame {
             .map_err(GpuError::Setup)?
             .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        self.params.origin = v4(origin);
+        self.params.origin = v4(origin - self.rebase);
         self.params.forward = v4(forward);
         self.params.right = v4(right);
         self.params.up = v4(up);

@@ -691,7 +691,7 @@ fn lights_up_to_the_mask_and_beyond_shade_as_the_general_kernels() {
 
 /// A sphere of radius 1 with a bump, on a sphere of radius 100, lit by a
 /// point light and a constant sky, all moved `shift` units along x.
-fn moved_scene(shift: f64) -> Scene {
+fn moved_scene(shift: f64, with_camera: bool) -> Scene {
     use glam::DVec3;
     use isolux_core::Rgb;
     use isolux_geometry::{Aggregate, Object, Perturbation, Quadric};
@@ -708,7 +708,11 @@ fn moved_scene(shift: f64) -> Scene {
     ];
     let mut scene = Scene {
         camera: Camera {
-            position: at(0.0, 1.0, 5.0),
+            position: if with_camera {
+                at(0.0, 1.0, 5.0)
+            } else {
+                DVec3::new(0.0, 1.0, 5.0)
+            },
             look_at: at(0.0, 0.0, 0.0),
             up: DVec3::Y,
             fov_y: 40.0,
@@ -732,48 +736,59 @@ fn moved_scene(shift: f64) -> Scene {
     scene
 }
 
-/// The GPU intersects each object in its own frame, but shading points,
-/// lights, the camera and spawned rays are world f32 (docs/gpu.md,
-/// "Precision"), so an object far from the origin for its size loses
-/// detail there; `f32_shortfall` refuses a scene with one beyond
-/// `MAX_SCALE_RATIO`, measured where the GPU's image leaves the CPU's
-/// noise. Just inside the limit (about 21,000 units out) the GPU still
-/// renders the CPU's image within noise (block differences at most 1.5
-/// times the CPU's own between seeds, as the gallery's; 1.2 measured
-/// there; without the object frames 35 at 10,000 units, and 2.8 with them
-/// at a limit five times this one); just beyond, `--gpu` refuses it,
-/// naming the small sphere. The large sphere alone (200 units across)
-/// could go 100 times farther.
+/// The GPU takes the camera as its origin (`isolux_gpu::rebase_point`)
+/// and intersects each object in its own frame (docs/gpu.md,
+/// "Precision"), so a scene moved far from the world origin, camera
+/// included, renders as it does at the origin: moved 1e6 units, the GPU's
+/// image against the CPU's of the scene at the origin, within noise (block
+/// differences at most 1.5 times the CPU's own between seeds, as the
+/// gallery's; 1.13 measured, 35.9 with the world origin as the GPU's,
+/// and 3.07 for the CPU's own image there, whose spawn offset grows with
+/// the coordinates). What f32 still cannot hold is an object far from the
+/// camera for its size: the same objects moved just beyond
+/// `MAX_SCALE_RATIO` times the small sphere's size, the camera left at the
+/// origin, are refused, naming the small sphere.
 #[test]
-fn scenes_far_from_the_origin_render_up_to_the_f32_limit_and_are_refused_beyond() {
+fn scenes_far_from_the_origin_render_as_at_the_origin() {
+    let far = 1.0e6;
+    assert!(isolux_gpu::f32_shortfall(&moved_scene(far, true)).is_none());
     // The small object is 2.2 units across (its bump reaches 1.2 above
-    // its centre) and reaches shift + 1 from the origin, along x.
+    // its centre) and reaches shift + 1 along x.
     let (size, reach) = {
-        let s = moved_scene(0.0);
+        let s = moved_scene(0.0, true);
         let b = s.geometry.objects()[0].bbox();
         ((b.max - b.min).max_element(), b.max.x)
     };
     let inside = 0.95 * isolux_gpu::MAX_SCALE_RATIO * size - reach;
     let beyond = 1.05 * isolux_gpu::MAX_SCALE_RATIO * size - reach;
-    assert!(isolux_gpu::f32_shortfall(&moved_scene(inside)).is_none());
-    let why = isolux_gpu::f32_shortfall(&moved_scene(beyond)).expect("refused");
+    assert!(isolux_gpu::f32_shortfall(&moved_scene(inside, false)).is_none());
+    let why = isolux_gpu::f32_shortfall(&moved_scene(beyond, false)).expect("refused");
     assert!(why.starts_with("object[0] is 2.2"), "{why}");
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let mut scene = moved_scene(inside);
-    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, &format!("moved {inside:.0}"));
+    let mut at_origin = moved_scene(0.0, true);
+    let (diff, noise, mg, mc) = common::compare_with_cpu(
+        &mut at_origin,
+        |s| {
+            let mut moved = moved_scene(far, true);
+            moved.integrator.seed = s.integrator.seed;
+            gpu_image(&gpu, &moved)
+        },
+        cpu_image,
+        "moved 1e6 (GPU) against the origin (CPU)",
+    );
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.02 * mc, "{mg} vs {mc}");
-    match gpu.render(&moved_scene(beyond), &|_, _| {}) {
+    match gpu.render(&moved_scene(beyond, false), &|_, _| {}) {
         Err(isolux_gpu::GpuError::Precision(m)) => assert_eq!(m, why),
         other => panic!("moved {beyond:.0}: {:?}", other.map(|_| ())),
     }
 }
 
 /// Every example scene runs with `--gpu`: none is refused for f32's
-/// resolution (their largest object ratios are printed; docs/gpu.md
-/// "Precision" quotes them).
+/// resolution (their largest object ratios, from the GPU's origin, are
+/// printed; docs/gpu.md "Precision" quotes them).
 #[test]
 fn every_example_scene_fits_the_gpus_f32() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
@@ -784,13 +799,17 @@ fn every_example_scene_fits_the_gpus_f32() {
                 continue;
             }
             let scene = isolux_scene::load(&p).unwrap();
+            let at = isolux_gpu::rebase_point(&scene);
             let ratio = scene
                 .geometry
                 .objects()
                 .iter()
                 .map(|o| o.bbox())
                 .filter(|b| b.min.is_finite() && b.max.is_finite())
-                .map(|b| b.min.abs().max(b.max.abs()).max_element() / (b.max - b.min).max_element())
+                .map(|b| {
+                    (b.min - at).abs().max((b.max - at).abs()).max_element()
+                        / (b.max - b.min).max_element()
+                })
                 .fold(0.0, f64::max);
             eprintln!("{}: largest ratio {ratio:.2}", p.display());
             assert!(

@@ -184,9 +184,9 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
     }
 }
 
-/// A scene too far from the origin for the size of its objects in the
-/// GPU's f32 (`isolux_gpu::f32_shortfall`) is refused by `--gpu` with the
-/// reason and no image, and renders on the CPU.
+/// An object too far from the camera for its size in the GPU's f32
+/// (`isolux_gpu::f32_shortfall`) is refused by `--gpu` with the reason
+/// and no image, and renders on the CPU.
 #[test]
 fn render_gpu_refuses_a_scene_beyond_f32() {
     let dir = tempfile::tempdir().unwrap();
@@ -195,7 +195,7 @@ fn render_gpu_refuses_a_scene_beyond_f32() {
         &scene,
         r#"
 [camera]
-position = [500000, 1, 5]
+position = [0, 1, 5]
 look_at = [500000, 0, 0]
 fov_y = 40
 
@@ -226,7 +226,7 @@ base = { type = "sphere", center = [500000, 0, 0], radius = 1 }
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(
         err.contains(
-            "--gpu: object[0] is 2.0000e0 units across and reaches 5.0000e5 from the origin"
+            "--gpu: object[0] is 2.0000e0 units across and reaches 5.0000e5 from the camera"
         ) && err.contains("render without --gpu"),
         "{err}"
     );
