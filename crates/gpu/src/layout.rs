@@ -42,9 +42,9 @@ pub struct GpuPerturbation {
 }
 
 /// An object: base quadric, bounding box, and its range of perturbations,
-/// all in the object's own frame: world coordinates less `origin` (the
-/// centre of its box, rounded to f32; the world origin for an unbounded
-/// object). f32 quadric coefficients expanded about the world origin lose
+/// all in the object's own frame: the GPU's coordinates (world
+/// coordinates less the frame's `render::rebase_point`) less `origin` (the
+/// centre of its box there, rounded to f32; 0 for an unbounded object). f32 quadric coefficients expanded about the world origin lose
 /// about `M^2 2^-24` at distance `M` from it, and an object far from the
 /// origin for its size came out visibly wrong (docs/gpu.md,
 /// "Precision"); about its own centre they hold its size's precision.
@@ -64,7 +64,8 @@ pub struct GpuObject {
     pub bmax: [f32; 4],
     /// `[first perturbation, count, material index, hierarchy root]`.
     pub range: [u32; 4],
-    /// The object's frame: its origin in world coordinates (`w` unused).
+    /// The object's frame: its origin in the GPU's coordinates (`w`
+    /// unused).
     pub origin: [f32; 4],
 }
 
@@ -142,11 +143,15 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
 /// quadrics are moved by exactly it), or the origin when the box is
 /// unbounded.
 fn object_origin(b: &Aabb) -> DVec3 {
-    if !(b.min.is_finite() && b.max.is_finite()) {
+    if !b.is_finite() {
         return DVec3::ZERO;
     }
-    let c = 0.5 * (b.min + b.max);
-    DVec3::new(c.x as f32 as f64, c.y as f32 as f64, c.z as f32 as f64)
+    f32_exact(b.center())
+}
+
+/// `v` rounded to f32, back in f64: a point the kernels hold exactly.
+pub(crate) fn f32_exact(v: DVec3) -> DVec3 {
+    DVec3::new(v.x as f32 as f64, v.y as f32 as f64, v.z as f32 as f64)
 }
 
 /// `b` moved by `v` (an unbounded side stays unbounded).

@@ -25,8 +25,8 @@ pub mod layout;
 mod render;
 
 pub use render::{
-    f32_shortfall, rebase_point, replace_unsupported, unsupported_material, GpuFrame,
-    MAX_SCALE_RATIO,
+    f32_shortfall, rebase_point, replace_unsupported, unsupported_material, worst_scale_ratio,
+    GpuFrame, ScaleRatio, MAX_SCALE_RATIO,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
@@ -496,8 +496,8 @@ pub enum GpuError {
     /// Invalid camera or film.
     #[error("{0}")]
     Setup(String),
-    /// The scene's coordinates are beyond what the GPU's f32 buffers
-    /// resolve for its smallest object ([`f32_shortfall`]).
+    /// An object of the scene lies farther from the GPU's origin than its
+    /// f32 coordinates resolve for its size ([`f32_shortfall`]).
     #[error("{0}")]
     Precision(String),
     /// Scene data larger than the adapter can bind in one storage buffer.

@@ -103,29 +103,60 @@ struct Wavefront {
 /// below 10.
 pub const MAX_SCALE_RATIO: f64 = 1.0e4;
 
-/// Why f32 cannot hold `scene` on the GPU, if it cannot: a bounded object
-/// lies farther from the GPU's origin ([`rebase_point`], the camera) than
-/// [`MAX_SCALE_RATIO`] times its own size (10 km for a 1 m object). The message names the object with the largest ratio, and what
-/// to do. (A large object far out, a floor, is no obstacle to small ones
-/// near the origin: each is weighed against its own size.)
-pub fn f32_shortfall(scene: &Scene) -> Option<String> {
+/// The bounded object of `scene` that lies farthest from the GPU's origin
+/// ([`rebase_point`]) for its size ([`f32_shortfall`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScaleRatio {
+    /// Its index among the scene's objects.
+    pub object: usize,
+    /// The farthest coordinate of its box from the GPU's origin.
+    pub reach: f64,
+    /// Its box's longest side.
+    pub size: f64,
+    /// `reach / size`.
+    pub ratio: f64,
+}
+
+/// The bounded object of `scene` with the largest [`ScaleRatio`], if it
+/// has one.
+pub fn worst_scale_ratio(scene: &Scene) -> Option<ScaleRatio> {
     let at = rebase_point(scene);
-    let mut worst: Option<(usize, f64, f64, f64)> = None;
-    for (i, o) in scene.geometry.objects().iter().enumerate() {
+    let mut worst: Option<ScaleRatio> = None;
+    for (object, o) in scene.geometry.objects().iter().enumerate() {
         let b = o.bbox();
-        if !(b.min.is_finite() && b.max.is_finite()) {
+        if !b.is_finite() {
             continue;
         }
         let reach = (b.min - at).abs().max((b.max - at).abs()).max_element();
         let size = (b.max - b.min).max_element();
         let ratio = reach / size.max(f64::MIN_POSITIVE);
-        if worst.is_none_or(|(.., r)| ratio > r) {
-            worst = Some((i, reach, size, ratio));
+        if worst.is_none_or(|w| ratio > w.ratio) {
+            worst = Some(ScaleRatio {
+                object,
+                reach,
+                size,
+                ratio,
+            });
         }
     }
-    let (i, reach, size, ratio) = worst?;
+    worst
+}
+
+/// Why f32 cannot hold `scene` on the GPU, if it cannot: a bounded object
+/// lies farther from the GPU's origin ([`rebase_point`], the camera) than
+/// [`MAX_SCALE_RATIO`] times its own size (10 km for a 1 m object). The
+/// message names the object with the largest ratio, and what to do. (A
+/// large object far out, a floor, is no obstacle to small ones near the
+/// camera: each is weighed against its own size.)
+pub fn f32_shortfall(scene: &Scene) -> Option<String> {
+    let ScaleRatio {
+        object,
+        reach,
+        size,
+        ratio,
+    } = worst_scale_ratio(scene)?;
     (ratio > MAX_SCALE_RATIO).then(|| {
-        let (from, fix) = if at == glam::DVec3::ZERO && scene.camera.position != at {
+        let (from, fix) = if planar_wave(scene) {
             (
                 "the origin (a planar `wave` mapping keeps the GPU's origin there)",
                 "move the scene nearer the origin",
@@ -134,21 +165,17 @@ pub fn f32_shortfall(scene: &Scene) -> Option<String> {
             ("the camera", "bring the camera nearer it")
         };
         format!(
-            "object[{i}] is {size:.4e} units across and reaches {reach:.4e} from {from}: \
+            "object[{object}] is {size:.4e} units across and reaches {reach:.4e} from {from}: \
              {ratio:.0} times its size, more than the GPU's f32 coordinates resolve \
              ({MAX_SCALE_RATIO}; docs/gpu.md, \"Precision\"): {fix}, or render without --gpu"
         )
     })
 }
 
-/// The world point the GPU takes as its origin for `scene`: the camera
-/// (rounded to f32), so that f32 coordinates are finest where the image
-/// is seen from, whatever the scene's place in the world; the world
-/// origin when a material of the scene maps a `wave` heightfield by plain
-/// world coordinates (`Mapping::Planar`), which would move with it.
-/// Lights, the camera, the objects' frames and the `wave` mappings'
-/// centres are uploaded relative to it (`GpuScene::with_materials_at`).
-pub fn rebase_point(scene: &Scene) -> glam::DVec3 {
+/// Whether an object of `scene` wears a `wave` material (alone or in a
+/// mix) that maps its heightfield by plain world coordinates
+/// (`Mapping::Planar`).
+fn planar_wave(scene: &Scene) -> bool {
     fn planar(m: &isolux_materials::Material) -> bool {
         use isolux_materials::wave::Mapping;
         match m {
@@ -157,15 +184,24 @@ pub fn rebase_point(scene: &Scene) -> glam::DVec3 {
             _ => false,
         }
     }
-    if scene
+    scene
         .object_material
         .iter()
         .any(|&m| planar(&scene.materials[m]))
-    {
+}
+
+/// The world point the GPU takes as its origin for `scene`: the camera
+/// (rounded to f32), so that f32 coordinates are finest where the image
+/// is seen from, whatever the scene's place in the world; the world
+/// origin when a material of the scene maps a `wave` heightfield by plain
+/// world coordinates (`planar_wave`), which would move with it.
+/// Lights, the camera, the objects' frames and the `wave` mappings'
+/// centres are uploaded relative to it (`GpuScene::with_materials_at`).
+pub fn rebase_point(scene: &Scene) -> glam::DVec3 {
+    if planar_wave(scene) {
         return glam::DVec3::ZERO;
     }
-    let p = scene.camera.position;
-    glam::DVec3::new(p.x as f32 as f64, p.y as f32 as f64, p.z as f32 as f64)
+    layout::f32_exact(scene.camera.position)
 }
 
 /// `m` with its world positions (a `wave` mapping's centre) moved by

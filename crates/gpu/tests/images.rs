@@ -799,18 +799,7 @@ fn every_example_scene_fits_the_gpus_f32() {
                 continue;
             }
             let scene = isolux_scene::load(&p).unwrap();
-            let at = isolux_gpu::rebase_point(&scene);
-            let ratio = scene
-                .geometry
-                .objects()
-                .iter()
-                .map(|o| o.bbox())
-                .filter(|b| b.min.is_finite() && b.max.is_finite())
-                .map(|b| {
-                    (b.min - at).abs().max((b.max - at).abs()).max_element()
-                        / (b.max - b.min).max_element()
-                })
-                .fold(0.0, f64::max);
+            let ratio = isolux_gpu::worst_scale_ratio(&scene).map_or(0.0, |w| w.ratio);
             eprintln!("{}: largest ratio {ratio:.2}", p.display());
             assert!(
                 isolux_gpu::f32_shortfall(&scene).is_none(),

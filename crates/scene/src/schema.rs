@@ -118,11 +118,8 @@ pub fn parse_str(
         for o in v.tables()? {
             let (obj, mat) = object(&o, &scene.material_names)?;
             let b = obj.bbox();
-            if b.min.is_finite() && b.max.is_finite() {
-                extent = Aabb {
-                    min: extent.min.min(b.min),
-                    max: extent.max.max(b.max),
-                };
+            if b.is_finite() {
+                extent = extent.union(&b);
                 let size = (extent.max - extent.min).max_element();
                 if size > MAX_EXTENT {
                     return Err(o.error(format!(
