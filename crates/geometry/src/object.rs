@@ -71,6 +71,29 @@ pub struct Hit {
     pub p: DVec3,
     /// Unit outward normal `-grad F' / |grad F'|`.
     pub n: DVec3,
+    /// How far along `n` from `p` a ray leaving the surface starts
+    /// ([`Hit::spawn`]) so as not to meet it again at `t ~ 0`: `1e-7 (1 +
+    /// |p - origin|_inf) + 1e-14 |p|_inf`, with `origin` the object's
+    /// frame ([`Object::origin`]). The first term covers the exact
+    /// intersection's error in the object's frame (a relative 1e-7 holds
+    /// even near-tangent crossings, whose roots are ill-conditioned); the
+    /// second, about 45 units in the last place of `p`, the rounding of
+    /// world coordinates, so the offset no longer grows with the distance
+    /// from the world origin (docs/geometry.md, "Scene scale").
+    pub offset: f64,
+}
+
+impl Hit {
+    /// The origin of a ray leaving the hit along `w`: `p` moved
+    /// [`Hit::offset`] along the normal, to the side of `w`.
+    #[inline]
+    pub fn spawn(&self, w: DVec3) -> DVec3 {
+        if w.dot(self.n) >= 0.0 {
+            self.p + self.n * self.offset
+        } else {
+            self.p - self.n * self.offset
+        }
+    }
 }
 
 /// Errors building an object.
@@ -88,8 +111,16 @@ pub enum GeometryError {
 }
 
 /// A functionally defined object (see the module docs).
+///
+/// Its quadrics, boxes and hierarchy live in the object's own frame, whose
+/// zero is the world point [`Object::origin`] (the centre of its box, for
+/// a bounded object): far from the world origin the quadrics keep small
+/// coefficients and the spawn offset stays small ([`Hit::offset`]). The
+/// methods take and give world coordinates.
 #[derive(Clone, Debug)]
 pub struct Object {
+    /// The world point that is zero in the object's frame.
+    origin: DVec3,
     base: Quadric,
     perturbations: Vec<Perturbation>,
     /// Which perturbation each BVH item is.
@@ -602,6 +633,7 @@ fn walk_lanes<const K: usize>(
                     t,
                     p: DVec3::new(lanes.p[0][l], lanes.p[1][l], lanes.p[2][l]),
                     n: DVec3::new(lanes.nrm[0][l], lanes.nrm[1][l], lanes.nrm[2][l]),
+                    offset: 0.0,
                 })
             }
             solo::Outcome::Slow => {
@@ -698,8 +730,64 @@ impl Candidate {
 }
 
 impl Object {
-    /// Builds an object; `bounds` clips the surface.
+    /// Builds an object from quadrics and `bounds` in world coordinates;
+    /// `bounds` clips the surface. The object moves them into its own
+    /// frame (see [`Object::in_frame`]).
     pub fn new(
+        base: Quadric,
+        perturbations: Vec<Perturbation>,
+        bounds: Option<Aabb>,
+    ) -> Result<Self, GeometryError> {
+        Self::in_frame(DVec3::ZERO, base, perturbations, bounds)
+    }
+
+    /// Builds an object from quadrics and `bounds` given in a frame whose
+    /// zero is the world point `origin` (a world point `p` is `p - origin`
+    /// there). Building the quadrics about a point near the object (the
+    /// scene loader takes the base's centre) keeps their coefficients
+    /// small: a sphere of radius 1 written about the world origin a
+    /// million units away has a constant term of `1 - 1e12`, whose
+    /// rounding alone moves its surface by 5e-5. The object then moves
+    /// its frame to the centre of its box, when that is finite, so that
+    /// [`Object::origin`] is the same whichever frame it was given in (up
+    /// to rounding).
+    pub fn in_frame(
+        origin: DVec3,
+        base: Quadric,
+        perturbations: Vec<Perturbation>,
+        bounds: Option<Aabb>,
+    ) -> Result<Self, GeometryError> {
+        if !origin.is_finite() {
+            return Err(GeometryError::NonFinite("the object's origin".into()));
+        }
+        let obj = Self::build(origin, base, perturbations, bounds)?;
+        if !obj.bbox.is_finite() {
+            return Ok(obj);
+        }
+        let c = obj.bbox.center();
+        if c == DVec3::ZERO {
+            return Ok(obj);
+        }
+        let Object {
+            base,
+            perturbations,
+            ..
+        } = obj;
+        let moved = |q: &Quadric| q.translated(-c);
+        let perturbations = perturbations
+            .iter()
+            .map(|p| Perturbation {
+                quadric: moved(&p.quadric),
+                factor: p.factor,
+            })
+            .collect();
+        let bounds = bounds.map(|b| Aabb::new(b.min - c, b.max - c));
+        Self::build(origin + c, moved(&base), perturbations, bounds)
+    }
+
+    /// [`Object::in_frame`] without the move to the box's centre.
+    fn build(
+        origin: DVec3,
         base: Quadric,
         perturbations: Vec<Perturbation>,
         bounds: Option<Aabb>,
@@ -766,6 +854,7 @@ impl Object {
             ball = None;
         }
         Ok(Self {
+            origin,
             base,
             perturbations,
             bounded,
@@ -779,23 +868,58 @@ impl Object {
         })
     }
 
-    /// The base quadric `F`.
+    /// The world point that is zero in the object's frame, in which
+    /// [`Object::base`] and [`Object::perturbations`] are written: the
+    /// centre of the object's box when it is finite.
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+
+    /// The base quadric `F`, in the object's frame ([`Object::origin`]).
     pub fn base(&self) -> &Quadric {
         &self.base
     }
 
-    /// The perturbations.
+    /// The perturbations, in the object's frame ([`Object::origin`]).
     pub fn perturbations(&self) -> &[Perturbation] {
         &self.perturbations
     }
 
-    /// Box containing the surface (infinite for unbounded objects).
+    /// Box containing the surface (infinite for unbounded objects), in
+    /// world coordinates.
     pub fn bbox(&self) -> Aabb {
-        self.bbox
+        Aabb {
+            min: self.bbox.min + self.origin,
+            max: self.bbox.max + self.origin,
+        }
     }
 
-    /// `F'(p)`: positive inside.
+    /// A ray in the object's frame.
+    #[inline]
+    fn local(&self, ray: &Ray) -> Ray {
+        Ray::new(ray.origin - self.origin, ray.dir)
+    }
+
+    /// A hit found in the object's frame, in world coordinates, with its
+    /// spawn offset ([`Hit::offset`]).
+    #[inline]
+    fn world(&self, hit: Hit) -> Hit {
+        let p = hit.p + self.origin;
+        Hit {
+            p,
+            offset: 1e-7 * (1.0 + hit.p.abs().max_element()) + 1e-14 * p.abs().max_element(),
+            ..hit
+        }
+    }
+
+    /// A beam in the object's frame.
+    fn local_beam(&self, beam: &Beam) -> Beam {
+        beam.translated(-self.origin)
+    }
+
+    /// `F'(p)`: positive inside (`p` in world coordinates).
     pub fn eval(&self, p: DVec3) -> f64 {
+        let p = p - self.origin;
         let mut v = self.base.eval(p);
         for q in &self.perturbations {
             let x = q.quadric.eval(p);
@@ -806,8 +930,9 @@ impl Object {
         v
     }
 
-    /// `grad F'(p)`.
+    /// `grad F'(p)` (`p` in world coordinates).
     pub fn gradient(&self, p: DVec3) -> DVec3 {
+        let p = p - self.origin;
         let mut g = self.base.gradient(p);
         for q in &self.perturbations {
             let x = q.quadric.eval(p);
@@ -832,7 +957,8 @@ impl Object {
     /// before `L`); only when `[t0, L]` holds no hit (a dent at the base
     /// surface, say) is the rest of the ray gathered and searched.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
-        self.intersect_in(ray, t_min, t_max, Items::All)
+        self.intersect_in(&self.local(ray), t_min, t_max, Items::All)
+            .map(|h| self.world(h))
     }
 
     /// Whether some ray of `beam` may meet the object: its box and, for a
@@ -840,6 +966,7 @@ impl Object {
     /// bumps' supports), which for round objects rejects the tiles near
     /// the box's corners.
     pub fn meets(&self, beam: &Beam) -> bool {
+        let beam = self.local_beam(beam);
         beam.meets_box(&self.bbox) && self.ball.is_none_or(|(c, r)| beam.meets_sphere(c, r))
     }
 
@@ -851,6 +978,7 @@ impl Object {
     /// skipped), each reached perturbation tested by its bounding sphere,
     /// and the result sorted, so that it equals a linear scan's.
     pub fn cull(&self, beam: &Beam, out: &mut Vec<u32>) {
+        let beam = self.local_beam(beam);
         let start = out.len();
         self.bvh.walk(
             |b| beam.meets_box(b),
@@ -872,6 +1000,7 @@ impl Object {
     /// (possibly a few more, whose support no ray of `beam` crosses and
     /// that [`Object::intersect_culled`] sets aside), so hits are the same.
     pub fn cull_within(&self, beam: &Beam, coarse: &[u32], out: &mut Vec<u32>) {
+        let beam = self.local_beam(beam);
         out.extend(coarse.iter().copied().filter(|&k| {
             let (c, r) = self.spheres[k as usize];
             beam.meets_sphere(c, r)
@@ -888,7 +1017,8 @@ impl Object {
         t_max: f64,
         culled: &[u32],
     ) -> Option<Hit> {
-        self.intersect_in(ray, t_min, t_max, Items::Only(culled))
+        self.intersect_in(&self.local(ray), t_min, t_max, Items::Only(culled))
+            .map(|h| self.world(h))
     }
 
     /// [`Object::intersect_culled`] for up to [`TILE_RAYS`] rays of one
@@ -913,6 +1043,25 @@ impl Object {
         hits: &mut [Option<Hit>],
     ) {
         assert!(rays.len() <= TILE_RAYS && hits.len() == rays.len());
+        let mut local = [Ray::new(DVec3::ZERO, DVec3::ZERO); TILE_RAYS];
+        for (l, ray) in local.iter_mut().zip(rays) {
+            *l = self.local(ray);
+        }
+        self.intersect_tile_local(&local[..rays.len()], t_min, t_max, culled, hits);
+        for hit in hits.iter_mut() {
+            *hit = hit.map(|h| self.world(h));
+        }
+    }
+
+    /// [`Object::intersect_tile`] in the object's frame.
+    fn intersect_tile_local(
+        &self,
+        rays: &[Ray],
+        t_min: f64,
+        t_max: f64,
+        culled: &[u32],
+        hits: &mut [Option<Hit>],
+    ) {
         let spheres = culled.len() <= 64
             && culled
                 .iter()
@@ -927,7 +1076,7 @@ impl Object {
         };
         let Some(base) = base.filter(|_| self.unbounded.is_empty() && spheres) else {
             for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-                *hit = self.intersect_culled(ray, t_min, t_max, culled);
+                *hit = self.intersect_in(ray, t_min, t_max, Items::Only(culled));
             }
             return;
         };
@@ -963,6 +1112,7 @@ impl Object {
                     t,
                     p: DVec3::new(bl.p[0][r], bl.p[1][r], bl.p[2][r]),
                     n: DVec3::new(bl.n[0][r], bl.n[1][r], bl.n[2][r]),
+                    offset: 0.0,
                 })
             };
             let sphere_normals = inv_radius > 0.0;
@@ -985,7 +1135,7 @@ impl Object {
                 for (r, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
                     let (t0, t1) = (bl.t0[r], bl.t1[r]);
                     *hit = if bl.slow[r] {
-                        self.intersect_culled(ray, t_min, t_max, culled)
+                        self.intersect_in(ray, t_min, t_max, Items::Only(culled))
                     } else if sphere_normals {
                         closed(r)
                     } else if t0.is_nan() {
@@ -1050,7 +1200,7 @@ impl Object {
                         continue;
                     }
                     if odd[r] || bl.slow[r] {
-                        hits[r] = self.intersect_culled(ray, t_min, t_max, culled);
+                        hits[r] = self.intersect_in(ray, t_min, t_max, Items::Only(culled));
                         continue;
                     }
                     // `F' <= F + raise` along the ray: where even that stays
@@ -1436,6 +1586,7 @@ impl Object {
                     t,
                     p,
                     n: (p - centre) * inv_radius,
+                    offset: 0.0,
                 };
             }
         }
@@ -1465,7 +1616,12 @@ impl Object {
                 g += 3.0 * c.factor * x * x * grad;
             }
         }
-        Hit { t, p, n: -g }
+        Hit {
+            t,
+            p,
+            n: -g,
+            offset: 0.0,
+        }
     }
 
     /// Whether the surface crosses the ray within `[t_min, t_max]`.
@@ -2162,5 +2318,83 @@ mod tests {
         assert!((o.intersect(&r, 0.0, f64::INFINITY).unwrap().t - 3.0).abs() < 1e-12);
         let r = Ray::new(DVec3::new(0.3, 2.0, 0.0), DVec3::Y);
         assert!(o.intersect(&r, 0.0, f64::INFINITY).is_none());
+    }
+
+    /// An object written in a frame a million units from the world origin
+    /// (`Object::in_frame`, as the scene loader builds them) hits as the
+    /// same object at the origin: along rays moved by the same amount
+    /// (exactly: their origins lie on a grid of 2^-16), the same hits and
+    /// misses, `t` to the rounding of the frame's origin, the same normals,
+    /// and a spawn offset of about 1e-7 plus 1e-14 of the distance, where
+    /// the world frame's rule, `1e-7 (1 + |p|)`, gave 0.1. The same object
+    /// written in world coordinates (`Object::new`) moves into a frame at
+    /// its box's centre and agrees as well, to the rounding of its
+    /// constant terms.
+    #[test]
+    fn objects_far_from_the_origin_hit_as_at_the_origin() {
+        let far = DVec3::new(1.0e6, -0.25e6, 0.5e6);
+        let perts = |at: DVec3| -> Vec<Perturbation> {
+            crate::samples::fibonacci_sphere(16, 0.6)
+                .into_iter()
+                .enumerate()
+                .map(|(i, c)| Perturbation {
+                    quadric: Quadric::sphere(at + c, 0.2),
+                    factor: if i % 3 == 0 { -1500.0 } else { 1000.0 },
+                })
+                .collect()
+        };
+        let sphere = |at: DVec3| Quadric::sphere(at, 0.6);
+        let near = Object::new(sphere(DVec3::ZERO), perts(DVec3::ZERO), None).unwrap();
+        let framed = Object::in_frame(far, sphere(DVec3::ZERO), perts(DVec3::ZERO), None).unwrap();
+        let world = Object::new(sphere(far), perts(far), None).unwrap();
+        assert!(
+            (framed.origin() - far).length() < 0.1,
+            "{:?}",
+            framed.origin()
+        );
+        assert!(
+            (world.origin() - far).length() < 0.1,
+            "{:?}",
+            world.origin()
+        );
+        let grid = |v: DVec3| (v * 65536.0).round() / 65536.0;
+        let mut rng = isolux_core::Pcg32::new(11, 4);
+        let (mut hits, mut rays, mut world_flips) = (0, 0, 0);
+        let mut world_dt = Vec::new();
+        for _ in 0..4000 {
+            let o = grid(2.0 * isolux_core::sampling::uniform_sphere(rng.next_2d()));
+            let target = 0.7 * isolux_core::sampling::uniform_sphere(rng.next_2d());
+            let ray = Ray::new(o, target - o);
+            let a = near.intersect(&ray, 0.0, f64::INFINITY);
+            let moved = Ray::new(ray.origin + far, ray.dir);
+            match (a, framed.intersect(&moved, 0.0, f64::INFINITY)) {
+                (None, None) => {}
+                (Some(a), Some(b)) => {
+                    assert!((a.t - b.t).abs() < 1e-9, "{a:?} vs {b:?}");
+                    assert!((a.n - b.n).length() < 1e-6, "{a:?} vs {b:?}");
+                    assert!(((b.p - far) - a.p).length() < 1e-8);
+                    assert!(b.offset < 2e-7 + 1e-14 * 1.2e6, "{}", b.offset);
+                }
+                (a, b) => panic!("{ray:?}: {a:?} vs {b:?}"),
+            }
+            // In world coordinates, the bumps' constant terms (about
+            // 1.3e12) carry a rounding of about 1e-4 of their `r^2 = 0.04`,
+            // which moves the surface near them by about that much.
+            match (a, world.intersect(&moved, 0.0, f64::INFINITY)) {
+                (Some(a), Some(b)) => world_dt.push((a.t - b.t).abs()),
+                (None, None) => {}
+                _ => world_flips += 1,
+            }
+            rays += 1;
+            hits += a.is_some() as usize;
+        }
+        assert!(hits > rays / 2, "{hits} of {rays}");
+        world_dt.sort_by(f64::total_cmp);
+        let median = world_dt[world_dt.len() / 2];
+        eprintln!("world: median |dt| {median:.2e}, {world_flips} of {rays} rays flipped");
+        assert!(
+            median < 1e-4 && world_flips <= rays / 200,
+            "{median} {world_flips}"
+        );
     }
 }

@@ -172,6 +172,21 @@ impl Quadric {
         Self::from_mat4(&(inv.transpose() * self.to_mat4() * inv))
     }
 
+    /// The quadric moved by `v` (the new quadric at `p + v` equals the old
+    /// one at `p`), computed directly rather than through the 4x4 inverse
+    /// of [`Quadric::transformed`]: with `u = -v`, `M` is unchanged, `b' =
+    /// b + M u`, `c' = c + u.(M u + 2 b)`. An object's frame
+    /// ([`crate::Object::origin`]) moves its quadrics this way.
+    pub fn translated(&self, v: DVec3) -> Self {
+        let u = -v;
+        let mu = self.m * u;
+        Self {
+            m: self.m,
+            b: self.b + mu,
+            c: self.c + u.dot(mu + 2.0 * self.b),
+        }
+    }
+
     /// Multiplied by a positive constant (same surface, scaled magnitude).
     pub fn scaled(&self, k: f64) -> Self {
         Self {
@@ -277,6 +292,32 @@ mod tests {
 
     fn close(a: f64, b: f64) -> bool {
         (a - b).abs() < 1e-9 * (1.0 + a.abs().max(b.abs()))
+    }
+
+    /// `translated(v)` at `p + v` equals the original at `p`, and agrees
+    /// with `transformed` by the translation, for every constructor.
+    #[test]
+    fn translated_moves_the_quadric() {
+        let rot = DMat3::from_rotation_y(0.7) * DMat3::from_rotation_x(-0.4);
+        let qs = [
+            Quadric::sphere(DVec3::new(0.3, -0.2, 1.0), 0.7),
+            Quadric::ellipsoid(DVec3::new(1.0, 2.0, -1.0), DVec3::new(0.5, 1.5, 0.2), rot),
+            Quadric::cylinder(DVec3::new(0.1, 0.0, 2.0), DVec3::new(1.0, 1.0, 0.0), 0.4),
+            Quadric::cone(DVec3::ONE, DVec3::Z, 0.3),
+            Quadric::paraboloid(DVec3::new(-1.0, 0.5, 0.0), DVec3::X, 0.25),
+            Quadric::plane(DVec3::new(0.0, -0.6, 0.0), DVec3::new(0.2, 1.0, 0.1)),
+        ];
+        let v = DVec3::new(3.5, -1.25, 0.75);
+        let mut rng = isolux_core::Pcg32::new(5, 2);
+        for q in qs {
+            let moved = q.translated(v);
+            let via = q.transformed(&DMat4::from_translation(v));
+            for _ in 0..50 {
+                let p = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 4.0 - 2.0;
+                assert!(close(moved.eval(p + v), q.eval(p)), "{q:?}");
+                assert!(close(via.eval(p + v), moved.eval(p + v)), "{q:?}");
+            }
+        }
     }
 
     #[test]

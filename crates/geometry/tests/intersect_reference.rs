@@ -34,15 +34,16 @@ struct RefObject {
 }
 
 impl RefObject {
-    /// The reference of `obj` (its own coefficients, read back), searching
-    /// `region`.
+    /// The reference of `obj` (its own coefficients, read back and moved
+    /// from its frame to world coordinates), searching `region`.
     fn of(obj: &Object, region: Aabb) -> Self {
+        let world = |q: &Quadric| q.translated(obj.origin()).coefficients();
         RefObject {
-            base: obj.base().coefficients(),
+            base: world(obj.base()),
             perts: obj
                 .perturbations()
                 .iter()
-                .map(|p| (p.quadric.coefficients(), p.factor))
+                .map(|p| (world(&p.quadric), p.factor))
                 .collect(),
             region,
         }

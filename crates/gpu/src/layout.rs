@@ -238,16 +238,19 @@ impl GpuScene {
             let first = s.perturbations.len() as u32;
             // Everything of the object in its own frame (`GpuObject`):
             // `origin` from `at` as uploaded, the frame's world point
-            // `at + origin` exactly.
+            // `at + origin` exactly. The CPU object's quadrics are written
+            // about its own origin (`Object::origin`, the box's centre in
+            // f64), so they move by that point's f32 rounding only.
             let origin = object_origin(&translated_box(&o.bbox(), -at));
-            let local = glam::DMat4::from_translation(-(at + origin));
+            let shift = o.origin() - (at + origin);
+            let local = |q: &Quadric| q.translated(shift);
             let bbox = translated_box(&o.bbox(), -(at + origin));
             // Supports clipped to the object's box.
             let mut live = Vec::new();
             let mut pboxes = Vec::new();
             for (i, p) in o.perturbations().iter().enumerate() {
                 let p = isolux_geometry::Perturbation {
-                    quadric: p.quadric.transformed(&local),
+                    quadric: local(&p.quadric),
                     factor: p.factor,
                 };
                 s.perturbations.push(GpuPerturbation {
@@ -267,7 +270,7 @@ impl GpuScene {
             };
             let (bmin, bmax) = clamp_box(&bbox);
             s.objects.push(GpuObject {
-                base: GpuQuadric::new(&o.base().transformed(&local)),
+                base: GpuQuadric::new(&local(o.base())),
                 bmin,
                 bmax,
                 range: [first, o.perturbations().len() as u32, mi as u32, root],
@@ -959,6 +962,7 @@ pub struct GpuAnswer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use isolux_geometry::Perturbation;
     use isolux_materials::{Diffuse, Mix};
 
     fn grey(r: f64) -> Material {
@@ -1143,10 +1147,17 @@ mod tests {
             let bumps_root = bumps.objects[0].range[3];
             // The boxes `with_materials` builds the hierarchies over.
             let object_boxes: Vec<Aabb> = spheres.iter().map(|o| uploaded_box(&o.bbox())).collect();
+            // In the GPU's frame of the object, as `with_materials` puts them.
+            let gpu_origin = object_origin(&bumpy.bbox());
+            let gpu_box = translated_box(&bumpy.bbox(), -gpu_origin);
             let bump_boxes: Vec<Aabb> = bumpy
                 .perturbations()
                 .iter()
-                .map(|p| support_box(p, &bumpy.bbox()))
+                .map(|p| Perturbation {
+                    quadric: p.quadric.translated(bumpy.origin() - gpu_origin),
+                    factor: p.factor,
+                })
+                .map(|p| support_box(&p, &gpu_box))
                 .filter(|b| !b.is_empty())
                 .map(|b| uploaded_box(&b))
                 .collect();

@@ -51,7 +51,8 @@ pub const MIN_WIDTH: f32 = 1.0 / 4096.0;
 pub const MAX_SUBDIVISIONS: i32 = 4096;
 /// Rays leaving a surface start `SPAWN_OFFSET + SPAWN_OFFSET_WORLD
 /// |p|_inf` off it along the normal (the CPU's f64 path uses `1e-7 (1 +
-/// |p|_inf)`). The intersection works in each object's frame
+/// |p - origin|_inf) + 1e-14 |p|_inf` in its objects' frames,
+/// `isolux_geometry::Hit::offset`). The intersection works in each object's frame
 /// (`layout::GpuObject`), so a hit is good to about 1e-7 of its object's
 /// size there; the world point `p` adds its own f32 rounding, about
 /// `6e-8 |p|`, which the second term covers 16 times over. (Until

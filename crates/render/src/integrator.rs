@@ -28,10 +28,12 @@
 //! is the price). Events inside a medium do not count toward `max_depth`;
 //! a path is cut after 100,000 of them. Media do not nest.
 //!
-//! Spawned rays start at the hit point moved by `1e-7 (1 + |p|_inf)` along
-//! the geometric normal, to the side of the new direction: with the exact,
-//! double-precision intersector this removes self-intersection without
-//! hiding any feature thicker than that.
+//! Spawned rays start at the hit point moved by [`Hit::offset`] along the
+//! geometric normal, to the side of the new direction ([`Hit::spawn`]):
+//! `1e-7 (1 + |p - origin|_inf) + 1e-14 |p|_inf`, in the frame of the
+//! object hit. With the exact, double-precision intersector this removes
+//! self-intersection without hiding any feature thicker than that, however
+//! far from the world origin the scene lies.
 
 use crate::Scene;
 use isolux_core::{sampling::power_heuristic, DVec3, Frame, Pcg32, Ray, Rgb, PI};
@@ -77,14 +79,13 @@ pub struct FirstHit {
 /// `need_pdf`) the density with which the path would continue toward `wi`.
 fn direct_light(
     scene: &Scene,
-    p: DVec3,
-    n: DVec3,
+    hit: &Hit,
     rng: &mut Pcg32,
     f_cos_pdf: impl Fn(DVec3, bool) -> (Rgb, f64),
 ) -> Rgb {
     let mut l = Rgb::BLACK;
     for light in &scene.lights {
-        let origin = offset_origin(p, n, light.position - p);
+        let origin = hit.spawn(light.position - hit.p);
         let d = light.position - origin;
         let dist2 = d.length_squared();
         if !(dist2 > 0.0) {
@@ -105,7 +106,7 @@ fn direct_light(
         if let Some(s) = env.sample(rng.next_2d()) {
             let (fc, pdf) = f_cos_pdf(s.wi, true);
             if !fc.is_black() && !s.radiance.is_black() {
-                let origin = offset_origin(p, n, s.wi);
+                let origin = hit.spawn(s.wi);
                 if !scene
                     .geometry
                     .occluded(&Ray::new(origin, s.wi), 0.0, f64::INFINITY)
@@ -144,7 +145,7 @@ fn single_scattering_light(
         }
         albedo * single_scattering(wo_l, wl, 1.0, m.g, eta)
     };
-    let mut l = direct_light(scene, hit.p, hit.n, rng, |wi, _| {
+    let mut l = direct_light(scene, hit, rng, |wi, _| {
         let c = wi.dot(hit.n);
         if c <= 0.0 {
             (Rgb::BLACK, 0.0)
@@ -156,7 +157,7 @@ fn single_scattering_light(
     if local.z > 0.0 {
         let wi = frame.to_world(local);
         let env = &scene.environment;
-        let origin = offset_origin(hit.p, hit.n, wi);
+        let origin = hit.spawn(wi);
         if !scene
             .geometry
             .occluded(&Ray::new(origin, wi), 0.0, f64::INFINITY)
@@ -218,7 +219,7 @@ fn bssrdf_entry(
         let Some(x) = object.intersect(&probe, t0, 2.0 * h) else {
             break;
         };
-        t0 = x.t + 1e-7 * (1.0 + x.p.abs().max_element());
+        t0 = x.t + x.offset;
         hits.push(x);
     }
     if hits.is_empty() {
@@ -261,17 +262,6 @@ fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
         beta
     };
     (!beta.is_black()).then_some(beta)
-}
-
-/// Moves `p` off the surface along `n` to the side of `w`.
-#[inline]
-pub fn offset_origin(p: DVec3, n: DVec3, w: DVec3) -> DVec3 {
-    let eps = 1e-7 * (1.0 + p.abs().max_element());
-    if w.dot(n) >= 0.0 {
-        p + n * eps
-    } else {
-        p - n * eps
-    }
 }
 
 /// Radiance arriving along `ray` (from the camera), and the first hit.
@@ -380,7 +370,7 @@ pub fn radiance_culled(
         let ns = bsdf.normal();
 
         l += beta
-            * direct_light(scene, hit.p, hit.n, rng, |wi, need_pdf| {
+            * direct_light(scene, &hit, rng, |wi, need_pdf| {
                 // The density only weighs environment samples (MIS); point
                 // lights skip it (costly for wave-optics materials).
                 let pdf = if need_pdf { bsdf.pdf(wo, wi) } else { 0.0 };
@@ -404,7 +394,7 @@ pub fn radiance_culled(
             Some(m) if wo.dot(ns) > 0.0 => {
                 let cos = wo.dot(ns);
                 let r = 2.0 * cos * ns - wo;
-                let origin = offset_origin(hit.p, hit.n, r);
+                let origin = hit.spawn(r);
                 if !scene
                     .geometry
                     .occluded(&Ray::new(origin, r), 0.0, f64::INFINITY)
@@ -439,7 +429,7 @@ pub fn radiance_culled(
                 // At x_i: light arriving through the boundary, weighted by
                 // S_w(wi) = (1 - F(cos_i)) / (c pi).
                 l += beta
-                    * direct_light(scene, xi.p, xi.n, rng, |wi, _| {
+                    * direct_light(scene, &xi, rng, |wi, _| {
                         let c = wi.dot(xi.n);
                         if c <= 0.0 {
                             (Rgb::BLACK, 0.0)
@@ -454,7 +444,7 @@ pub fn radiance_culled(
                 let wl = Frame::from_normal(xi.n).to_world(local);
                 beta *= m.sw(local.z) * PI;
                 prev_pdf = Some(local.z * isolux_core::INV_PI);
-                ray = Ray::new(offset_origin(xi.p, xi.n, wl), wl);
+                ray = Ray::new(xi.spawn(wl), wl);
                 depth += 1;
                 if depth >= 3 {
                     match russian_roulette(beta, eta_scale, rng) {
@@ -487,7 +477,7 @@ pub fn radiance_culled(
         } else {
             Some(s.pdf)
         };
-        ray = Ray::new(offset_origin(hit.p, hit.n, s.wi), s.wi);
+        ray = Ray::new(hit.spawn(s.wi), s.wi);
         if inside.is_some()
             || material.medium().is_some() && s.flags.contains(BxdfFlags::TRANSMISSION)
         {

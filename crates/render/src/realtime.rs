@@ -38,7 +38,7 @@
 //!   `subsurface_brdf` is their fast preview.
 
 use crate::environment::{dir_to_uv, EnvMap};
-use crate::integrator::{offset_origin, FirstHit};
+use crate::integrator::FirstHit;
 use crate::{Environment, Scene};
 use isolux_core::{DVec3, Pcg32, Ray, Rgb, PI};
 use isolux_geometry::Culled;
@@ -259,7 +259,7 @@ pub fn realtime_radiance(
     let ns = bsdf.normal();
     let mut l = Rgb::BLACK;
     for light in &scene.lights {
-        let origin = offset_origin(hit.p, hit.n, light.position - hit.p);
+        let origin = hit.spawn(light.position - hit.p);
         let d = light.position - origin;
         let dist2 = d.length_squared();
         if !(dist2 > 0.0) {

@@ -119,6 +119,18 @@ pub fn parse_str(
             let (obj, mat) = object(&o, &scene.material_names)?;
             let b = obj.bbox();
             if b.is_finite() {
+                let size = (b.max - b.min).max_element();
+                let reach = b.min.abs().max(b.max.abs()).max_element();
+                if reach > MAX_REACH * size {
+                    return Err(o.error(format!(
+                        "the object lies {reach:.3e} units from the world origin, {:.1e} \
+                         times its size ({size:.3e}); rays leave surfaces 1e-14 of their \
+                         distance from the origin off them, which holds to {MAX_REACH:e} \
+                         times the size (docs/geometry.md, \"Scene scale\"): move the \
+                         scene nearer the origin",
+                        reach / size
+                    )));
+                }
                 extent = extent.union(&b);
                 let size = (extent.max - extent.min).max_element();
                 if size > MAX_EXTENT {
@@ -146,6 +158,17 @@ pub fn parse_str(
 /// that large is refused with its object's line rather than rendered
 /// with objects missing.
 pub(crate) const MAX_EXTENT: f64 = 1.0e7;
+
+/// How far from the world origin, in units of its own size, a bounded
+/// object may lie. Each object is intersected in its own frame, so its
+/// hits hold anywhere; what grows with the distance `D` from the origin
+/// is the spawn offset's part `1e-14 D` (`Hit::offset`, which covers the
+/// rounding of world coordinates). A scene moved `1e12` times its small
+/// sphere's size renders within noise of itself at the origin (1.31
+/// times the seed-to-seed noise where another seed reads 1.28), one
+/// moved `1e13` times 3.06 times it (contact shadows lost); the limit
+/// keeps a factor of ten (docs/geometry.md, "Scene scale").
+pub(crate) const MAX_REACH: f64 = 1.0e11;
 
 /// Parses one material from TOML text holding its keys at the top level
 /// (`name = "gold"`, `type = "ggx"`, ...), as `[[material]]` would in a
@@ -965,8 +988,55 @@ fn rotation(v: &Value) -> Result<DMat3> {
         * DMat3::from_rotation_x(rx.to_radians()))
 }
 
+/// A quadric form as a scene writes it: its shape about its own point
+/// (`center`, `apex`, `vertex` or `point`; none for `coefficients`), that
+/// point, and its own `transform`. Kept apart so that an object's
+/// quadrics can be written about a point near the object
+/// ([`Form::in_frame`]) rather than expanded about the world origin, where
+/// far from it their constant terms would lose the object's size to
+/// rounding (docs/geometry.md, "Scene scale").
+struct Form {
+    /// The shape with its own point at zero.
+    shape: Quadric,
+    /// The shape's own point.
+    at: DVec3,
+    /// The quadric's own `transform`.
+    transform: Option<DMat4>,
+}
+
+impl Form {
+    /// The affine map from the shape's coordinates to the world: the
+    /// shape's point, its `transform`, then the object's `outer` one.
+    fn map(&self, outer: Option<&DMat4>) -> DMat4 {
+        let mut m = DMat4::from_translation(self.at);
+        if let Some(x) = &self.transform {
+            m = *x * m;
+        }
+        if let Some(x) = outer {
+            m = *x * m;
+        }
+        m
+    }
+
+    /// Where the shape's own point lies in the world.
+    fn world_point(&self, outer: Option<&DMat4>) -> DVec3 {
+        self.map(outer).w_axis.truncate()
+    }
+
+    /// The quadric in the frame whose zero is the world point `origin`.
+    fn in_frame(&self, outer: Option<&DMat4>, origin: DVec3) -> Quadric {
+        let mut m = self.map(outer);
+        m.w_axis -= origin.extend(0.0);
+        if self.transform.is_none() && outer.is_none() {
+            self.shape.translated(m.w_axis.truncate())
+        } else {
+            self.shape.transformed(&m)
+        }
+    }
+}
+
 /// One of the quadric forms (see `docs/scene-format.md`).
-fn quadric(t: &Table) -> Result<Quadric> {
+fn quadric(t: &Table) -> Result<Form> {
     let ty = t.req("type")?.choice(QUADRIC_TYPES)?;
     let keys: &[&str] = match ty {
         "sphere" => &["center", "radius"],
@@ -980,8 +1050,12 @@ fn quadric(t: &Table) -> Result<Quadric> {
     let mut all = vec!["type", "transform"];
     all.extend_from_slice(keys);
     t.allow(&all)?;
-    let q = match ty {
-        "sphere" => Quadric::sphere(vec3(&t.req("center")?)?, t.req("radius")?.positive()?),
+    let z = DVec3::ZERO;
+    let (q, at) = match ty {
+        "sphere" => (
+            Quadric::sphere(z, t.req("radius")?.positive()?),
+            vec3(&t.req("center")?)?,
+        ),
         "ellipsoid" => {
             let rv = t.req("radii")?;
             let r = vec3(&rv)?;
@@ -992,12 +1066,11 @@ fn quadric(t: &Table) -> Result<Quadric> {
                 Some(v) => rotation(&v)?,
                 None => DMat3::IDENTITY,
             };
-            Quadric::ellipsoid(vec3(&t.req("center")?)?, r, rot)
+            (Quadric::ellipsoid(z, r, rot), vec3(&t.req("center")?)?)
         }
-        "cylinder" => Quadric::cylinder(
+        "cylinder" => (
+            Quadric::cylinder(z, direction(&t.req("axis")?)?, t.req("radius")?.positive()?),
             vec3(&t.req("center")?)?,
-            direction(&t.req("axis")?)?,
-            t.req("radius")?.positive()?,
         ),
         "cone" => {
             let av = t.req("angle")?;
@@ -1007,30 +1080,40 @@ fn quadric(t: &Table) -> Result<Quadric> {
                     "half-angle must lie strictly between 0 and 90 degrees, got {a}"
                 )));
             }
-            Quadric::cone(
+            (
+                Quadric::cone(z, direction(&t.req("axis")?)?, a.to_radians()),
                 vec3(&t.req("apex")?)?,
-                direction(&t.req("axis")?)?,
-                a.to_radians(),
             )
         }
-        "paraboloid" => Quadric::paraboloid(
+        "paraboloid" => (
+            Quadric::paraboloid(
+                z,
+                direction(&t.req("axis")?)?,
+                t.req("focal_length")?.positive()?,
+            ),
             vec3(&t.req("vertex")?)?,
-            direction(&t.req("axis")?)?,
-            t.req("focal_length")?.positive()?,
         ),
-        "plane" => Quadric::plane(vec3(&t.req("point")?)?, direction(&t.req("normal")?)?),
+        "plane" => (
+            Quadric::plane(z, direction(&t.req("normal")?)?),
+            vec3(&t.req("point")?)?,
+        ),
         _ => {
             let cv = t.req("coefficients")?;
             let c = cv.numbers::<10>()?;
             if c.iter().all(|&x| x == 0.0) {
                 return Err(cv.error("all coefficients are zero"));
             }
-            Quadric::from_coefficients(c)
+            (Quadric::from_coefficients(c), z)
         }
     };
-    Ok(match t.get("transform") {
-        Some(v) => q.transformed(&transform(&v.table()?)?),
-        None => q,
+    let transform = match t.get("transform") {
+        Some(v) => Some(transform(&v.table()?)?),
+        None => None,
+    };
+    Ok(Form {
+        shape: q,
+        at,
+        transform,
     })
 }
 
@@ -1062,16 +1145,16 @@ fn object(t: &Table, material_names: &[String]) -> Result<(Object, usize)> {
         Some(v) => Some(transform(&v.table()?)?),
         None => None,
     };
-    let apply = |q: Quadric| match &xf {
-        Some(m) => q.transformed(m),
-        None => q,
-    };
-    let base = apply(quadric(&t.req("base")?.table()?)?);
+    // The object's quadrics are written about its base's own point (a
+    // sphere's centre, say): `Object::in_frame`.
+    let base = quadric(&t.req("base")?.table()?)?;
+    let origin = base.world_point(xf.as_ref());
+    let base = base.in_frame(xf.as_ref(), origin);
     let mut perts = Vec::new();
     if let Some(v) = t.get("perturbation") {
         for p in v.tables()? {
             p.allow(&["quadric", "factor"])?;
-            let q = apply(quadric(&p.req("quadric")?.table()?)?);
+            let q = quadric(&p.req("quadric")?.table()?)?.in_frame(xf.as_ref(), origin);
             perts.push(Perturbation {
                 quadric: q,
                 factor: p.req("factor")?.f64()?,
@@ -1087,10 +1170,13 @@ fn object(t: &Table, material_names: &[String]) -> Result<(Object, usize)> {
             if !(lo.cmplt(hi).all()) {
                 return Err(v.error("bounds.min must be below bounds.max on every axis"));
             }
-            Some(Aabb { min: lo, max: hi })
+            Some(Aabb {
+                min: lo - origin,
+                max: hi - origin,
+            })
         }
         None => None,
     };
-    let obj = Object::new(base, perts, bounds).map_err(|e| t.error(e.to_string()))?;
+    let obj = Object::in_frame(origin, base, perts, bounds).map_err(|e| t.error(e.to_string()))?;
     Ok((obj, mat))
 }

@@ -226,14 +226,16 @@ fn every_documented_key_is_parsed() {
     let objs = s.geometry.objects();
     assert_eq!(objs.len(), 5);
     assert_eq!(objs[0].perturbations().len(), 3);
+    // The base quadrics, in world coordinates.
+    let base = |i: usize| objs[i].base().translated(objs[i].origin());
     // The transform moved the unit sphere to radius 0.5 around (0, 1, 0).
-    assert!(objs[0].base().eval(DVec3::new(0.5, 1.0, 0.0)).abs() < 1e-12);
-    assert!(objs[0].base().eval(DVec3::new(0.0, 1.0, 0.0)) > 0.0);
+    assert!(base(0).eval(DVec3::new(0.5, 1.0, 0.0)).abs() < 1e-12);
+    assert!(base(0).eval(DVec3::new(0.0, 1.0, 0.0)) > 0.0);
     // Bounded plane and cylinder got finite boxes.
     assert!(objs[1].bbox().is_finite() && objs[2].bbox().is_finite());
     // The cylinder's own transform moved its axis to z = 1.
-    assert!(objs[2].base().eval(DVec3::new(3.0, 0.0, 1.0)) > 0.0);
-    assert!(objs[2].base().eval(DVec3::new(3.0, 0.0, 0.0)) < 0.0);
+    assert!(base(2).eval(DVec3::new(3.0, 0.0, 1.0)) > 0.0);
+    assert!(base(2).eval(DVec3::new(3.0, 0.0, 0.0)) < 0.0);
 }
 
 #[test]
@@ -309,6 +311,8 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         // Too large for the exact intersection (MAX_EXTENT): the second
         // object takes the scene past it, and is named.
         ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 0], radius = 4e6 }\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [0, 0, 9e6], radius = 1 }\n", "s.toml:7:1: object[1]: the scene reaches 1.300e7 units across with this object (camera included)"),
+        // Too far from the world origin for its size (MAX_REACH).
+        ("[[material]]\nname = \"m\"\ntype = \"diffuse\"\n[[object]]\nmaterial = \"m\"\nbase = { type = \"sphere\", center = [3e11, 0, 0], radius = 1 }\n", "s.toml:4:1: object[0]: the object lies 3.000e11 units from the world origin, 1.5e11 times its size (2.000e0)"),
         ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nroughness = 0.1\nroughness_u = 0.2\n", "s.toml:1:1: material[0]: give either `roughness` or `roughness_u` with `roughness_v`, not both"),
         ("[[material]]\nname = \"m\"\ntype = \"beckmann\"\nroughness_u = 0.2\n", "s.toml:1:1: material[0]: `roughness_u` and `roughness_v` go together: give both"),
         ("[[material]]\nname = \"m\"\ntype = \"ggx\"\nroughness = 0\n", "s.toml:4:13: material[0].roughness: roughness must lie in (0, 10], got 0"),
