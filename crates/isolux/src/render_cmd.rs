@@ -193,7 +193,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             );
         }
         if let Some(why) = isolux_gpu::f32_shortfall(&scene) {
-            bail!("--gpu: {why}");
+            bail!("--gpu: {}: {why}", a.scene.display());
         }
         start = Instant::now();
         if a.realtime {

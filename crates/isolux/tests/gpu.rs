@@ -225,9 +225,9 @@ base = { type = "sphere", center = [500000, 0, 0], radius = 1 }
     }
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(
-        err.contains(
-            "--gpu: object[0] is 2.0000e0 units across and reaches 5.0000e5 from the camera"
-        ) && err.contains("render without --gpu"),
+        err.contains(&format!(
+            "--gpu: {s}: object[0] is 2.0000e0 units across and reaches 5.0000e5 from the camera"
+        )) && err.contains("render without --gpu"),
         "{err}"
     );
     assert!(!out.exists());
