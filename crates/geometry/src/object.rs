@@ -1429,12 +1429,14 @@ impl Object {
                 self.gather(ray, t0, lo, hi, items, cands);
             }
             if cands.is_empty() {
-                // No perturbation on [lo, hi]: the base quadric alone.
-                if let Some(t) = base_roots.iter().copied().find(|&r| r >= lo && r <= hi) {
-                    return Some(self.base_hit(ray, t));
-                }
+                // No perturbation on [lo, hi]: the base quadric alone (a
+                // change of sign at `lo` first: that crossing comes before
+                // any root inside).
                 if before * sign(poly2(base_q, lo)) < 0.0 {
                     return Some(hit_at(lo, cands));
+                }
+                if let Some(t) = base_roots.iter().copied().find(|&r| r >= lo && r <= hi) {
+                    return Some(self.base_hit(ray, t));
                 }
                 before = sign(poly2(base_q, hi));
                 if split >= t1 {
@@ -1480,9 +1482,16 @@ impl Object {
                 if b <= a {
                     continue;
                 }
+                // A change of sign across the breakpoint `a` is a crossing
+                // there, before any the segment holds.
                 match self.segment_root(ray, base_q, &base_roots, cands, a, b) {
-                    Segment::Crossing(t) => return Some(hit_at(t, cands)),
-                    Segment::BaseCrossing(t) => return Some(self.base_hit(ray, t)),
+                    Segment::Crossing { start, .. } | Segment::BaseCrossing { start, .. }
+                        if before * start < 0.0 =>
+                    {
+                        return Some(hit_at(a, cands))
+                    }
+                    Segment::Crossing { t, .. } => return Some(hit_at(t, cands)),
+                    Segment::BaseCrossing { t, .. } => return Some(self.base_hit(ray, t)),
                     Segment::Clear { start, end } => {
                         if before * start < 0.0 {
                             return Some(hit_at(a, cands));
@@ -1656,7 +1665,10 @@ impl Object {
         match sign_is_fixed(base_q, cands.iter().filter(|c| active(c)), a, b) {
             None => {
                 return match base_roots.iter().copied().find(|&r| r >= a && r <= b) {
-                    Some(t) => Segment::BaseCrossing(t),
+                    Some(t) => Segment::BaseCrossing {
+                        t,
+                        start: sign(poly2(base_q, a)),
+                    },
                     None => Segment::Clear {
                         start: sign(poly2(base_q, a)),
                         end: sign(poly2(base_q, b)),
@@ -1679,11 +1691,45 @@ impl Object {
             poly.add_cube(c.factor, shift(c.q, a, len));
         }
         match poly.first_crossing() {
-            UnitRoot::Root(s) => Segment::Crossing(a + s * len),
-            UnitRoot::Clear { start, end } => Segment::Clear { start, end },
+            UnitRoot::Root(s) => Segment::Crossing {
+                t: a + s * len,
+                start: sign(poly.c[0]),
+            },
+            UnitRoot::Clear { start, end } => {
+                // A base root where the active perturbations add less than
+                // the base's own rounding (a support that ends there) is
+                // the crossing, whatever the polynomial's rounded ends
+                // say: `F` changes sign there and `f Q^3` vanishes to
+                // third order. (`solo::Walk::active` sends such rays here.)
+                let negligible = |r: f64| {
+                    let bump: f64 = cands
+                        .iter()
+                        .filter(|c| active(c))
+                        .map(|c| {
+                            let x = poly2(c.q, r).max(0.0);
+                            c.factor * x * x * x
+                        })
+                        .sum();
+                    let scale = base_q[0].abs() + (base_q[1] * r).abs() + (base_q[2] * r * r).abs();
+                    bump.abs() <= BUMP_NEGLIGIBLE * scale
+                };
+                match base_roots
+                    .iter()
+                    .copied()
+                    .find(|&r| r >= a && r <= b && negligible(r))
+                {
+                    Some(t) => Segment::BaseCrossing { t, start },
+                    None => Segment::Clear { start, end },
+                }
+            }
         }
     }
 }
+
+/// Where the active perturbations add at most this fraction of the base
+/// quadric's terms at a root of the base, the root is a crossing of `F'`
+/// (see `Object::segment_root`).
+pub(crate) const BUMP_NEGLIGIBLE: f64 = 1e-14;
 
 /// The unit normal along `-grad F'` (given as `minus_grad`), or against
 /// the ray where the gradient vanishes.
@@ -1697,10 +1743,14 @@ fn unit_normal(minus_grad: DVec3, ray: &Ray) -> DVec3 {
 /// What [`Object::segment_root`] found on a segment.
 enum Segment {
     /// The first crossing.
-    Crossing(f64),
+    Crossing {
+        t: f64,
+        /// The sign of `F'` at the segment's start (as `Clear`'s).
+        start: f64,
+    },
     /// The first crossing, of the base quadric where no perturbation is
     /// active.
-    BaseCrossing(f64),
+    BaseCrossing { t: f64, start: f64 },
     /// None: the signs (`1`, `-1`, `0` unknown) of `F'` just after the
     /// segment's start and just before its end.
     Clear { start: f64, end: f64 },

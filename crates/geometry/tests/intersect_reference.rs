@@ -636,46 +636,53 @@ fn tangent_and_grazing_rays() {
     assert!(obj.intersect(&tangent, 0.0, f64::INFINITY).is_none());
 }
 
+/// Rays spawned off a hit (`Hit::spawn`, the renderer's rule: `1e-7 (1 +
+/// |p - origin|) + 1e-14 |p|` along the normal) do not find the surface
+/// they leave, on a bumpy object at the world origin and on the same
+/// object written in a frame a billion units away, where the offset is
+/// about 1e-5 (the world frame's `1e-7 (1 + |p|)` would be 100 units).
 #[test]
 fn rays_leaving_the_surface_do_not_rehit() {
-    // Spawned rays offset along the normal by a tiny relative epsilon must
-    // not find the surface they leave, on a bumpy object.
-    let mut rng = Pcg32::new(99, 1);
-    let mut perts = vec![];
-    for _ in 0..32 {
-        let p = sampling::uniform_sphere(rng.next_2d()) * 0.6;
-        perts.push(Perturbation {
-            quadric: Quadric::sphere(p, 0.2),
-            factor: if rng.next_f64() < 0.5 {
-                2000.0
-            } else {
-                -2000.0
-            },
-        });
-    }
-    let obj = Object::new(Quadric::sphere(DVec3::ZERO, 0.6), perts, None).unwrap();
-    let mut rehits = 0;
-    for _ in 0..20_000 {
-        let o = sampling::uniform_sphere(rng.next_2d()) * 3.0;
-        let d = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 0.6 - 0.3 - o)
-            .normalize();
-        let Some(h) = obj.intersect(&Ray::new(o, d), 0.0, f64::INFINITY) else {
-            continue;
-        };
-        let eps = 1e-7 * (1.0 + h.p.abs().max_element());
-        // Outgoing direction in the outer hemisphere.
-        let mut w = sampling::uniform_sphere(rng.next_2d());
-        if w.dot(h.n) < 0.0 {
-            w = -w;
+    for far in [DVec3::ZERO, DVec3::new(1e9, -2e9, 0.5e9)] {
+        let mut rng = Pcg32::new(99, 1);
+        let mut perts = vec![];
+        for _ in 0..32 {
+            let p = sampling::uniform_sphere(rng.next_2d()) * 0.6;
+            perts.push(Perturbation {
+                quadric: Quadric::sphere(p, 0.2),
+                factor: if rng.next_f64() < 0.5 {
+                    2000.0
+                } else {
+                    -2000.0
+                },
+            });
         }
-        let spawn = Ray::new(h.p + h.n * eps, w);
-        if let Some(h2) = obj.intersect(&spawn, 0.0, f64::INFINITY) {
-            if h2.t < 1e-5 {
-                rehits += 1;
+        let base = Quadric::sphere(DVec3::ZERO, 0.6);
+        let obj = Object::in_frame(far, base, perts, None).unwrap();
+        let (mut rehits, mut hits) = (0, 0);
+        for _ in 0..20_000 {
+            let o = far + sampling::uniform_sphere(rng.next_2d()) * 3.0;
+            let to = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 0.6 - 0.3;
+            let d = (far + to - o).normalize();
+            let Some(h) = obj.intersect(&Ray::new(o, d), 0.0, f64::INFINITY) else {
+                continue;
+            };
+            hits += 1;
+            assert!(h.offset < 2e-7 + 1e-14 * 2.5e9, "{}", h.offset);
+            // Outgoing direction in the outer hemisphere.
+            let mut w = sampling::uniform_sphere(rng.next_2d());
+            if w.dot(h.n) < 0.0 {
+                w = -w;
+            }
+            if let Some(h2) = obj.intersect(&Ray::new(h.spawn(w), w), 0.0, f64::INFINITY) {
+                if h2.t < 1e-5 {
+                    rehits += 1;
+                }
             }
         }
+        assert!(hits > 5_000, "{far}: {hits} hits");
+        assert_eq!(rehits, 0, "{far}");
     }
-    assert_eq!(rehits, 0);
 }
 
 #[test]
@@ -749,6 +756,34 @@ fn crossing_within_rounding_of_a_breakpoint() {
         (ours.unwrap() - want).abs() < 1e-6,
         "{ours:?} vs reference {want}"
     );
+    // Since objects live in the frame of their box's centre, that ray no
+    // longer lands within rounding of its breakpoint. The case built on
+    // purpose: a bump whose support ends exactly where a ray down -z
+    // meets the unit sphere, 20,000 of them. The first crossing is there
+    // or earlier (where the bump rises above the ray), and `F'` changes
+    // sign at it (the reference's own coefficients). Without the
+    // comparison of signs across breakpoints about 0.3% of them pass
+    // through the front and hit the back of the sphere.
+    let region = Aabb::new(DVec3::splat(-2.0), DVec3::splat(2.0));
+    let mut rng = Pcg32::new(1, 2);
+    for _ in 0..20_000 {
+        let (x, y) = (0.9 * rng.next_f64(), 0.3 * rng.next_f64());
+        let z0 = (1.0 - x * x - y * y).sqrt();
+        let zc = z0 + 0.05 + 0.3 * rng.next_f64();
+        let bump = Perturbation {
+            quadric: Quadric::sphere(DVec3::new(x, y, zc), zc - z0),
+            factor: 10f64.powf(2.0 + 3.0 * rng.next_f64()),
+        };
+        let obj = Object::new(Quadric::sphere(DVec3::ZERO, 1.0), vec![bump], None).unwrap();
+        let ray = Ray::new(DVec3::new(x, y, 5.0), -DVec3::Z);
+        let t = obj.intersect(&ray, 0.0, f64::INFINITY).map(|h| h.t);
+        let reference = RefObject::of(&obj, region);
+        assert!(
+            t.is_some_and(|t| t <= 5.0 - z0 + 1e-9 && reference.genuine(&ray, t)),
+            "{x} {y} {zc}: {t:?}, the sphere at {}",
+            5.0 - z0
+        );
+    }
 }
 
 /// The scale the scene loader allows (`MAX_EXTENT`, 1e7 units across the

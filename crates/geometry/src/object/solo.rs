@@ -35,7 +35,7 @@
 // latter's closures were left out of line (calls per lane operation).
 #![allow(clippy::needless_range_loop)]
 
-use super::TILE_RAYS;
+use super::{BUMP_NEGLIGIBLE, TILE_RAYS};
 use crate::poly::{BERNSTEIN, MAX_DEGREE};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
 
@@ -423,17 +423,17 @@ struct Walk {
 
 impl Walk {
     /// The segment `[a, b]` on the lanes `run` where no support is active,
-    /// as `Object::segment_root` and the walk answer it: the base's
-    /// crossing when one lies in `[a, b]`, else a hit at `a` where `F'`
-    /// changed sign across the breakpoint.
+    /// as `Object::segment_root` and the walk answer it: a hit at `a`
+    /// where `F'` changed sign across the breakpoint, else the base's
+    /// crossing when one lies in `[a, b]`.
     #[inline(always)]
     fn plain(&mut self, run: M, b: V, q: [V; 3], (r0, r1): (V, V)) {
         let a = self.a;
         let in0 = r0.ge(a) & r0.le(b);
         let in1 = r1.ge(a) & r1.le(b);
-        let base = run & (in0 | in1);
-        let clear = run & !(in0 | in1);
-        let raw = clear & (self.before * sign(poly2(q, a))).lt(0.0);
+        let raw = run & (self.before * sign(poly2(q, a))).lt(0.0);
+        let base = run & !raw & (in0 | in1);
+        let clear = run & !raw & !(in0 | in1);
         self.t = sel(base, sel(in0, r0, r1), sel(raw, a, self.t));
         self.kind = sel(base, 1.0, sel(raw, 2.0, self.kind));
         self.before = sel(clear, sign(poly2(q, b)), self.before);
@@ -455,6 +455,7 @@ impl Walk {
         (clo, chi, f): (&[V; K], &[V; K], &[V; K]),
         act: &[M; K],
         f_at_a: V,
+        (r0, r1): (V, V),
     ) {
         let a = self.a;
         // `sign_is_fixed(base_q, active, a, b)`.
@@ -555,6 +556,21 @@ impl Walk {
         let found = one | left_one | right_one;
         let none = none | right_none;
         self.live = self.live & !(polynomial & !none & !found);
+        // A base root in `[a, b]` where the supports add next to nothing
+        // (`Object::segment_root`'s `BUMP_NEGLIGIBLE`, here ten times
+        // wider so that no lane it would answer stays): walked alone.
+        let negligible = |r: V| {
+            let mut bump = splat(0.0);
+            for k in 0..K {
+                let x = fmax(poly2(c[k], r), splat(0.0));
+                bump = sel(act[k], bump + f[k] * x * x * x, bump);
+            }
+            let scale = q[0].abs() + (q[1] * r).abs() + (q[2] * r * r).abs();
+            bump.abs().le(10.0 * BUMP_NEGLIGIBLE * scale)
+        };
+        let near_root =
+            (r0.ge(a) & r0.le(b) & negligible(r0)) | (r1.ge(a) & r1.le(b) & negligible(r1));
+        self.live = self.live & !(polynomial & none & near_root);
         let clear_start = sel(neg, -1.0, sel(pos, 1.0, sign(bz[0])));
         let clear_end = sel(neg, -1.0, sel(pos, 1.0, sign(bz[6])));
         // Halley's first step from the better end.
@@ -590,8 +606,11 @@ impl Walk {
         } else {
             splat(0.0)
         };
+        // A change of sign across the breakpoint `a` comes first, also on
+        // lanes whose segment holds a root (as `Object::walk`).
+        let raw = self.live & run & (self.before * clear_start).lt(0.0);
+        let found = found & !raw;
         let cleared = self.live & run & !found;
-        let raw = cleared & (self.before * clear_start).lt(0.0);
         self.t = sel(found, a + root * len, sel(raw, a, self.t));
         self.kind = sel(found | raw, 2.0, self.kind);
         self.before = sel(cleared, clear_end, self.before);
@@ -718,7 +737,7 @@ fn walk_lanes<const K: usize>(
                     o[2] + a * d[2] - base.centre[2],
                 ];
                 let f_at_a = base.c0 - base.k * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-                w.active(busy, b, q, &c, (&clo, &chi, &f), &act, f_at_a);
+                w.active(busy, b, q, &c, (&clo, &chi, &f), &act, f_at_a, roots);
             }
             w.a = sel(run, b, a);
         }

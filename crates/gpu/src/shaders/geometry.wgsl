@@ -481,6 +481,11 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     let live = select(cand_count, countOneBits(mask), masked);
     var a = span.x;
     var guard = 0u;
+    // The sign of F' at the end of the last segment (0 before the first):
+    // a segment that starts on the other side of zero had a crossing at
+    // its breakpoint that rounding hid from both (a support ending where
+    // the base crosses), as on the CPU (`Object::walk`'s `before`).
+    var before: real = 0.0;
     loop {
         if (a >= span.y || guard > 2u * live + 2u) {
             break;
@@ -539,7 +544,9 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         // No perturbation active: the base quadric's closed form (as on the
         // CPU), its first root in [0, 1] where the sign changes.
         var s: real = -1.0;
-        if (n_active == 0u) {
+        if (before * p[0] < 0.0) {
+            s = 0.0;
+        } else if (n_active == 0u) {
             let r = roots(vec3<real>(c.z, c.y, c.x));
             let f0 = c.x;
             if (f0 == 0.0) {
@@ -579,6 +586,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             }
             return vec4<real>(shift + t, n);
         }
+        before = sign(p[0] + p[1] + p[2] + p[3] + p[4] + p[5] + p[6]);
         a = b;
     }
     return vec4<real>(MISS, 0.0, 0.0, 0.0);
