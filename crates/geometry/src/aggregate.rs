@@ -68,21 +68,22 @@ impl Aggregate {
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<(usize, Hit)> {
         let mut best: Option<(usize, Hit)> = None;
         let mut t1 = t_max;
+        // Hits stay in their object's frame until the nearest is known.
         for &i in &self.unbounded {
-            if let Some(h) = self.objects[i as usize].intersect(ray, t_min, t1) {
+            if let Some(h) = self.objects[i as usize].intersect_local(ray, t_min, t1) {
                 t1 = h.t;
                 best = Some((i as usize, h));
             }
         }
         self.bvh.traverse(ray, t_min, &mut t1, |item, t1| {
             let i = self.bounded[item as usize] as usize;
-            if let Some(h) = self.objects[i].intersect(ray, t_min, *t1) {
+            if let Some(h) = self.objects[i].intersect_local(ray, t_min, *t1) {
                 *t1 = h.t;
                 best = Some((i, h));
             }
             true
         });
-        best
+        best.map(|(i, h)| (i, self.objects[i].world(h)))
     }
 
     /// Fills `out` with the objects, and their perturbations, that some
@@ -127,12 +128,13 @@ impl Aggregate {
         let mut t1 = t_max;
         for &(i, a, b) in &culled.objects {
             let items = &culled.items[a as usize..b as usize];
-            if let Some(h) = self.objects[i as usize].intersect_culled(ray, t_min, t1, items) {
+            if let Some(h) = self.objects[i as usize].intersect_culled_local(ray, t_min, t1, items)
+            {
                 t1 = h.t;
                 best = Some((i as usize, h));
             }
         }
-        best
+        best.map(|(i, h)| (i, self.objects[i].world(h)))
     }
 
     /// Whether anything crosses the ray within `[t_min, t_max]`.

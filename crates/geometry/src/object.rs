@@ -113,8 +113,8 @@ pub enum GeometryError {
 /// A functionally defined object (see the module docs).
 ///
 /// Its quadrics, boxes and hierarchy live in the object's own frame, whose
-/// zero is the world point [`Object::origin`] (the centre of its box, for
-/// a bounded object): far from the world origin the quadrics keep small
+/// zero is the world point [`Object::origin`] (near the object, for a
+/// bounded one): far from the world origin the quadrics keep small
 /// coefficients and the spawn offset stays small ([`Hit::offset`]). The
 /// methods take and give world coordinates.
 #[derive(Clone, Debug)]
@@ -748,9 +748,9 @@ impl Object {
     /// small: a sphere of radius 1 written about the world origin a
     /// million units away has a constant term of `1 - 1e12`, whose
     /// rounding alone moves its surface by 5e-5. The object then moves
-    /// its frame to the centre of its box, when that is finite, so that
-    /// [`Object::origin`] is the same whichever frame it was given in (up
-    /// to rounding).
+    /// its frame to the centre of its box, when that is finite and lies
+    /// farther from `origin` than the box's longest side (an object given
+    /// about a point near it keeps that point).
     pub fn in_frame(
         origin: DVec3,
         base: Quadric,
@@ -764,8 +764,11 @@ impl Object {
         if !obj.bbox.is_finite() {
             return Ok(obj);
         }
+        // Moved only when the box lies farther from the frame's zero than
+        // its own size: an object near its frame's zero keeps it (and the
+        // same numbers to the last bit).
         let c = obj.bbox.center();
-        if c == DVec3::ZERO {
+        if c.abs().max_element() <= (obj.bbox.max - obj.bbox.min).max_element() {
             return Ok(obj);
         }
         let Object {
@@ -870,7 +873,9 @@ impl Object {
 
     /// The world point that is zero in the object's frame, in which
     /// [`Object::base`] and [`Object::perturbations`] are written: the
-    /// centre of the object's box when it is finite.
+    /// point it was written about ([`Object::in_frame`]; the world origin
+    /// for [`Object::new`]), or the centre of its box where that lies
+    /// farther away than the box's size.
     pub fn origin(&self) -> DVec3 {
         self.origin
     }
@@ -901,13 +906,20 @@ impl Object {
     }
 
     /// A hit found in the object's frame, in world coordinates, with its
-    /// spawn offset ([`Hit::offset`]).
+    /// spawn offset ([`Hit::offset`]). (`t` is the same in both frames:
+    /// the direction is.)
     #[inline]
-    fn world(&self, hit: Hit) -> Hit {
+    pub(crate) fn world(&self, hit: Hit) -> Hit {
+        let near = hit.p.abs().max_element();
         let p = hit.p + self.origin;
+        let far = if self.origin == DVec3::ZERO {
+            near
+        } else {
+            p.abs().max_element()
+        };
         Hit {
             p,
-            offset: 1e-7 * (1.0 + hit.p.abs().max_element()) + 1e-14 * p.abs().max_element(),
+            offset: 1e-7 * (1.0 + near) + 1e-14 * far,
             ..hit
         }
     }
@@ -957,8 +969,15 @@ impl Object {
     /// before `L`); only when `[t0, L]` holds no hit (a dent at the base
     /// surface, say) is the rest of the ray gathered and searched.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
-        self.intersect_in(&self.local(ray), t_min, t_max, Items::All)
+        self.intersect_local(ray, t_min, t_max)
             .map(|h| self.world(h))
+    }
+
+    /// [`Object::intersect`] with the hit left in the object's frame (for
+    /// [`crate::Aggregate`], which moves only the nearest to the world).
+    #[inline]
+    pub(crate) fn intersect_local(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+        self.intersect_in(&self.local(ray), t_min, t_max, Items::All)
     }
 
     /// Whether some ray of `beam` may meet the object: its box and, for a
@@ -1017,8 +1036,20 @@ impl Object {
         t_max: f64,
         culled: &[u32],
     ) -> Option<Hit> {
-        self.intersect_in(&self.local(ray), t_min, t_max, Items::Only(culled))
+        self.intersect_culled_local(ray, t_min, t_max, culled)
             .map(|h| self.world(h))
+    }
+
+    /// [`Object::intersect_culled`] with the hit left in the object's frame.
+    #[inline]
+    pub(crate) fn intersect_culled_local(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        culled: &[u32],
+    ) -> Option<Hit> {
+        self.intersect_in(&self.local(ray), t_min, t_max, Items::Only(culled))
     }
 
     /// [`Object::intersect_culled`] for up to [`TILE_RAYS`] rays of one
@@ -1043,13 +1074,18 @@ impl Object {
         hits: &mut [Option<Hit>],
     ) {
         assert!(rays.len() <= TILE_RAYS && hits.len() == rays.len());
-        let mut local = [Ray::new(DVec3::ZERO, DVec3::ZERO); TILE_RAYS];
-        for (l, ray) in local.iter_mut().zip(rays) {
-            *l = self.local(ray);
+        if self.origin == DVec3::ZERO {
+            // The world's frame (an object centred on the origin): no copy.
+            self.intersect_tile_local(rays, t_min, t_max, culled, hits);
+        } else {
+            let mut local = [Ray::new(DVec3::ZERO, DVec3::ZERO); TILE_RAYS];
+            for (l, ray) in local.iter_mut().zip(rays) {
+                *l = self.local(ray);
+            }
+            self.intersect_tile_local(&local[..rays.len()], t_min, t_max, culled, hits);
         }
-        self.intersect_tile_local(&local[..rays.len()], t_min, t_max, culled, hits);
-        for hit in hits.iter_mut() {
-            *hit = hit.map(|h| self.world(h));
+        for hit in hits.iter_mut().flatten() {
+            *hit = self.world(*hit);
         }
     }
 
@@ -1635,7 +1671,7 @@ impl Object {
 
     /// Whether the surface crosses the ray within `[t_min, t_max]`.
     pub fn occludes(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
-        self.intersect(ray, t_min, t_max).is_some()
+        self.intersect_local(ray, t_min, t_max).is_some()
     }
 
     /// First crossing on the segment `[a, b]`, on which the set of active
@@ -2378,7 +2414,7 @@ mod tests {
     /// and a spawn offset of about 1e-7 plus 1e-14 of the distance, where
     /// the world frame's rule, `1e-7 (1 + |p|)`, gave 0.1. The same object
     /// written in world coordinates (`Object::new`) moves into a frame at
-    /// its box's centre and agrees as well, to the rounding of its
+    /// its box's centre (a million units from its written frame's zero) and agrees as well, to the rounding of its
     /// constant terms.
     #[test]
     fn objects_far_from_the_origin_hit_as_at_the_origin() {

@@ -239,8 +239,8 @@ impl GpuScene {
             // Everything of the object in its own frame (`GpuObject`):
             // `origin` from `at` as uploaded, the frame's world point
             // `at + origin` exactly. The CPU object's quadrics are written
-            // about its own origin (`Object::origin`, the box's centre in
-            // f64), so they move by that point's f32 rounding only.
+            // about its own origin (`Object::origin`, a point near it), so
+            // they move by about its size at most.
             let origin = object_origin(&translated_box(&o.bbox(), -at));
             let shift = o.origin() - (at + origin);
             let local = |q: &Quadric| q.translated(shift);

@@ -568,9 +568,12 @@ impl Walk {
             let scale = q[0].abs() + (q[1] * r).abs() + (q[2] * r * r).abs();
             bump.abs().le(10.0 * BUMP_NEGLIGIBLE * scale)
         };
-        let near_root =
-            (r0.ge(a) & r0.le(b) & negligible(r0)) | (r1.ge(a) & r1.le(b) & negligible(r1));
-        self.live = self.live & !(polynomial & none & near_root);
+        let (in0, in1) = (r0.ge(a) & r0.le(b), r1.ge(a) & r1.le(b));
+        let clear_root = polynomial & none & (in0 | in1);
+        if clear_root.any() {
+            let near_root = (in0 & negligible(r0)) | (in1 & negligible(r1));
+            self.live = self.live & !(clear_root & near_root);
+        }
         let clear_start = sel(neg, -1.0, sel(pos, 1.0, sign(bz[0])));
         let clear_end = sel(neg, -1.0, sel(pos, 1.0, sign(bz[6])));
         // Halley's first step from the better end.
