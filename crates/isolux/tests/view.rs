@@ -178,7 +178,10 @@ fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("material \"grey\" (type mix) does not run on the GPU"),
+        err.contains(&format!(
+            "{}: material \"grey\" (type mix) does not run on the GPU",
+            scene.display()
+        )),
         "{err}"
     );
 

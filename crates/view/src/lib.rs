@@ -106,14 +106,16 @@ pub fn run(opts: Options) -> anyhow::Result<()> {
         }
     }
     let state = State::load(&opts)?;
+    let file = opts.scene.display();
     if let Some((name, ty)) = isolux_gpu::unsupported_material(&state.scene) {
         bail!(
-            "material \"{name}\" (type {ty}) does not run on the GPU yet, so `isolux view` cannot \
-             show it (docs/gpu.md lists the models that do; `isolux render` renders it on the CPU)"
+            "{file}: material \"{name}\" (type {ty}) does not run on the GPU yet, so `isolux view` \
+             cannot show it (docs/gpu.md lists the models that do; `isolux render` renders it on \
+             the CPU)"
         );
     }
     if let Some(why) = isolux_gpu::f32_shortfall(&state.scene) {
-        bail!("{why}");
+        bail!("{file}: {why}");
     }
     check_display()?;
     #[allow(unused_mut)]
