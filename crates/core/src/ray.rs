@@ -66,6 +66,14 @@ impl Aabb {
         self.min.is_finite() && self.max.is_finite()
     }
 
+    /// The box moved by `v` (an unbounded side stays unbounded).
+    pub fn translated(&self, v: DVec3) -> Aabb {
+        Aabb {
+            min: self.min + v,
+            max: self.max + v,
+        }
+    }
+
     /// Smallest box containing both.
     pub fn union(&self, o: &Aabb) -> Aabb {
         Aabb {

@@ -133,24 +133,12 @@ impl Beam {
 
     /// The beam moved by `v` (into an object's frame, say).
     pub fn translated(&self, v: DVec3) -> Beam {
-        match *self {
-            Beam::Cone {
-                origin,
-                axis,
-                cos_half,
-                sin_half,
-            } => Beam::Cone {
-                origin: origin + v,
-                axis,
-                cos_half,
-                sin_half,
-            },
-            Beam::Cylinder { point, dir, radius } => Beam::Cylinder {
-                point: point + v,
-                dir,
-                radius,
-            },
+        let mut moved = *self;
+        match &mut moved {
+            Beam::Cone { origin, .. } => *origin += v,
+            Beam::Cylinder { point, .. } => *point += v,
         }
+        moved
     }
 
     /// Whether some ray of the beam may meet `b` (through its

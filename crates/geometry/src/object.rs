@@ -784,7 +784,7 @@ impl Object {
                 factor: p.factor,
             })
             .collect();
-        let bounds = bounds.map(|b| Aabb::new(b.min - c, b.max - c));
+        let bounds = bounds.map(|b| b.translated(-c));
         Self::build(origin + c, moved(&base), perturbations, bounds)
     }
 
@@ -893,10 +893,7 @@ impl Object {
     /// Box containing the surface (infinite for unbounded objects), in
     /// world coordinates.
     pub fn bbox(&self) -> Aabb {
-        Aabb {
-            min: self.bbox.min + self.origin,
-            max: self.bbox.max + self.origin,
-        }
+        self.bbox.translated(self.origin)
     }
 
     /// A ray in the object's frame.
@@ -910,16 +907,10 @@ impl Object {
     /// the direction is.)
     #[inline]
     pub(crate) fn world(&self, hit: Hit) -> Hit {
-        let near = hit.p.abs().max_element();
         let p = hit.p + self.origin;
-        let far = if self.origin == DVec3::ZERO {
-            near
-        } else {
-            p.abs().max_element()
-        };
         Hit {
             p,
-            offset: 1e-7 * (1.0 + near) + 1e-14 * far,
+            offset: 1e-7 * (1.0 + hit.p.abs().max_element()) + 1e-14 * p.abs().max_element(),
             ..hit
         }
     }
@@ -1521,19 +1512,16 @@ impl Object {
                 // A change of sign across the breakpoint `a` is a crossing
                 // there, before any the segment holds.
                 match self.segment_root(ray, base_q, &base_roots, cands, a, b) {
-                    Segment::Crossing { start, .. } | Segment::BaseCrossing { start, .. }
+                    Segment::Crossing { start, .. }
+                    | Segment::BaseCrossing { start, .. }
+                    | Segment::Clear { start, .. }
                         if before * start < 0.0 =>
                     {
                         return Some(hit_at(a, cands))
                     }
                     Segment::Crossing { t, .. } => return Some(hit_at(t, cands)),
                     Segment::BaseCrossing { t, .. } => return Some(self.base_hit(ray, t)),
-                    Segment::Clear { start, end } => {
-                        if before * start < 0.0 {
-                            return Some(hit_at(a, cands));
-                        }
-                        before = end;
-                    }
+                    Segment::Clear { end, .. } => before = end,
                 }
                 a = b;
             }
@@ -1700,16 +1688,14 @@ impl Object {
         };
         match sign_is_fixed(base_q, cands.iter().filter(|c| active(c)), a, b) {
             None => {
+                let start = sign(poly2(base_q, a));
                 return match base_roots.iter().copied().find(|&r| r >= a && r <= b) {
-                    Some(t) => Segment::BaseCrossing {
-                        t,
-                        start: sign(poly2(base_q, a)),
-                    },
+                    Some(t) => Segment::BaseCrossing { t, start },
                     None => Segment::Clear {
-                        start: sign(poly2(base_q, a)),
+                        start,
                         end: sign(poly2(base_q, b)),
                     },
-                }
+                };
             }
             Some(Some(s)) => return Segment::Clear { start: s, end: s },
             Some(None) => debug_assert!(b.is_finite()),
@@ -2414,8 +2400,8 @@ mod tests {
     /// and a spawn offset of about 1e-7 plus 1e-14 of the distance, where
     /// the world frame's rule, `1e-7 (1 + |p|)`, gave 0.1. The same object
     /// written in world coordinates (`Object::new`) moves into a frame at
-    /// its box's centre (a million units from its written frame's zero) and agrees as well, to the rounding of its
-    /// constant terms.
+    /// its box's centre (a million units from its written frame's zero)
+    /// and agrees as well, to the rounding of its constant terms.
     #[test]
     fn objects_far_from_the_origin_hit_as_at_the_origin() {
         let far = DVec3::new(1.0e6, -0.25e6, 0.5e6);

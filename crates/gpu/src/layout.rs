@@ -154,11 +154,6 @@ pub(crate) fn f32_exact(v: DVec3) -> DVec3 {
     DVec3::new(v.x as f32 as f64, v.y as f32 as f64, v.z as f32 as f64)
 }
 
-/// `b` moved by `v` (an unbounded side stays unbounded).
-fn translated_box(b: &Aabb, v: DVec3) -> Aabb {
-    Aabb::new(b.min + v, b.max + v)
-}
-
 /// `b` as the kernels see it: clamped and rounded to f32, back in f64 (the
 /// boxes the hierarchies are built over).
 fn uploaded_box(b: &Aabb) -> Aabb {
@@ -229,7 +224,7 @@ impl GpuScene {
         let mut s = Self::default();
         let boxes: Vec<Aabb> = objects
             .iter()
-            .map(|o| uploaded_box(&translated_box(&o.bbox(), -at)))
+            .map(|o| uploaded_box(&o.bbox().translated(-at)))
             .collect();
         if !objects.is_empty() {
             push_bvh(&mut s.nodes, &boxes, |i| i);
@@ -241,10 +236,10 @@ impl GpuScene {
             // `at + origin` exactly. The CPU object's quadrics are written
             // about its own origin (`Object::origin`, a point near it), so
             // they move by about its size at most.
-            let origin = object_origin(&translated_box(&o.bbox(), -at));
+            let origin = object_origin(&o.bbox().translated(-at));
             let shift = o.origin() - (at + origin);
             let local = |q: &Quadric| q.translated(shift);
-            let bbox = translated_box(&o.bbox(), -(at + origin));
+            let bbox = o.bbox().translated(-(at + origin));
             // Supports clipped to the object's box.
             let mut live = Vec::new();
             let mut pboxes = Vec::new();
@@ -1149,7 +1144,7 @@ mod tests {
             let object_boxes: Vec<Aabb> = spheres.iter().map(|o| uploaded_box(&o.bbox())).collect();
             // In the GPU's frame of the object, as `with_materials` puts them.
             let gpu_origin = object_origin(&bumpy.bbox());
-            let gpu_box = translated_box(&bumpy.bbox(), -gpu_origin);
+            let gpu_box = bumpy.bbox().translated(-gpu_origin);
             let bump_boxes: Vec<Aabb> = bumpy
                 .perturbations()
                 .iter()

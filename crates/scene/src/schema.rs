@@ -119,16 +119,16 @@ pub fn parse_str(
             let (obj, mat) = object(&o, &scene.material_names)?;
             let b = obj.bbox();
             if b.is_finite() {
-                let size = (b.max - b.min).max_element();
+                let own = (b.max - b.min).max_element();
                 let reach = b.min.abs().max(b.max.abs()).max_element();
-                if reach > MAX_REACH * size {
+                if reach > MAX_REACH * own {
                     return Err(o.error(format!(
                         "the object lies {reach:.3e} units from the world origin, {:.1e} \
-                         times its size ({size:.3e}); rays leave surfaces 1e-14 of their \
+                         times its size ({own:.3e}); rays leave surfaces 1e-14 of their \
                          distance from the origin off them, which holds to {MAX_REACH:e} \
                          times the size (docs/geometry.md, \"Scene scale\"): move the \
                          scene nearer the origin",
-                        reach / size
+                        reach / own
                     )));
                 }
                 extent = extent.union(&b);
@@ -1170,10 +1170,7 @@ fn object(t: &Table, material_names: &[String]) -> Result<(Object, usize)> {
             if !(lo.cmplt(hi).all()) {
                 return Err(v.error("bounds.min must be below bounds.max on every axis"));
             }
-            Some(Aabb {
-                min: lo - origin,
-                max: hi - origin,
-            })
+            Some(Aabb { min: lo, max: hi }.translated(-origin))
         }
         None => None,
     };
