@@ -461,14 +461,17 @@ fn rays_from_inside_always_leave() {
 /// Rays down `-z` onto a unit sphere whose one perturbation's support
 /// ends exactly where the ray meets the sphere (a bump raises the surface
 /// there or earlier, a dent leaves it there), 1000 objects side by side,
-/// 4000 rays: the breakpoint and the base's crossing agree to rounding,
+/// 10,000 rays: the breakpoint and the base's crossing agree to rounding,
 /// and a walk that trusts the two segments' rounded ends passes through
 /// the front to the back of the sphere. The CPU finds every one
-/// (`crossing_within_rounding_of_a_breakpoint`); the f64 kernels too; the
-/// f32 kernels, which compare the signs across breakpoints as the CPU
-/// does, lose about 1.3% (2.7% without that comparison): there `f Q^3`
-/// rounds to more than `F` near the breakpoint. Asserted: f32 below 2%,
-/// f64 none.
+/// (`crossing_within_rounding_of_a_breakpoint`); the f64 kernels too. The
+/// f32 kernels compare the signs across breakpoints and take a base root
+/// where the perturbations add under `BUMP_NEGLIGIBLE` (geometry.wgsl
+/// `negligible_base_root`), as the CPU does: without the latter they lost
+/// 1.3% (2.7% without either); with it none of these 10,000, and 1 of
+/// 40,000 (a dent of factor 7e4 answered 1.1e-3 early, f32's rounding of
+/// the degree-6 polynomial, not the breakpoint). Asserted: f32 below
+/// 0.05%, f64 none.
 #[test]
 fn supports_ending_on_the_base_surface() {
     let Some(mut gpu) = common::open("the breakpoint rays") else {
@@ -482,7 +485,7 @@ fn supports_ending_on_the_base_surface() {
         gpu.set_precision(precision).unwrap();
         let mut rng = Pcg32::new(9, 9);
         let (mut lost, mut total) = (0, 0);
-        for _ in 0..4 {
+        for _ in 0..10 {
             let (mut objects, mut rays, mut want) = (Vec::new(), Vec::new(), Vec::new());
             for i in 0..1000 {
                 let (x, y) = (0.9 * rng.next_f64(), 0.3 * rng.next_f64());
@@ -514,7 +517,7 @@ fn supports_ending_on_the_base_surface() {
         let share = lost as f64 / total as f64;
         eprintln!("{precision:?}: {lost} of {total} rays lost at the breakpoint");
         match precision {
-            isolux_gpu::Precision::F32 => assert!(share < 0.02, "{share}"),
+            isolux_gpu::Precision::F32 => assert!(share < 5e-4, "{share}"),
             _ => assert_eq!(lost, 0),
         }
     }
