@@ -617,7 +617,12 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
                 let cb = shift2(base, a, l);
                 let r = roots(vec3<real>(cb.z, cb.y, cb.x));
                 let rb = select(r.y, r.x, r.x >= -real(ROOT_SLACK));
-                if (rb >= -real(ROOT_SLACK) && rb <= 1.0 + real(ROOT_SLACK)) {
+                // Only a root at the segment's ends, within rounding (in
+                // `t`, as the breakpoints' own `eps`), is one that rounding
+                // can have hidden; one inside is a crossing that the
+                // perturbations moved away.
+                let near = min(abs(rb), abs(1.0 - rb)) * l <= 16.0 * eps;
+                if (near && rb >= -real(ROOT_SLACK) && rb <= 1.0 + real(ROOT_SLACK)) {
                     pending = a + clamp(rb, 0.0, 1.0) * l;
                 }
             }
