@@ -2,10 +2,14 @@
 # Instructions that lavapipe executes per frame of the GPU kernels, counted
 # by valgrind (callgrind): a work meter repeatable to about 0.1%, where
 # lavapipe's timings on a shared 2-core machine vary by 20-40% between runs.
-# Lavapipe runs the kernels 8 lanes wide (256-bit SIMD), both sides of a
-# divergent branch under a lane mask, as a GPU warp does on a narrower
-# scale; what it cannot show is a GPU's registers and occupancy (see
-# crates/gpu/examples/kernel_stats.rs) or its memory system.
+# Lavapipe runs the kernels 8 lanes wide (256-bit SIMD) under a lane mask,
+# and runs the body of an `if` even when no lane takes it (loops do stop when
+# every lane is done): so code behind a branch that a GPU warp would skip
+# still counts here. Read the counts as the work of the code that every
+# sample runs (traversal, segment walk, root isolation, shading), and a
+# rare branch's code as a cost on lavapipe only. What it cannot show at
+# all is a GPU's registers and occupancy (crates/gpu/examples/kernel_stats.rs)
+# or its memory system.
 #
 # Each count is the difference of two renders of one binary that differ only
 # in samples per pixel (path traced: 17 and 1; real time: 20 and 4), so the

@@ -402,11 +402,6 @@ const BUMP_NEGLIGIBLE: f32 = 1e-6;
 // `object_hit`'s walk ended on a crossing (in its `guard`).
 const WALK_HIT: u32 = 0xffffffffu;
 
-// How far outside [0, 1] a segment's base root may round and still be
-// taken: a crossing within rounding of a breakpoint, on whose two sides F'
-// rounds to the same sign, falls just outside both segments.
-const ROOT_SLACK: f32 = 1e-5;
-
 // Whether the perturbations of the object being walked (the candidate
 // set) add under BUMP_NEGLIGIBLE of the base's terms (`base`: its
 // quadratic along the ray) at `t` on the ray `o + t d` (the object's
@@ -614,16 +609,21 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             // 164 -> 169 VGPRs before scheduling, 6 -> 4 waves per SIMD)
             // to darken a curve of measure zero.
             if (!any && s < 0.0 && pending == NO_ROOT) {
-                let cb = shift2(base, a, l);
-                let r = roots(vec3<real>(cb.z, cb.y, cb.x));
-                let rb = select(r.y, r.x, r.x >= -real(ROOT_SLACK));
-                // Only a root at the segment's ends, within rounding (in
-                // `t`, as the breakpoints' own `eps`), is one that rounding
-                // can have hidden; one inside is a crossing that the
-                // perturbations moved away.
-                let near = min(abs(rb), abs(1.0 - rb)) * l <= 16.0 * eps;
-                if (near && rb >= -real(ROOT_SLACK) && rb <= 1.0 + real(ROOT_SLACK)) {
-                    pending = a + clamp(rb, 0.0, 1.0) * l;
+                // Only a base root at an end of the segment, within
+                // rounding of it (a Newton step from the end no longer
+                // than 16 times the breakpoints' own `eps`), is one that
+                // rounding can have hidden; one inside is a crossing that
+                // the perturbations moved away. The step is the root to
+                // f32's precision: the base's curvature times the step's
+                // square is far below it.
+                for (var k = 0u; k < 2u; k++) {
+                    let e = select(a, b, k == 1u);
+                    let fe = base.z + e * (base.y + e * base.x);
+                    let de = base.y + 2.0 * e * base.x;
+                    if (de != 0.0 && abs(fe) <= 16.0 * eps * abs(de)) {
+                        pending = e - fe / de;
+                        break;
+                    }
                 }
             }
         }
