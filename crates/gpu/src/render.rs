@@ -149,6 +149,9 @@ pub fn worst_scale_ratio(scene: &Scene) -> Option<ScaleRatio> {
 /// large object far out, a floor, is no obstacle to small ones near the
 /// camera: each is weighed against its own size.)
 pub fn f32_shortfall(scene: &Scene) -> Option<String> {
+    if let Some(why) = f32_overflow(scene) {
+        return Some(why);
+    }
     let ScaleRatio {
         object,
         reach,
@@ -170,6 +173,95 @@ pub fn f32_shortfall(scene: &Scene) -> Option<String> {
              ({MAX_SCALE_RATIO}; docs/gpu.md, \"Precision\"): {fix}, or render without --gpu"
         )
     })
+}
+
+/// Above this magnitude a light's intensity or position (from the GPU's
+/// origin), the environment's radiance, or a quadric coefficient or
+/// perturbation factor is refused by `--gpu`: f32 holds up to 3.4e38, and
+/// the kernels square positions and coefficients and multiply radiances
+/// by BSDF values and inverse densities, so a value near f32's limit
+/// overflows to infinity on the way, and the samples it reaches are
+/// dropped as non-finite (a silently darker image). 1e30 leaves 8 orders
+/// of magnitude for that arithmetic; the CPU, in f64, takes any finite
+/// value.
+pub const F32_VALUE_LIMIT: f64 = 1.0e30;
+
+/// `v` as a person writes it: plain in [1e-3, 1e6), else with an exponent
+/// (`{v}` would spell out all 301 digits of 1e300).
+fn num(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// The first value of `scene`'s lights, environment or geometry beyond
+/// [`F32_VALUE_LIMIT`], named as the scene file names it.
+fn f32_overflow(scene: &Scene) -> Option<String> {
+    let beyond = |v: f64| !(v.abs() <= F32_VALUE_LIMIT);
+    let fix = "render without --gpu (the CPU works in f64)";
+    let at = rebase_point(scene);
+    for (i, l) in scene.lights.iter().enumerate() {
+        let p = l.position - at;
+        if [p.x, p.y, p.z].into_iter().any(beyond) {
+            return Some(format!(
+                "light[{i}] lies {:.4e} units from {}, beyond the {F32_VALUE_LIMIT:e} that \
+                 the GPU's f32 arithmetic holds: {fix}",
+                p.abs().max_element(),
+                if at == glam::DVec3::ZERO {
+                    "the origin"
+                } else {
+                    "the camera"
+                }
+            ));
+        }
+        let c = l.intensity;
+        if [c.r, c.g, c.b].into_iter().any(beyond) {
+            return Some(format!(
+                "light[{i}] has intensity [{}, {}, {}], beyond the {F32_VALUE_LIMIT:e} \
+                 that the GPU's f32 arithmetic holds: {fix}",
+                num(c.r),
+                num(c.g),
+                num(c.b)
+            ));
+        }
+    }
+    let env = match &scene.environment {
+        Environment::Constant(c) => [c.r, c.g, c.b]
+            .into_iter()
+            .any(beyond)
+            .then(|| format!("radiance [{}, {}, {}]", num(c.r), num(c.g), num(c.b))),
+        Environment::Map(m) => m
+            .texels()
+            .iter()
+            .any(|c| [c.r, c.g, c.b].into_iter().any(beyond))
+            .then(|| "map's radiance (its texels times its `scale`)".to_string()),
+    };
+    if let Some(what) = env {
+        return Some(format!(
+            "the environment's {what} exceeds the {F32_VALUE_LIMIT:e} that the GPU's f32 \
+             arithmetic holds: {fix}"
+        ));
+    }
+    for (i, o) in scene.geometry.objects().iter().enumerate() {
+        if o.base().coefficients().into_iter().any(beyond) {
+            return Some(format!(
+                "object[{i}]: its base quadric has a coefficient beyond the {F32_VALUE_LIMIT:e} \
+                 that the GPU's f32 arithmetic holds (about its own centre; a radius above \
+                 1e15): {fix}"
+            ));
+        }
+        for (k, q) in o.perturbations().iter().enumerate() {
+            if beyond(q.factor) || q.quadric.coefficients().into_iter().any(beyond) {
+                return Some(format!(
+                    "object[{i}]: perturbation {k} has a factor or quadric coefficient beyond \
+                     the {F32_VALUE_LIMIT:e} that the GPU's f32 arithmetic holds: {fix}"
+                ));
+            }
+        }
+    }
+    None
 }
 
 /// Whether an object of `scene` wears a `wave` material (alone or in a
@@ -281,6 +373,44 @@ pub fn material_data_fits(
         limit,
         hint,
     })
+}
+
+/// Whether every f32 of `m`'s GPU record (its parameter blocks, a mix's
+/// components, and its tables) is finite.
+fn gpu_material_finite(g: &GpuMaterials) -> bool {
+    let blocks = g
+        .materials
+        .iter()
+        .flat_map(|r| [r.a, r.b, r.c, r.d, r.e])
+        .flatten();
+    blocks.chain(g.data.iter().copied()).all(f32::is_finite)
+}
+
+/// Refuses materials whose parameters the GPU's f32 cannot hold (an `ior`
+/// or a subsurface `scale` of 1e300 is infinite in f32, and its samples
+/// would be dropped as non-finite, darkening the image without a word),
+/// naming the first such material of the scene.
+pub fn material_values_fit(
+    materials: &GpuMaterials,
+    used: &[isolux_materials::Material],
+    names: &[String],
+) -> Result<(), GpuError> {
+    if gpu_material_finite(materials) {
+        return Ok(());
+    }
+    // Only on failure: each material's record on its own.
+    let name = used
+        .iter()
+        .zip(names)
+        .find(|(m, _)| {
+            GpuMaterials::new(std::slice::from_ref(*m)).is_ok_and(|g| !gpu_material_finite(&g))
+        })
+        .map_or_else(|| "?".to_string(), |(_, n)| n.clone());
+    Err(GpuError::Precision(format!(
+        "material \"{name}\" has a parameter beyond the range of the GPU's f32 \
+         (magnitude above {:.1e}, or a value derived from it): render without --gpu",
+        f32::MAX
+    )))
 }
 
 /// Replaces every material of `scene` that is not on the GPU by a grey
@@ -570,6 +700,7 @@ impl Gpu {
 
         let limit = self.binding_limit();
         material_data_fits(&materials, &used, &scene.material_names, limit)?;
+        material_values_fit(&materials, &used, &scene.material_names)?;
         let npix = film.width as u64 * film.height as u64;
         for (what, bytes) in [
             (

@@ -198,10 +198,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         start = Instant::now();
         if a.realtime {
             gpu.render_realtime_with_aov(&scene, a.aov)
-                .context("--gpu --realtime")?
+                .with_context(|| format!("--gpu --realtime: {}", a.scene.display()))?
         } else {
             gpu.render_with_aov(&scene, a.aov, &progress)
-                .context("--gpu")?
+                .with_context(|| format!("--gpu: {}", a.scene.display()))?
         }
     } else {
         start = Instant::now();

@@ -235,3 +235,89 @@ base = { type = "sphere", center = [500000, 0, 0], radius = 1 }
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(out.exists());
 }
+
+/// Values that f64 holds and the GPU's f32 arithmetic does not (a light's
+/// intensity of 1e300 is infinite in f32, and every sample it reached was
+/// dropped as non-finite: a darker image with only a warning) are refused
+/// by `--gpu`, naming what (`isolux_gpu::F32_VALUE_LIMIT`, and any
+/// material parameter that is not finite in f32), with no image; the CPU
+/// renders each of them.
+#[test]
+fn render_gpu_refuses_values_beyond_f32() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = |light: &str, env: &str, ior: &str, factor: &str| {
+        format!(
+            r#"
+[camera]
+position = [0, 1, 5]
+look_at = [0, 0, 0]
+fov_y = 40
+
+[film]
+width = 12
+height = 8
+spp = 1
+
+[environment]
+type = "constant"
+radiance = [{env}, 0.5, 0.5]
+
+[[light]]
+type = "point"
+position = [2, 4, 3]
+intensity = [{light}, 20, 20]
+
+[[material]]
+name = "glass"
+type = "dielectric"
+ior = {ior}
+
+[[object]]
+material = "glass"
+base = {{ type = "sphere", center = [0, 0, 0], radius = 1 }}
+[[object.perturbation]]
+quadric = {{ type = "sphere", center = [0, 1, 0], radius = 0.3 }}
+factor = {factor}
+"#
+        )
+    };
+    let cases = [
+        (
+            base("1e300", "0.5", "1.5", "100"),
+            "light[0] has intensity [1e300, 20, 20], beyond the 1e30",
+        ),
+        (
+            base("20", "2e30", "1.5", "100"),
+            "the environment's radiance [2e30, 0.5, 0.5] exceeds the 1e30",
+        ),
+        (
+            base("20", "0.5", "1.5", "1e31"),
+            "object[0]: perturbation 0 has a factor or quadric coefficient beyond the 1e30",
+        ),
+        (
+            base("20", "0.5", "1e300", "100"),
+            "material \"glass\" has a parameter beyond the range of the GPU's f32",
+        ),
+    ];
+    for (k, (text, want)) in cases.iter().enumerate() {
+        let scene = dir.path().join(format!("big{k}.toml"));
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.path().join(format!("big{k}.png"));
+        let s = scene.to_str().unwrap();
+        let o = out.to_str().unwrap();
+        let r = run(&["render", s, "--gpu", "-o", o]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+            return;
+        }
+        assert_eq!(r.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains(&format!("--gpu: {s}: {want}")) && err.contains("render without --gpu"),
+            "{err}"
+        );
+        assert!(!out.exists());
+        let r = run(&["render", s, "--quiet", "-o", o]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert!(out.exists());
+    }
+}
