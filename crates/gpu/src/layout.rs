@@ -44,10 +44,12 @@ pub struct GpuPerturbation {
 /// An object: base quadric, bounding box, and its range of perturbations,
 /// all in the object's own frame: the GPU's coordinates (world
 /// coordinates less the frame's `render::rebase_point`) less `origin` (the
-/// centre of its box there, rounded to f32; 0 for an unbounded object). f32 quadric coefficients expanded about the world origin lose
-/// about `M^2 2^-24` at distance `M` from it, and an object far from the
-/// origin for its size came out visibly wrong (docs/gpu.md,
-/// "Precision"); about its own centre they hold its size's precision.
+/// point the CPU object's quadrics are written about, `Object::origin`,
+/// there, rounded to f32; 0 for an unbounded object). f32 quadric
+/// coefficients expanded about the world origin lose about `M^2 2^-24` at
+/// distance `M` from it, and an object far from the origin for its size
+/// came out visibly wrong (docs/gpu.md, "Precision"); about its own base's
+/// point they hold its size's precision.
 /// WGSL: `struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>,
 /// range: vec4<u32>, origin: vec4<f32> }` (`range.x` first perturbation,
 /// `range.y` count, `range.z` material, `range.w` the root of its
@@ -138,15 +140,22 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
     )
 }
 
-/// The origin of an object's frame (`GpuObject::origin`): the centre of
-/// its box `b`, rounded to f32 (the kernels subtract that f32 value, so the
-/// quadrics are moved by exactly it), or the origin when the box is
-/// unbounded.
-fn object_origin(b: &Aabb) -> DVec3 {
-    if !b.is_finite() {
+/// The origin of an object's frame (`GpuObject::origin`), from the GPU's
+/// origin `at`: the point the CPU object's quadrics are written about
+/// (`Object::origin`: its base's centre or point, or its box's centre when
+/// that lies farther away than its size), rounded to f32 (the kernels
+/// subtract that f32 value, so the quadrics are moved by exactly the
+/// rounding), or the GPU's origin itself for an unbounded object. Not the
+/// box's centre: a box stretched by a bump's support far from the base
+/// (a support 1e4 units away, which creates no surface there, still
+/// widens the box) would put the base's quadric about a point 5000 units
+/// away, where f32 loses a sphere of radius 0.55 to rounding
+/// (`conformance.rs`, `a_far_support_keeps_the_base_precise`).
+fn object_origin(o: &Object, at: DVec3) -> DVec3 {
+    if !o.bbox().is_finite() {
         return DVec3::ZERO;
     }
-    f32_exact(b.center())
+    f32_exact(o.origin() - at)
 }
 
 /// `v` rounded to f32, back in f64: a point the kernels hold exactly.
@@ -234,9 +243,10 @@ impl GpuScene {
             // Everything of the object in its own frame (`GpuObject`):
             // `origin` from `at` as uploaded, the frame's world point
             // `at + origin` exactly. The CPU object's quadrics are written
-            // about its own origin (`Object::origin`, a point near it), so
-            // they move by about its size at most.
-            let origin = object_origin(&o.bbox().translated(-at));
+            // about its own origin (`Object::origin`), which `origin` is to
+            // f32's rounding, so they move by that rounding only (by the
+            // GPU's origin for an unbounded object).
+            let origin = object_origin(o, at);
             let shift = o.origin() - (at + origin);
             let local = |q: &Quadric| q.translated(shift);
             let bbox = o.bbox().translated(-(at + origin));
@@ -1143,7 +1153,7 @@ mod tests {
             // The boxes `with_materials` builds the hierarchies over.
             let object_boxes: Vec<Aabb> = spheres.iter().map(|o| uploaded_box(&o.bbox())).collect();
             // In the GPU's frame of the object, as `with_materials` puts them.
-            let gpu_origin = object_origin(&bumpy.bbox());
+            let gpu_origin = object_origin(&bumpy, DVec3::ZERO);
             let gpu_box = bumpy.bbox().translated(-gpu_origin);
             let bump_boxes: Vec<Aabb> = bumpy
                 .perturbations()
