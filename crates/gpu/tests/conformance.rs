@@ -534,7 +534,7 @@ fn supports_ending_on_the_base_surface() {
 /// CPU, `t` within 1e-3 on all but 0.1%.
 #[test]
 fn a_far_support_keeps_the_base_precise() {
-    let Some(mut gpu) = common::open("a far support") else {
+    let Some(gpu) = common::open("a far support") else {
         return;
     };
     let c = DVec3::new(-0.75, 0.0, 0.0);
