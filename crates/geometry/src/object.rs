@@ -829,6 +829,32 @@ impl Object {
                 }
             }
         }
+        // Tighter where the base is bounded: `F' >= 0` only where `F >=
+        // -delta`, with `delta` the bumps' largest `f Q^3` added up (a dent
+        // only lowers `F'`), an ellipsoid grown from the base's own. So a
+        // bump's support far from the base, which makes no surface there,
+        // no longer stretches the box, nor a huge support around a small
+        // base (the GPU restarts its rays where they enter the box and
+        // writes quadrics about a point inside it, in f32).
+        if base.positive_bounds().is_some()
+            && !unbounded
+                .iter()
+                .any(|&i| perturbations[i as usize].factor > 0.0)
+        {
+            let delta: f64 = bounded
+                .iter()
+                .map(|&i| &perturbations[i as usize])
+                .filter(|p| p.factor > 0.0)
+                .map(|p| p.factor * p.quadric.positive_max().unwrap_or(0.0).powi(3))
+                .sum();
+            let grown = Quadric {
+                c: base.c + delta * (1.0 + 1e-9),
+                ..base
+            };
+            if let Some(g) = grown.positive_bounds() {
+                bbox = bbox.intersection(&g);
+            }
+        }
         if let Some(b) = bounds {
             bbox = bbox.intersection(&b);
         }

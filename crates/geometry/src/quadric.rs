@@ -256,6 +256,17 @@ impl Quadric {
         Some(Aabb::new(centre - half - pad, centre + half + pad))
     }
 
+    /// The largest value of `Q`, at the centre of its positive set, when
+    /// that set is bounded and not empty (an ellipsoid); `None` otherwise.
+    pub fn positive_max(&self) -> Option<f64> {
+        let b = self.positive_bounds()?;
+        if b.is_empty() {
+            return None;
+        }
+        let centre = (-self.m).inverse() * self.b;
+        Some(self.eval(centre).max(0.0))
+    }
+
     /// A sphere `(centre, radius)` containing the positive set when it is
     /// bounded and not empty (an ellipsoid), `None` otherwise.
     ///

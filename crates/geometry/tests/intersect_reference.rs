@@ -853,3 +853,71 @@ fn spheres_are_found_across_the_scene_extent() {
         }
     }
 }
+
+/// The solid `{F' >= 0}` lies in the object's box, which a bounded base
+/// tightens to where `F >= -delta` (`delta` the bumps' largest `f Q^3`):
+/// random points around 300 random objects (the reference objects with
+/// an ellipsoid base, and spheres with tall bumps, some of whose supports reach far beyond the
+/// base), every point inside the solid inside the box. And a support far
+/// from the base, where it makes no surface, no longer stretches the box.
+#[test]
+fn the_solid_lies_in_its_box() {
+    let mut rng = Pcg32::new(31, 7);
+    let mut inside = 0usize;
+    for k in 0..300 {
+        let obj = if k % 2 == 0 {
+            random_object(&mut rng).0
+        } else {
+            let c = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5;
+            let perts = (0..1 + rng.next_below(6))
+                .map(|_| {
+                    let at = c + sampling::uniform_sphere(rng.next_2d()) * (3.0 * rng.next_f64());
+                    let r = 0.1 + 1.5 * rng.next_f64();
+                    let sign = if rng.next_f64() < 0.7 { 1.0 } else { -1.0 };
+                    Perturbation {
+                        quadric: Quadric::sphere(at, r),
+                        factor: sign * 10f64.powf(-1.0 + 4.0 * rng.next_f64()),
+                    }
+                })
+                .collect();
+            Object::new(Quadric::sphere(c, 0.3 + 0.5 * rng.next_f64()), perts, None).unwrap()
+        };
+        let b = obj.bbox();
+        // Bounded bases only: a plane or cylinder's solid is clipped by
+        // its `bounds`, which `eval` does not see.
+        if obj.base().positive_bounds().is_none() {
+            continue;
+        }
+        // Points in the box grown by half its size on each side.
+        let (lo, size) = (b.min - 0.5 * (b.max - b.min), 2.0 * (b.max - b.min));
+        for _ in 0..4000 {
+            let p = lo + size * DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            if obj.eval(p) >= 0.0 {
+                inside += 1;
+                assert!(
+                    b.contains(p),
+                    "object {k}: {p} inside the solid, outside {b:?}"
+                );
+            }
+        }
+    }
+    assert!(inside > 10_000, "{inside}");
+    // A support 1e4 out on a sphere of radius 0.55: the box stays the
+    // sphere's and its near bump's.
+    let c = DVec3::new(-0.75, 0.0, 0.0);
+    let bump = |at: DVec3| Perturbation {
+        quadric: Quadric::sphere(at, 0.3),
+        factor: 400.0,
+    };
+    let far = Object::new(
+        Quadric::sphere(c, 0.55),
+        vec![
+            bump(c + DVec3::new(0.0, 0.55, 0.0)),
+            bump(DVec3::new(1e4, 0.55, 0.0)),
+        ],
+        None,
+    )
+    .unwrap();
+    let b = far.bbox();
+    assert!(b.max.x < 1.0 && b.min.x > -1.4 && b.max.y < 0.9, "{b:?}");
+}
