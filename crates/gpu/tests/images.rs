@@ -764,7 +764,10 @@ fn scenes_far_from_the_origin_render_as_at_the_origin() {
     let beyond = 1.05 * isolux_gpu::MAX_SCALE_RATIO * size - reach;
     assert!(isolux_gpu::f32_shortfall(&moved_scene(inside, false)).is_none());
     let why = isolux_gpu::f32_shortfall(&moved_scene(beyond, false)).expect("refused");
-    assert!(why.starts_with(&format!("object[0] is {size:.4e}")), "{why}");
+    assert!(
+        why.starts_with(&format!("object[0] is {size:.4e}")),
+        "{why}"
+    );
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };

@@ -215,25 +215,10 @@ base = { type = "sphere", center = [500000, 0, 0], radius = 1 }
 "#,
     )
     .unwrap();
-    let out = dir.path().join("far.png");
-    let s = scene.to_str().unwrap();
-    let o = out.to_str().unwrap();
-    let r = run(&["render", s, "--gpu", "-o", o]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
-        return;
-    }
-    assert_eq!(r.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains(&format!(
-            "--gpu: {s}: object[0] is 2.0000e0 units across and reaches 5.0000e5 from the camera"
-        )) && err.contains("render without --gpu"),
-        "{err}"
+    refused_on_the_gpu_rendered_on_the_cpu(
+        &scene,
+        "object[0] is 2.0000e0 units across and reaches 5.0000e5 from the camera",
     );
-    assert!(!out.exists());
-    let r = run(&["render", s, "--quiet", "-o", o]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    assert!(out.exists());
 }
 
 /// Values that f64 holds and the GPU's f32 arithmetic does not (a light's
@@ -302,22 +287,32 @@ factor = {factor}
     for (k, (text, want)) in cases.iter().enumerate() {
         let scene = dir.path().join(format!("big{k}.toml"));
         std::fs::write(&scene, text).unwrap();
-        let out = dir.path().join(format!("big{k}.png"));
-        let s = scene.to_str().unwrap();
-        let o = out.to_str().unwrap();
-        let r = run(&["render", s, "--gpu", "-o", o]);
-        let err = String::from_utf8_lossy(&r.stderr);
-        if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        if !refused_on_the_gpu_rendered_on_the_cpu(&scene, want) {
             return;
         }
-        assert_eq!(r.status.code(), Some(1), "{err}");
-        assert!(
-            err.contains(&format!("--gpu: {s}: {want}")) && err.contains("render without --gpu"),
-            "{err}"
-        );
-        assert!(!out.exists());
-        let r = run(&["render", s, "--quiet", "-o", o]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        assert!(out.exists());
     }
+}
+
+/// `render --gpu` refuses `scene` with `--gpu: SCENE: {want} ... render
+/// without --gpu`, exit 1 and no image, and the CPU renders it. False
+/// when there is no adapter (outside CI: skipped).
+fn refused_on_the_gpu_rendered_on_the_cpu(scene: &std::path::Path, want: &str) -> bool {
+    let out = scene.with_extension("png");
+    let s = scene.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let r = run(&["render", s, "--gpu", "-o", o]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        return false;
+    }
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(&format!("--gpu: {s}: {want}")) && err.contains("render without --gpu"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let r = run(&["render", s, "--quiet", "-o", o]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(out.exists());
+    true
 }
