@@ -1,0 +1,137 @@
+#!/usr/bin/env python3
+"""CPU/GPU differential fuzzing of the example scenes.
+
+Each round takes an example scene, replaces 1-3 of its numbers by values
+drawn from a list of awkward ones (zero, tiny, huge, negative), renders the
+variant on the CPU and with `--gpu` at a small size, and compares the two
+images' mean pixel values. The two back ends answer the same physics, so a
+variant both render whose means differ beyond noise is a bug in one of them
+(or a refusal that should exist): its scene is kept for a closer look. Also
+reported: a render that panics, a warning of non-finite samples, and a
+variant that one back end renders and the other refuses without naming a
+reason.
+
+This found, on 2026-12-02, the GPU writing an object's quadrics about its
+box's centre, which a far support had moved 5000 units from the base (a box
+of fireflies), and lights and materials whose values overflow f32 (docs/gpu.md,
+"Precision").
+
+usage: scripts/gpu-diff-fuzz.py [--seed N] [--rounds N] [--objects-only]
+           [--realtime] [--spp N] [--keep DIR] [--isolux PATH]
+
+Needs Pillow (`apt-get install python3-pil` or `pip install pillow`) and a
+release build (`cargo build --release`). The variants are written beside
+the examples (so that their relative file names resolve) as `_fuzz.toml`,
+removed at the end.
+"""
+
+import argparse
+import glob
+import os
+import random
+import re
+import subprocess
+import sys
+
+try:
+    from PIL import Image
+except ImportError:
+    sys.exit("gpu-diff-fuzz: needs Pillow (apt-get install python3-pil, or pip install pillow)")
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENES = os.path.join(ROOT, "examples", "scenes")
+VALUES = ["0", "1e-6", "1e-3", "0.01", "0.3", "0.999", "2.5", "7", "50",
+          "3e3", "1e5", "1e7", "-0.5", "-3"]
+NUMBER = re.compile(r"(?<![\w.])-?\d+(\.\d+)?([eE][-+]?\d+)?(?![\w.])")
+OBJECT = re.compile(r"\[\[object\]\](.*?)(?=\n\[\[(?!object\.)|\Z)", re.S)
+
+
+def mean(path):
+    im = Image.open(path).convert("RGB")
+    w, h = im.size
+    return sum(sum(im.getpixel((x, y))) for y in range(h) for x in range(w)) / (3 * w * h)
+
+
+def render(isolux, scene, out, gpu, args):
+    cmd = [isolux, "render", scene, "-o", out, "--quiet", "--width", "32",
+           "--height", "24", "--spp", str(args.spp)]
+    if gpu:
+        cmd.append("--gpu")
+    if args.realtime:
+        cmd.append("--realtime")
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    err = "\n".join(l for l in r.stderr.splitlines() if "XDG_RUNTIME_DIR" not in l)
+    return r.returncode, err
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--rounds", type=int, default=40)
+    p.add_argument("--objects-only", action="store_true",
+                   help="change numbers of [[object]] tables only (geometry)")
+    p.add_argument("--realtime", action="store_true", help="compare the real-time mode")
+    p.add_argument("--spp", type=int, default=32)
+    p.add_argument("--keep", default="/tmp/gpu-diff-fuzz", help="where flagged scenes go")
+    p.add_argument("--isolux", default=os.path.join(ROOT, "target", "release", "isolux"))
+    args = p.parse_args()
+    if args.realtime:
+        args.spp = min(max(args.spp, 4), 25)
+    if not os.path.exists(args.isolux):
+        sys.exit(f"gpu-diff-fuzz: {args.isolux} not found: cargo build --release")
+    os.makedirs(args.keep, exist_ok=True)
+    os.environ.setdefault("XDG_RUNTIME_DIR", "/tmp")
+    rng = random.Random(args.seed)
+    scenes = sorted(s for s in glob.glob(os.path.join(SCENES, "*.toml"))
+                    if not os.path.basename(s).startswith("_"))
+    variant = os.path.join(SCENES, "_fuzz.toml")
+    cpu_png, gpu_png = os.path.join(args.keep, "cpu.png"), os.path.join(args.keep, "gpu.png")
+    flagged = compared = 0
+    try:
+        for k in range(args.rounds):
+            scene = rng.choice(scenes)
+            src = open(scene).read()
+            spans = [m.span() for m in OBJECT.finditer(src)] if args.objects_only else [(0, len(src))]
+            found = [m for m in NUMBER.finditer(src) if any(a <= m.start() < b for a, b in spans)]
+            if not found:
+                continue
+            what = []
+            for m in sorted(rng.sample(found, min(len(found), rng.randint(1, 3))),
+                            key=lambda m: -m.start()):
+                v = rng.choice(VALUES)
+                line = src.count("\n", 0, m.start()) + 1
+                what.append(f"line {line}: {m.group(0)} -> {v}")
+                src = src[:m.start()] + v + src[m.end():]
+            open(variant, "w").write(src)
+            name = f"{os.path.basename(scene)} ({'; '.join(what)})"
+            rc, ec = render(args.isolux, variant, cpu_png, False, args)
+            rg, eg = render(args.isolux, variant, gpu_png, True, args)
+            problem = None
+            if "panicked" in ec + eg or rc not in (0, 1) or rg not in (0, 1):
+                problem = f"crash (CPU {rc}, GPU {rg}): {(ec + eg)[:300]}"
+            elif "non-finite" in ec + eg and rc == 0 and rg == 0:
+                problem = f"non-finite samples: {(ec + eg)[:300]}"
+            elif rc == 0 and rg == 1 and "render without --gpu" not in eg \
+                    and "does not run on the GPU" not in eg:
+                problem = f"the GPU refuses without a reason: {eg[:300]}"
+            elif rc == 0 and rg == 0:
+                compared += 1
+                a, b = mean(cpu_png), mean(gpu_png)
+                if abs(a - b) > 3 and abs((b + 1) / (a + 1) - 1) > 0.06:
+                    problem = f"images differ: mean CPU {a:.1f}, GPU {b:.1f} (of 255)"
+            if problem:
+                flagged += 1
+                keep = os.path.join(args.keep, f"flagged-{args.seed}-{k}.toml")
+                open(keep, "w").write(src)
+                print(f"FLAG {name}: {problem} -> {keep}", flush=True)
+            else:
+                print(f"ok   {name}", flush=True)
+    finally:
+        if os.path.exists(variant):
+            os.remove(variant)
+    print(f"{compared} variants compared, {flagged} flagged")
+    sys.exit(1 if flagged else 0)
+
+
+if __name__ == "__main__":
+    main()
