@@ -799,7 +799,12 @@ impl Object {
         if !finite(&base) {
             return Err(GeometryError::NonFinite("the base quadric".into()));
         }
-        let mut bbox = base.positive_bounds().unwrap_or(Aabb::EVERYTHING);
+        let base_box = base.positive_bounds();
+        let mut bbox = base_box.unwrap_or(Aabb::EVERYTHING);
+        // The bumps' largest `f Q^3` added up, and whether a bump's
+        // support is unbounded (then no sum bounds them).
+        let mut delta = 0.0;
+        let mut unbounded_bump = false;
         let mut support = Vec::new();
         let mut spheres = Vec::new();
         let mut along = Vec::new();
@@ -814,6 +819,7 @@ impl Object {
                 Some(b) => {
                     if p.factor > 0.0 {
                         bbox = bbox.union(&b);
+                        delta += p.factor * p.quadric.positive_max().unwrap_or(0.0).powi(3);
                     }
                     support.push(b);
                     let sphere = p.quadric.positive_bounding_sphere();
@@ -824,6 +830,7 @@ impl Object {
                 None => {
                     if p.factor > 0.0 {
                         bbox = Aabb::EVERYTHING;
+                        unbounded_bump = true;
                     }
                     unbounded.push(i as u32);
                 }
@@ -836,17 +843,7 @@ impl Object {
         // no longer stretches the box, nor a huge support around a small
         // base (the GPU restarts its rays where they enter the box and
         // writes quadrics about a point inside it, in f32).
-        if base.positive_bounds().is_some()
-            && !unbounded
-                .iter()
-                .any(|&i| perturbations[i as usize].factor > 0.0)
-        {
-            let delta: f64 = bounded
-                .iter()
-                .map(|&i| &perturbations[i as usize])
-                .filter(|p| p.factor > 0.0)
-                .map(|p| p.factor * p.quadric.positive_max().unwrap_or(0.0).powi(3))
-                .sum();
+        if base_box.is_some() && !unbounded_bump {
             let grown = Quadric {
                 c: base.c + delta * (1.0 + 1e-9),
                 ..base
@@ -876,10 +873,7 @@ impl Object {
                 ball = ball.map(|b| enclose(b, spheres[k]));
             }
         }
-        if unbounded
-            .iter()
-            .any(|&i| perturbations[i as usize].factor > 0.0)
-        {
+        if unbounded_bump {
             ball = None;
         }
         Ok(Self {
