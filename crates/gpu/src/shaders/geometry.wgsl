@@ -399,8 +399,26 @@ fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack:
 // (the CPU's `BUMP_NEGLIGIBLE`, 1e-14 in f64; here about 20 ulp of f32).
 const BUMP_NEGLIGIBLE: f32 = 1e-6;
 
-// `object_hit`'s walk ended on a crossing (in its `guard`).
-const WALK_HIT: u32 = 0xffffffffu;
+// The perturbations of the object being walked (the candidate set) at
+// `x` (its frame): `sum f Q^3` and its gradient `sum 3 f Q^2 grad Q`, over
+// those with `Q(x) > 0`.
+fn bumps_at(x: vec3<real>) -> vec4<real> {
+    var sum = vec4<real>(0.0);
+    var walk = vec2<u32>(cand_mask, 0u);
+    loop {
+        let pi = next_candidate(&walk);
+        if (pi == NO_NODE) {
+            break;
+        }
+        let pert = perturbations[pi];
+        let qv = q_eval(pert.q, x);
+        if (qv > 0.0) {
+            let f = real(pert.factor.x);
+            sum += vec4<real>(f * qv * qv * qv, 3.0 * f * qv * qv * q_grad(pert.q, x));
+        }
+    }
+    return sum;
+}
 
 // Whether the perturbations of the object being walked (the candidate
 // set) add under BUMP_NEGLIGIBLE of the base's terms (`base`: its
@@ -414,18 +432,7 @@ const WALK_HIT: u32 = 0xffffffffu;
 // `pending`), so that the segment loop carries one value more, not this
 // loop's.
 fn negligible_bump(base: vec3<real>, o: vec3<real>, d: vec3<real>, t: real) -> bool {
-    let x = o + t * d;
-    var bump: real = 0.0;
-    var walk = vec2<u32>(cand_mask, 0u);
-    loop {
-        let pi = next_candidate(&walk);
-        if (pi == NO_NODE) {
-            break;
-        }
-        let pert = perturbations[pi];
-        let qv = max(q_eval(pert.q, x), 0.0);
-        bump += real(pert.factor.x) * qv * qv * qv;
-    }
+    let bump = bumps_at(o + t * d).x;
     let scale = abs(base.z) + abs(base.y * t) + abs(base.x * t * t);
     return abs(bump) <= real(BUMP_NEGLIGIBLE) * scale;
 }
@@ -522,10 +529,9 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     // its breakpoint that rounding hid from both (a support ending where
     // the base crosses), as on the CPU (`Object::walk`'s `before`).
     var before: real = 0.0;
-    // The first base root that a segment's polynomial did not show
-    // (`negligible_bump`); NO_ROOT when none. A crossing found ends the
-    // walk in `a`, `guard` marking it (WALK_HIT: one register fewer than a
-    // separate variable).
+    // The walk's crossing, and the first base root that a segment's
+    // polynomial did not show (`negligible_bump`); NO_ROOT when none.
+    var t_hit = real(NO_ROOT);
     var pending = real(NO_ROOT);
     loop {
         if (a >= span.y || guard > 2u * live + 2u) {
@@ -628,14 +634,12 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             }
         }
         if (s >= 0.0) {
-            a += s * l;
-            guard = WALK_HIT;
+            t_hit = a + s * l;
             break;
         }
         before = sign(p[0] + p[1] + p[2] + p[3] + p[4] + p[5] + p[6]);
         a = b;
     }
-    var t_hit = select(real(NO_ROOT), a, guard == WALK_HIT);
     if (pending < t_hit && negligible_bump(base, o, d, pending)) {
         t_hit = pending;
     }
@@ -646,19 +650,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         return vec4<real>(shift + t_hit, 0.0, 0.0, 0.0);
     }
     let x = o + t_hit * d;
-    var g = q_grad(obj.base, x);
-    var walk = vec2<u32>(cand_mask, 0u);
-    loop {
-        let pi = next_candidate(&walk);
-        if (pi == NO_NODE) {
-            break;
-        }
-        let pert = perturbations[pi];
-        let qv = q_eval(pert.q, x);
-        if (qv > 0.0) {
-            g += 3.0 * real(pert.factor.x) * qv * qv * q_grad(pert.q, x);
-        }
-    }
+    let g = q_grad(obj.base, x) + bumps_at(x).yzw;
     var n = -d;
     if (dot(g, g) > 0.0) {
         n = -normalize(g);
