@@ -196,6 +196,11 @@ fn num(v: f64) -> String {
     }
 }
 
+/// `c` as the scene file writes it, `[r, g, b]` ([`num`]).
+fn nums(c: Rgb) -> String {
+    format!("[{}]", c.to_array().map(num).join(", "))
+}
+
 /// The first value of `scene`'s lights, environment or geometry beyond
 /// [`F32_VALUE_LIMIT`], named as the scene file names it.
 fn f32_overflow(scene: &Scene) -> Option<String> {
@@ -204,7 +209,7 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
     let at = rebase_point(scene);
     for (i, l) in scene.lights.iter().enumerate() {
         let p = l.position - at;
-        if [p.x, p.y, p.z].into_iter().any(beyond) {
+        if p.to_array().into_iter().any(beyond) {
             return Some(format!(
                 "light[{i}] lies {:.4e} units from {}, beyond the {F32_VALUE_LIMIT:e} that \
                  the GPU's f32 arithmetic holds: {fix}",
@@ -216,26 +221,24 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
                 }
             ));
         }
-        let c = l.intensity;
-        if [c.r, c.g, c.b].into_iter().any(beyond) {
+        if l.intensity.to_array().into_iter().any(beyond) {
             return Some(format!(
-                "light[{i}] has intensity [{}, {}, {}], beyond the {F32_VALUE_LIMIT:e} \
+                "light[{i}] has intensity {}, beyond the {F32_VALUE_LIMIT:e} \
                  that the GPU's f32 arithmetic holds: {fix}",
-                num(c.r),
-                num(c.g),
-                num(c.b)
+                nums(l.intensity)
             ));
         }
     }
     let env = match &scene.environment {
-        Environment::Constant(c) => [c.r, c.g, c.b]
+        Environment::Constant(c) => c
+            .to_array()
             .into_iter()
             .any(beyond)
-            .then(|| format!("radiance [{}, {}, {}]", num(c.r), num(c.g), num(c.b))),
+            .then(|| format!("radiance {}", nums(*c))),
         Environment::Map(m) => m
             .texels()
             .iter()
-            .any(|c| [c.r, c.g, c.b].into_iter().any(beyond))
+            .any(|c| c.to_array().into_iter().any(beyond))
             .then(|| "map's radiance (its texels times its `scale`)".to_string()),
     };
     if let Some(what) = env {
