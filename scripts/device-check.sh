@@ -8,7 +8,8 @@
 #      megakernel and the wavefront path tracer, a frame's samples in one
 #      dispatch and one dispatch each, and the CPU on all cores), then
 #      the same geometry with every material diffuse (a control: what the
-#      material library costs);
+#      material library costs); each table's "first hit" row times the
+#      camera rays' intersection alone;
 #   2. the conformance suite (its f64 assertion failed on the H100 at
 #      b93c7db), the material, real-time and AOV tests;
 #   3. the whole-image tests, the ignored ones included;

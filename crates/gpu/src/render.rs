@@ -468,6 +468,8 @@ pub struct GpuFrame {
     wavefront: bool,
     /// Its buffers, made on first use.
     wf: Option<Wavefront>,
+    /// Runs trace first hits only ([`Gpu::prepare_first_hits`]).
+    first_hits: bool,
     /// The scene has a random-walk medium (long paths: more wavefront
     /// steps, [`WF_MEDIUM_STEPS`]).
     random_walk: bool,
@@ -574,6 +576,20 @@ impl Gpu {
     /// pixel, replacing the last.
     pub fn prepare_realtime(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
         self.prepare_mode(scene, true, false)
+    }
+
+    /// Uploads `scene` for first hits alone: each [`GpuFrame::run`] traces
+    /// `count` camera rays per pixel (`aov_main`: the nearest hit, its
+    /// albedo, distance and normal added to the AOV layers) and shades
+    /// nothing, so its time is what the camera rays' exact intersection
+    /// costs by itself (`isolux bench gpu`'s "first hit" row, beside the
+    /// modes that shade). [`GpuFrame::aovs`] reads the layers the runs
+    /// added (the same as [`Gpu::render_with_aov`]'s for as many samples);
+    /// [`GpuFrame::image`] is black.
+    pub fn prepare_first_hits(&self, scene: &Scene) -> Result<GpuFrame, GpuError> {
+        let mut frame = self.prepare_mode(scene, false, true)?;
+        frame.first_hits = true;
+        Ok(frame)
     }
 
     /// Renders `scene` in the real-time mode at its film's `spp`.
@@ -799,6 +815,7 @@ impl Gpu {
                 crate::PathKernel::Wavefront => true,
             },
             wf: None,
+            first_hits: false,
             random_walk,
         })
     }
@@ -899,6 +916,14 @@ impl GpuFrame {
 
     fn run_with(&mut self, gpu: &Gpu, count: u32, timed: bool) {
         if count == 0 {
+            return;
+        }
+        if self.first_hits {
+            // One dispatch per sample, adding to the AOV layers in place
+            // (as `aovs` does).
+            let aov = gpu.aov_pipeline(self.features);
+            self.queue_dispatches(gpu, &aov, self.samples, count, 1, 1, None, timed);
+            self.samples += count;
             return;
         }
         if self.realtime {
@@ -1228,17 +1253,20 @@ impl GpuFrame {
             .as_ref()
             .ok_or_else(|| GpuError::Setup("the frame was prepared without AOVs".into()))?;
         // Cleared first (submissions on one queue run in order), then one
-        // dispatch per sample (see `aov_main`), adding in place.
+        // dispatch per sample (see `aov_main`), adding in place; a
+        // first-hits frame's runs did that already.
         let count = self.samples.max(1);
-        let mut enc = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("aov clear"),
-            });
-        enc.clear_buffer(buf, 0, None);
-        gpu.queue.submit(Some(enc.finish()));
-        let aov = gpu.aov_pipeline(self.features);
-        self.queue_dispatches(gpu, &aov, 0, count, 1, 1, None, false);
+        if !self.first_hits {
+            let mut enc = gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("aov clear"),
+                });
+            enc.clear_buffer(buf, 0, None);
+            gpu.queue.submit(Some(enc.finish()));
+            let aov = gpu.aov_pipeline(self.features);
+            self.queue_dispatches(gpu, &aov, 0, count, 1, 1, None, false);
+        }
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;
         let mut out = Aovs::default();
@@ -1288,6 +1316,9 @@ impl GpuFrame {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         enc.clear_buffer(&self.accum, 0, None);
+        if let (true, Some(aov)) = (self.first_hits, self.aov.as_ref()) {
+            enc.clear_buffer(aov, 0, None);
+        }
         gpu.queue.submit(Some(enc.finish()));
         self.samples = 0;
     }

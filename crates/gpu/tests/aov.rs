@@ -139,3 +139,42 @@ fn gpu_aovs_match_the_cpu() {
         );
     }
 }
+
+/// A first-hits frame (`Gpu::prepare_first_hits`, `isolux bench gpu`'s
+/// "first hit" row) traces in its runs exactly the first hits the AOVs of
+/// a render take: 5 then 3 samples give the layers of an 8-sample render
+/// bit for bit, and a reset starts them over. It fails when a run traces
+/// nothing (the bench would time an empty dispatch), when runs repeat
+/// their sample positions, or when a reset leaves the layers.
+#[test]
+fn first_hit_frames_trace_the_renders_aovs() {
+    let Some(gpu) = common::open("first-hit frames") else {
+        return;
+    };
+    let p =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes/perturbed-sphere.toml");
+    let mut scene = isolux_scene::load(&p).unwrap();
+    scene.film.width = 40;
+    scene.film.height = 30;
+    scene.film.spp = 8;
+    scene.integrator.max_depth = 1;
+    let (g, _) = gpu.render_with_aov(&scene, true, &|_, _| {}).unwrap();
+    let want = g.aov.unwrap();
+    assert!(want.depth.iter().filter(|&&d| d > 0.0).count() > 40 * 30 / 4);
+
+    let mut frame = gpu.prepare_first_hits(&scene).unwrap();
+    for round in 0..2 {
+        frame.reset(&gpu);
+        frame.run(&gpu, 5);
+        frame.run(&gpu, 3);
+        let got = frame.aovs(&gpu).unwrap();
+        assert_eq!(got.depth, want.depth, "round {round}: depth");
+        assert_eq!(got.normal, want.normal, "round {round}: normal");
+        assert_eq!(got.albedo, want.albedo, "round {round}: albedo");
+        let (img, _) = frame.image(&gpu).unwrap();
+        assert!(
+            img.rgb.iter().flatten().all(|&c| c == 0.0),
+            "shades nothing"
+        );
+    }
+}

@@ -495,16 +495,24 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         scene.film.height = a.height;
         let name = path.file_name().unwrap_or_default().to_string_lossy();
         let depth = scene.integrator.max_depth;
+        // "first hit": the camera rays' exact intersection alone, nothing
+        // shaded (`Gpu::prepare_first_hits`), as many rays as the
+        // real-time frame's camera rays: what of the modes' time the
+        // geometry takes.
         for (mode, spp, max_depth) in [
             ("real-time", 4, depth),
             ("path traced", 16, depth),
             ("direct only", 4, 1),
+            ("first hit", 4, depth),
         ] {
             let realtime = mode == "real-time";
+            let first_hit = mode == "first hit";
             scene.film.spp = spp;
             scene.integrator.max_depth = max_depth;
             let mut frame = if realtime {
                 gpu.prepare_realtime(&scene)?
+            } else if first_hit {
+                gpu.prepare_first_hits(&scene)?
             } else {
                 gpu.prepare(&scene)?
             };
@@ -548,6 +556,12 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 if img.rgb.iter().flatten().any(|c| !c.is_finite()) {
                     bail!("{name}: the GPU image has non-finite pixels");
                 }
+                if first_hit {
+                    let aov = frame.aovs(gpu)?;
+                    if aov.depth.iter().any(|d| !d.is_finite()) {
+                        bail!("{name}: the GPU's first hits have non-finite distances");
+                    }
+                }
                 Ok((g, k, first))
             };
             let (g, kernels, first) = time(&gpu, &mut frame)?;
@@ -568,7 +582,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 cols += &format!(" {:.2} | {:.2} |", gg * 1e3, gg / g);
             }
             if a.wavefront {
-                if realtime {
+                if realtime || first_hit {
                     cols += " - | - |";
                 } else {
                     frame.set_wavefront(true);
@@ -577,13 +591,17 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);
                 }
             }
-            if a.per_sample {
+            if a.per_sample && first_hit {
+                // Already one dispatch per sample.
+                cols += " - | - |";
+            } else if a.per_sample {
                 frame.set_max_layers(1);
                 let gs = time(&gpu, &mut frame)?.0;
                 frame.set_max_layers(16);
                 cols += &format!(" {:.2} | {:.2} |", gs * 1e3, gs / g);
             }
-            let (c, ratio) = if a.skip_cpu {
+            // The CPU has no mode that traces first hits alone.
+            let (c, ratio) = if a.skip_cpu || first_hit {
                 ("-".to_string(), "-".to_string())
             } else {
                 let opts = RenderOptions {

@@ -155,8 +155,11 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         .lines()
         .filter(|l| l.starts_with("| furnace.toml |"))
         .collect();
-    assert_eq!(rows.len(), 3, "{out}");
-    for (row, mode) in rows.iter().zip(["real-time", "path traced", "direct only"]) {
+    assert_eq!(rows.len(), 4, "{out}");
+    for (row, mode) in rows
+        .iter()
+        .zip(["real-time", "path traced", "direct only", "first hit"])
+    {
         let cells: Vec<&str> = row.split('|').map(str::trim).collect();
         assert_eq!(cells[2], mode, "{row}");
         assert_eq!(cells[4], "diffuse", "{row}");
@@ -168,7 +171,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         assert!(first.is_finite() && first > 0.0, "{row}");
         // `--wavefront`: its time and its ratio to the megakernel's, for
         // the path tracer's modes.
-        if mode == "real-time" {
+        if mode == "real-time" || mode == "first hit" {
             assert_eq!((cells[7], cells[8]), ("-", "-"), "{row}");
         } else {
             let wf: f64 = cells[7].parse().unwrap();
@@ -176,7 +179,12 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
             assert!(wf.is_finite() && wf > 0.0, "{row}");
             assert!((ratio - wf / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
         }
-        // `--per-sample`: in every mode.
+        // `--per-sample`: in every mode that shades (first hits take a
+        // dispatch per sample anyway).
+        if mode == "first hit" {
+            assert_eq!((cells[9], cells[10]), ("-", "-"), "{row}");
+            continue;
+        }
         let one: f64 = cells[9].parse().unwrap();
         let ratio: f64 = cells[10].parse().unwrap();
         assert!(one.is_finite() && one > 0.0, "{row}");
