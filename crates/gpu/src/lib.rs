@@ -84,7 +84,7 @@ pub const ENV_MAP: u32 = 1;
 /// Storage buffers of `render.wgsl`'s group 0 (bindings 0 to 13: scene,
 /// environment, accumulation, parameters, AOVs, sample layers), shared by
 /// its entry points (`Gpu::render_layout`).
-pub const RENDER_BINDINGS: usize = 14;
+pub const RENDER_BINDINGS: usize = 15;
 /// Storage buffers of the wavefront's group 1 (paths, queues, step
 /// counters).
 pub const WAVEFRONT_BINDINGS: usize = 3;
@@ -108,10 +108,16 @@ pub fn prelude() -> String {
          const SPAWN_OFFSET_WORLD: f32 = {SPAWN_OFFSET_WORLD:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n\
-         const LOD_BIAS: f32 = {:?};\n",
+         const LOD_BIAS: f32 = {:?};\n\
+         const TILE: u32 = {}u;\n\
+         const TILE_LIST_MAX: u32 = {}u;\n\
+         const TILE_STRIDE: u32 = {}u;\n",
         MIN_WIDTH as f64,
         layout::NO_NODE,
-        isolux_render::realtime::LOD_BIAS as f32
+        isolux_render::realtime::LOD_BIAS as f32,
+        render::TILE,
+        render::TILE_LIST_MAX,
+        render::TILE_LIST_MAX + 1
     );
     s += &format!(
         "const MAX_MEDIUM_EVENTS: u32 = {}u;\n",
@@ -278,6 +284,13 @@ pub struct Features {
     /// in `render.wgsl`), so that the shading state is not live across
     /// an intersection.
     pub many_lights: bool,
+    /// Camera rays test their 8 x 8 pixel tile's list of objects instead
+    /// of walking the object hierarchy each (`TILE_LISTS` in the WGSL;
+    /// `cull_tiles` and `use_tile` in `render.wgsl`). The same hits either
+    /// way. On by default on GPUs, off on CPU drivers (lavapipe), where
+    /// the list's code, run under an empty lane mask by every other ray,
+    /// costs more than the camera rays save (docs/gpu.md, "Tile lists").
+    pub tiles: bool,
 }
 
 impl Features {
@@ -287,6 +300,7 @@ impl Features {
         models: (1 << layout::tag::ALL.len()) - 1,
         list: true,
         many_lights: true,
+        tiles: true,
     };
     /// No material code at all (what the AOV kernel reaches) and no
     /// candidate list.
@@ -294,6 +308,7 @@ impl Features {
         models: 0,
         list: false,
         many_lights: false,
+        tiles: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
@@ -310,6 +325,7 @@ impl Features {
             models: models & Self::ALL.models,
             list: true,
             many_lights: true,
+            tiles: true,
         }
     }
 
@@ -339,7 +355,8 @@ impl Features {
         self.has(layout::tag::SUBSURFACE)
     }
 
-    /// Whether kernels built with `self` run everything `needed` asks for.
+    /// Whether kernels built with `self` run everything `needed` asks for
+    /// (tile lists or not: both find the same hits).
     pub fn covers(self, needed: Features) -> bool {
         needed.models & !self.models == 0
             && (self.list || !needed.list)
@@ -377,17 +394,19 @@ fn bit(tag: u32) -> u32 {
 /// "all", "none", the models by name (`diffuse+dielectric`) up to four,
 /// else their count with the integrator's optional parts
 /// (`14 models`, `9 models with wave+subsurface`); then, for kernels
-/// fitted to a scene, the candidate list and the shadow rays of many
-/// lights where there are (`diffuse`, `ggx, candidate list`, `diffuse,
-/// many lights`; "all" stands for every model, with or without them).
+/// fitted to a scene, the candidate list, the shadow rays of many lights
+/// and the camera rays' tile lists where there are (`diffuse`, `ggx,
+/// candidate list`, `diffuse, many lights`, `diffuse, tile lists`; "all"
+/// stands for every model, with or without them).
 /// The internal lobes go unnamed: they come with `subsurface`.
 impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
-        if *self != Features::ALL && (self.list || self.many_lights) {
+        if *self != Features::ALL && (self.list || self.many_lights || self.tiles) {
             let models = Features {
                 list: false,
                 many_lights: false,
+                tiles: false,
                 ..*self
             };
             write!(f, "{models}")?;
@@ -396,6 +415,9 @@ impl std::fmt::Display for Features {
             }
             if self.many_lights {
                 f.write_str(", many lights")?;
+            }
+            if self.tiles {
+                f.write_str(", tile lists")?;
             }
             return Ok(());
         }
@@ -451,6 +473,7 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
         }
         + &format!("const SUBSURFACE: bool = {};\n", features.subsurface())
         + &format!("const MANY_LIGHTS: bool = {};\n", features.many_lights)
+        + &format!("const TILE_LISTS: bool = {};\n", features.tiles)
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -574,6 +597,9 @@ pub struct Gpu {
     /// How frames prepared from now on path trace ([`Gpu::set_path_kernel`]).
     path_kernel: PathKernel,
     f64_supported: bool,
+    /// The adapter is a CPU (lavapipe): frames default to kernels without
+    /// tile lists ([`Features::tiles`]).
+    cpu: bool,
     /// Adapter name and back end, for reports.
     pub adapter: String,
     /// The driver's name and version as it reports them (for example
@@ -647,6 +673,7 @@ impl Gpu {
             precision: Precision::F32,
             path_kernel: PathKernel::Auto,
             f64_supported,
+            cpu: info.device_type == wgpu::DeviceType::Cpu,
             adapter: format!("{} ({:?})", info.name, info.backend),
             driver: format!("{} {}", info.driver, info.driver_info)
                 .trim()
@@ -740,7 +767,8 @@ impl Gpu {
             // objects, perturbations, materials, lights, env texels,
             // env cdf, accum (rw), params (read-only storage, not
             // uniform: see `params_buffer`), material data, env levels,
-            // BVH nodes, AOVs (rw), material albedos, sample layers (rw).
+            // BVH nodes, AOVs (rw), material albedos, tile lists (rw),
+            // sample layers (rw).
             let kinds: [B; RENDER_BINDINGS] = [
                 B::Storage { read_only: true },
                 B::Storage { read_only: true },
@@ -755,6 +783,7 @@ impl Gpu {
                 B::Storage { read_only: true },
                 B::Storage { read_only: false },
                 B::Storage { read_only: true },
+                B::Storage { read_only: false },
                 B::Storage { read_only: false },
             ];
             let bgl = self.buffer_layout("render bindings", &kinds);
@@ -779,6 +808,11 @@ impl Gpu {
     /// The sum of a dispatch's sample layers (`resolve` of `render.wgsl`).
     fn resolve_pipeline(&self) -> wgpu::ComputePipeline {
         self.render_entry("resolve", Features::NONE)
+    }
+
+    /// The camera rays' tile lists (`cull_tiles` of `render.wgsl`).
+    fn cull_pipeline(&self) -> wgpu::ComputePipeline {
+        self.render_entry("cull_tiles", Features::NONE)
     }
 
     /// The AOV kernel (`aov_main` of `render.wgsl`).
@@ -1128,6 +1162,7 @@ mod tests {
             models,
             list,
             many_lights: list,
+            tiles: !list,
         };
         let mut sets = vec![Features::NONE, Features::ALL];
         sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, false)));
@@ -1166,6 +1201,7 @@ mod tests {
         assert_eq!(Features::ALL.to_string(), "all");
         let few = Features {
             models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
+            tiles: false,
             ..Features::ALL
         };
         assert_eq!(
@@ -1197,11 +1233,21 @@ mod tests {
         let lit = Features { list: false, ..few };
         assert_eq!(lit.to_string(), "diffuse+dielectric, many lights");
         assert!(!fitted.covers(lit) && lit.covers(fitted));
+        // Tile lists are named, and either way covers the other.
+        let tiled = Features {
+            tiles: true,
+            ..fitted
+        };
+        assert_eq!(tiled.to_string(), "diffuse+dielectric, tile lists");
+        assert!(tiled.covers(fitted) && fitted.covers(tiled));
         let sss = Features::of(&[super::layout::GpuMaterial {
             tag: [tag::SUBSURFACE, 0, 0, 0],
             ..Default::default()
         }]);
-        assert_eq!(sss.to_string(), "subsurface, candidate list, many lights");
+        assert_eq!(
+            sss.to_string(),
+            "subsurface, candidate list, many lights, tile lists"
+        );
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
         let many = Features {
             models: Features::ALL.models & !(1 << tag::SUBSURFACE),
@@ -1209,7 +1255,7 @@ mod tests {
         };
         assert_eq!(
             many.to_string(),
-            "17 models with wave, candidate list, many lights"
+            "17 models with wave, candidate list, many lights, tile lists"
         );
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.
@@ -1218,12 +1264,14 @@ mod tests {
         assert!(none.contains("const CANDIDATE_LIST: bool = false;"));
         assert!(none.contains("const MANY_LIGHTS: bool = false;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
+        assert!(none.contains("const TILE_LISTS: bool = false;"));
         assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
         assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
         assert!(full.contains("const CANDIDATE_LIST: bool = true;"));
         assert!(full.contains("const MANY_LIGHTS: bool = true;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
+        assert!(full.contains("const TILE_LISTS: bool = true;"));
         assert!(full.contains("fn place_wave("));
     }
 

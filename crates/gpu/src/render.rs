@@ -10,7 +10,11 @@ use isolux_render::{Camera, Environment, RenderStats, Scene};
 use wgpu::util::DeviceExt;
 
 /// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
-const TILE: u32 = 8;
+pub(crate) const TILE: u32 = 8;
+
+/// Objects in a tile's list at most (`cull_tiles` in `render.wgsl`); a
+/// tile whose rays' pyramid meets more walks the hierarchy per ray.
+pub(crate) const TILE_LIST_MAX: u32 = 16;
 
 /// Bytes of one path's state between the wavefront's steps (`WfPath` in
 /// render.wgsl).
@@ -737,6 +741,13 @@ impl Gpu {
                 "the geometry's perturbations".to_string(),
                 std::mem::size_of_val(&geo.perturbations[..]) as u64,
             ),
+            (
+                format!("the {} x {} film's tile lists", film.width, film.height),
+                film.width.div_ceil(TILE) as u64
+                    * film.height.div_ceil(TILE) as u64
+                    * (TILE_LIST_MAX as u64 + 1)
+                    * 4,
+            ),
         ] {
             if bytes > limit {
                 return Err(GpuError::TooLarge {
@@ -771,6 +782,8 @@ impl Gpu {
         let albedos = self.storage("albedos", bytemuck::cast_slice(&albedos));
         let aov = with_aov.then(|| self.output("aov", npix * 32));
         let aov_stub = self.output("aov stub", 32);
+        let tiles = film.width.div_ceil(TILE) as u64 * film.height.div_ceil(TILE) as u64;
+        let tile_lists = self.output("tile lists", tiles * (TILE_LIST_MAX as u64 + 1) * 4);
         let buffers = vec![
             objects,
             perts,
@@ -785,6 +798,7 @@ impl Gpu {
             nodes,
             aov.clone().unwrap_or(aov_stub),
             albedos,
+            tile_lists,
         ];
         // No layers until a run needs them (the wavefront never does).
         let layers = self.output("sample layers (none yet)", 16);
@@ -794,10 +808,14 @@ impl Gpu {
             .materials
             .iter()
             .any(|m| m.tag[0] == layout::tag::SUBSURFACE && m.tag[3] == 1);
-        Ok(GpuFrame {
+        let frame = GpuFrame {
             realtime,
             rebase: at,
-            features: needed,
+            // Tile lists on GPUs only (`Features::tiles`).
+            features: Features {
+                tiles: !self.cpu,
+                ..needed
+            },
             needed,
             bind,
             buffers,
@@ -817,7 +835,9 @@ impl Gpu {
             wf: None,
             first_hits: false,
             random_walk,
-        })
+        };
+        frame.cull_tiles(self);
+        Ok(frame)
     }
 
     /// Renders `scene` on the GPU: the film's samples in passes (at most
@@ -959,6 +979,19 @@ impl GpuFrame {
             timed,
         );
         self.samples += count;
+    }
+
+    /// Camera rays test their tile's list of objects (`on`) or walk the
+    /// object hierarchy each: kernels with or without [`Features::tiles`]
+    /// (by default with on a GPU, without on a CPU driver). The lists
+    /// (`cull_tiles` in `render.wgsl`: one walk per 8 x 8 pixel tile
+    /// against the pyramid of its rays) are made either way. The hits are
+    /// the same: a list holds, in the walk's order, every object a ray of
+    /// the tile can reach. For comparisons (`isolux bench gpu --tiles`)
+    /// and tests. The wavefront path tracer's paths are not laid out by
+    /// tiles and always walk.
+    pub fn set_tile_lists(&mut self, on: bool) {
+        self.features.tiles = on;
     }
 
     /// Whether the path tracer runs as a wavefront ([`GpuFrame::set_wavefront`]).
@@ -1293,8 +1326,42 @@ impl GpuFrame {
         self.params.forward = v4(forward);
         self.params.right = v4(right);
         self.params.up = v4(up);
+        self.cull_tiles(gpu);
         self.reset(gpu);
         Ok(())
+    }
+
+    /// Queues `cull_tiles` (`render.wgsl`): each 8 x 8 pixel tile's list of
+    /// the objects its camera rays can meet, for the camera of
+    /// `self.params`. Runs before any later submission's samples.
+    fn cull_tiles(&self, gpu: &Gpu) {
+        let staging = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("cull parameters"),
+                contents: bytemuck::bytes_of(&self.params),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            });
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("tile lists"),
+            });
+        let size = std::mem::size_of::<GpuParams>() as u64;
+        enc.copy_buffer_to_buffer(&staging, 0, &self.params_buf, 0, size);
+        let tiles = self.params.film[0].div_ceil(TILE) * self.params.film[1].div_ceil(TILE);
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("tile lists"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_pipeline(&gpu.cull_pipeline());
+            // Rows of at most 65535 workgroups (the per-dimension limit).
+            let groups = tiles.div_ceil(64);
+            pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+        }
+        gpu.queue.submit(Some(enc.finish()));
     }
 
     /// The accumulation buffer: per pixel, row by row from the top, the

@@ -70,6 +70,12 @@ pub struct BenchArgs {
     /// dispatches costs.
     #[arg(long)]
     pub per_sample: bool,
+    /// `gpu`: also time the frames with camera rays testing their 8 x 8
+    /// tile's list of objects and with each walking the object hierarchy
+    /// (`Features::tiles`: by default lists on a GPU, walks on a CPU
+    /// driver), in two columns, with their ratio.
+    #[arg(long)]
+    pub tiles: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -486,6 +492,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU one sample per dispatch (ms/frame) | per sample / layered |";
         rule += "---:|---:|";
     }
+    if a.tiles {
+        extra += " GPU tile lists (ms/frame) | GPU per-ray walks (ms/frame) | lists / walks |";
+        rule += "---:|---:|---:|";
+    }
     println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
     println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
@@ -599,6 +609,15 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 let gs = time(&gpu, &mut frame)?.0;
                 frame.set_max_layers(16);
                 cols += &format!(" {:.2} | {:.2} |", gs * 1e3, gs / g);
+            }
+            if a.tiles {
+                let default = frame.features().tiles;
+                frame.set_tile_lists(true);
+                let gl = time(&gpu, &mut frame)?.0;
+                frame.set_tile_lists(false);
+                let gw = time(&gpu, &mut frame)?.0;
+                frame.set_tile_lists(default);
+                cols += &format!(" {:.2} | {:.2} | {:.2} |", gl * 1e3, gw * 1e3, gl / gw);
             }
             // The CPU has no mode that traces first hits alone.
             let (c, ratio) = if a.skip_cpu || first_hit {

@@ -134,6 +134,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "--skip-cpu",
         "--wavefront",
         "--per-sample",
+        "--tiles",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
@@ -148,7 +149,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "{out}"
     );
     assert!(
-        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel | GPU one sample per dispatch (ms/frame) | per sample / layered |"),
+        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel | GPU one sample per dispatch (ms/frame) | per sample / layered | GPU tile lists (ms/frame) | GPU per-ray walks (ms/frame) | lists / walks |"),
         "{out}"
     );
     let rows: Vec<&str> = out
@@ -183,12 +184,22 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         // dispatch per sample anyway).
         if mode == "first hit" {
             assert_eq!((cells[9], cells[10]), ("-", "-"), "{row}");
-            continue;
+        } else {
+            let one: f64 = cells[9].parse().unwrap();
+            let ratio: f64 = cells[10].parse().unwrap();
+            assert!(one.is_finite() && one > 0.0, "{row}");
+            assert!((ratio - one / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
         }
-        let one: f64 = cells[9].parse().unwrap();
-        let ratio: f64 = cells[10].parse().unwrap();
-        assert!(one.is_finite() && one > 0.0, "{row}");
-        assert!((ratio - one / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
+        // `--tiles`: in every mode.
+        let lists: f64 = cells[11].parse().unwrap();
+        let walks: f64 = cells[12].parse().unwrap();
+        let ratio: f64 = cells[13].parse().unwrap();
+        assert!(lists.is_finite() && lists > 0.0, "{row}");
+        assert!(walks.is_finite() && walks > 0.0, "{row}");
+        assert!(
+            (ratio - lists / walks).abs() <= 0.01 + 0.01 * ratio,
+            "{row}"
+        );
     }
 }
 

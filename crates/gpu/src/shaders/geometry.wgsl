@@ -34,6 +34,21 @@ struct BvhNode { bmin: vec4<f32>, bmax: vec4<f32>, link: vec4<u32> }
 // The object of the hit `scene_first_hit` returned.
 var<private> hit_object: u32;
 
+// Per-tile culling of camera rays (SPEC §1: "culled per tile"; the CPU's
+// coherent culling, docs/geometry.md). Kernels that trace one camera ray
+// per invocation read their 8 x 8 pixel tile's list of objects
+// (`tile_entry`, render.wgsl `cull_tiles`: the objects whose box the
+// pyramid of the tile's rays meets, in the order of the object
+// hierarchy's walk) and each camera ray tests those objects instead of
+// walking the hierarchy (`scene_hit_real`). The list holds every object a
+// ray's own walk would reach, in the same order, and those it would not
+// are missed by their own box tests, with the same nearest hit so far: the
+// hits are the walk's. `tile_rays` is set for the invocation's next
+// `scene_hit_real` call, its camera ray, which clears it; `tile_entry(0)`
+// is the list's length, `tile_entry(1 + i)` its objects (defined by each
+// kernel: intersect.wgsl has no lists).
+var<private> tile_rays: bool;
+
 // The candidate list of an object of more than MASK_CANDIDATES
 // perturbations, at module scope. WGSL zero-initializes every variable:
 // naga gives a function's local variables an OpConstantNull initializer,
@@ -683,35 +698,59 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
         return best;
     }
     var t1 = t_max;
+    // A camera ray of a culled tile tests its tile's list (`tile_rays`,
+    // above); other rays walk the hierarchy.
+    // TILE_LISTS (generated, lib.rs `Features::tiles`): without it the
+    // list's code is dead.
+    let listed = TILE_LISTS && tile_rays;
+    tile_rays = false;
+    var li = 0u;
     // Stackless, as in `object_hit`: the skip links (layout.rs
     // `GpuBvhNode`) visit the nodes in the order a stack would.
     var node = 0u;
     loop {
-        if (node == NO_NODE) {
-            break;
+        // The next objects to test: a leaf's (one or two) or the list's
+        // next; one call site of `object_hit` for both.
+        var count = 0u;
+        var first = 0u;
+        var second = 0u;
+        if (listed) {
+            if (li >= tile_entry(0u)) {
+                break;
+            }
+            count = 1u;
+            first = tile_entry(1u + li);
+            li++;
+        } else {
+            if (node == NO_NODE) {
+                break;
+            }
+            let nd = nodes[node];
+            let bs = clip_box(o, d, vec3<real>(nd.bmin.xyz), vec3<real>(nd.bmax.xyz), t0, t1);
+            var next = nd.link.x;
+            if (bs.x <= bs.y) {
+                if (nd.link.y == 0u) {
+                    next = node + 1u;
+                } else {
+                    count = nd.link.y;
+                    first = nd.link.z;
+                    second = nd.link.w;
+                }
+            }
+            node = next;
         }
-        let nd = nodes[node];
-        let bs = clip_box(o, d, vec3<real>(nd.bmin.xyz), vec3<real>(nd.bmax.xyz), t0, t1);
-        var next = nd.link.x;
-        if (bs.x <= bs.y) {
-            if (nd.link.y == 0u) {
-                next = node + 1u;
-            } else {
-                for (var k = 0u; k < nd.link.y; k++) {
-                    let oi = select(nd.link.z, nd.link.w, k == 1u);
-                    let h = object_hit(oi, o, d, t0, t1, any);
-                    if (h.x >= 0.0 && h.x <= t1) {
-                        best = h;
-                        t1 = h.x;
-                        hit_object = oi;
-                        if (any) {
-                            return best;
-                        }
-                    }
+        for (var k = 0u; k < count; k++) {
+            let oi = select(first, second, k == 1u);
+            let h = object_hit(oi, o, d, t0, t1, any);
+            if (h.x >= 0.0 && h.x <= t1) {
+                best = h;
+                t1 = h.x;
+                hit_object = oi;
+                if (any) {
+                    return best;
                 }
             }
         }
-        node = next;
     }
     return best;
 }

@@ -18,3 +18,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ray = rays[i];
     hits[i] = scene_first_hit(ray.o.xyz, ray.d.xyz, ray.o.w, ray.d.w, counts.y, counts.z != 0u);
 }
+
+// No tile lists here: geometry.wgsl's hooks.
+const TILE_LISTS: bool = false;
+fn tile_entry(k: u32) -> u32 {
+    return 0u;
+}

@@ -130,5 +130,6 @@ fn realtime(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.film.x || gid.y >= params.film.y) {
         return;
     }
+    use_tile(gid);
     store_sample(gid, realtime_shade(params.origin.xyz, camera_sample(gid)));
 }

@@ -59,9 +59,21 @@ struct Light { position: vec4<f32>, intensity: vec4<f32> }
 // AOVs (aov_main): per pixel (albedo, depth) then (normal, 0).
 @group(0) @binding(11) var<storage, read_write> aov: array<vec4<f32>>;
 @group(0) @binding(12) var<storage, read> albedos: array<vec4<f32>>; // per material
+// The camera rays' tile lists, written by `cull_tiles` when the frame is
+// prepared and when its camera moves: per 8 x 8 pixel tile (row by row),
+// TILE_STRIDE words, the list's length (NO_NODE: more than TILE_LIST_MAX
+// objects, the tile's rays walk the hierarchy), then its objects.
+@group(0) @binding(13) var<storage, read_write> tile_lists: array<u32>;
 // One sample of every pixel per layer (`sample_value`), layer z from z of
 // the dispatch, added up by `resolve`.
-@group(0) @binding(13) var<storage, read_write> layers: array<vec4<f32>>;
+@group(0) @binding(14) var<storage, read_write> layers: array<vec4<f32>>;
+
+// The camera ray's tile (`use_tile`), as the index of its first word.
+var<private> tile_base: u32;
+
+fn tile_entry(k: u32) -> u32 {
+    return tile_lists[tile_base + k];
+}
 
 var<private> rng_state: u32;
 
@@ -848,9 +860,109 @@ fn camera_sample(gid: vec3<u32>) -> vec3<f32> {
     let j = rand2();
     let fx = f32(gid.x) + (f32(c % gm) + j.x) / f32(gm);
     let fy = f32(gid.y) + (f32(c / gm) + j.y) / f32(gn);
-    let sx = 2.0 * fx / f32(width) - 1.0;
-    let sy = 1.0 - 2.0 * fy / f32(height);
-    return normalize(params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz);
+    return normalize(film_dir(fx, fy));
+}
+
+// The direction toward film position (x, y) in pixels (`camera_sample`'s,
+// before normalizing).
+fn film_dir(x: f32, y: f32) -> vec3<f32> {
+    let sx = 2.0 * x / f32(params.film.x) - 1.0;
+    let sy = 1.0 - 2.0 * y / f32(params.film.y);
+    return params.forward.xyz + sx * params.right.xyz + sy * params.up.xyz;
+}
+
+// Whether the box [lo, hi] (relative to the camera) lies wholly on the
+// negative side of the plane through the camera with normal n: its corner
+// farthest along n is behind it. Corners, not centre and half extent: a
+// box clamped to 1e30 on one side keeps its other side exact.
+fn behind(n: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) -> bool {
+    return dot(n, select(lo, hi, n >= vec3<f32>(0.0))) < 0.0;
+}
+
+// A side plane of the tile's pyramid through edge (a, b), oriented toward
+// the pyramid's axis `mid`.
+fn side(a: vec3<f32>, b: vec3<f32>, mid: vec3<f32>) -> vec3<f32> {
+    let n = cross(a, b);
+    return select(n, -n, dot(n, mid) < 0.0);
+}
+
+// Film tiles per row.
+fn tiles_x() -> u32 {
+    return (params.film.x + TILE - 1u) / TILE;
+}
+
+// The camera ray of pixel gid tests its tile's list (geometry.wgsl
+// `tile_rays`) in kernels with TILE_LISTS (generated, lib.rs
+// `Features::tiles`), unless the list overflowed.
+fn use_tile(gid: vec3<u32>) {
+    if (TILE_LISTS) {
+        tile_base = ((gid.y / TILE) * tiles_x() + gid.x / TILE) * TILE_STRIDE;
+        tile_rays = tile_lists[tile_base] != NO_NODE;
+    }
+}
+
+// The tile lists (`tile_lists`), one invocation per 8 x 8 (TILE) pixel
+// tile: the object hierarchy walked against the pyramid from the camera
+// through the tile's pixels, widened by half a pixel on each side (the
+// rays' jitter stays inside their pixels; half a pixel is some 1e3 times
+// the rounding of the rays' directions and of the planes' tests at any
+// film size up to 1e5 pixels), keeping the leaves' objects of the nodes
+// that no side plane (nor the camera's own plane) has wholly behind it.
+// Run when the frame is prepared and when its camera moves (render.rs
+// `GpuFrame::cull_tiles`), not per sample: a barrier-free pre-pass.
+@compute @workgroup_size(64)
+fn cull_tiles(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let tx = tiles_x();
+    let ty = (params.film.y + TILE - 1u) / TILE;
+    let t = gid.y * groups.x * 64u + gid.x;
+    if (t >= tx * ty) {
+        return;
+    }
+    let base = t * TILE_STRIDE;
+    let wx = t % tx;
+    let wy = t / tx;
+    let xa = f32(wx * TILE) - 0.5;
+    let xb = f32(min(wx * TILE + TILE, params.film.x)) + 0.5;
+    let ya = f32(wy * TILE) - 0.5;
+    let yb = f32(min(wy * TILE + TILE, params.film.y)) + 0.5;
+    let c00 = film_dir(xa, ya);
+    let c10 = film_dir(xb, ya);
+    let c11 = film_dir(xb, yb);
+    let c01 = film_dir(xa, yb);
+    let mid = c00 + c10 + c11 + c01;
+    let n0 = side(c00, c10, mid);
+    let n1 = side(c10, c11, mid);
+    let n2 = side(c11, c01, mid);
+    let n3 = side(c01, c00, mid);
+    let o = params.origin.xyz;
+    var len = 0u;
+    var node = select(0u, NO_NODE, params.counts.x == 0u);
+    loop {
+        if (node == NO_NODE) {
+            break;
+        }
+        let nd = nodes[node];
+        let lo = nd.bmin.xyz - o;
+        let hi = nd.bmax.xyz - o;
+        var next = nd.link.x;
+        if (!(behind(n0, lo, hi) || behind(n1, lo, hi) || behind(n2, lo, hi) || behind(n3, lo, hi)
+            || behind(params.forward.xyz, lo, hi))) {
+            if (nd.link.y == 0u) {
+                next = node + 1u;
+            } else if (len + nd.link.y > TILE_LIST_MAX) {
+                len = NO_NODE;
+                break;
+            } else {
+                tile_lists[base + 1u + len] = nd.link.z;
+                if (nd.link.y == 2u) {
+                    tile_lists[base + 2u + len] = nd.link.w;
+                }
+                len += nd.link.y;
+            }
+        }
+        node = next;
+    }
+    tile_lists[base] = len;
 }
 
 @compute @workgroup_size(8, 8)
@@ -860,6 +972,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= width || gid.y >= height) {
         return;
     }
+    use_tile(gid);
     store_sample(gid, radiance(params.origin.xyz, camera_sample(gid)));
 }
 
@@ -1048,6 +1161,7 @@ fn aov_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= width || gid.y >= height) {
         return;
     }
+    use_tile(gid);
     let pixel = gid.y * width + gid.x;
     let h = scene_hit(params.origin.xyz, camera_sample(gid), 3.0e38);
     if (h.x >= 0.0) {
