@@ -878,15 +878,7 @@ fn tile_lists_give_the_walks_hits() {
                     bits(&img)
                 }
             };
-            let walk = run(false);
-            let listed = run(true);
-            let same = walk.iter().zip(&listed).filter(|(a, b)| a == b).count();
-            assert_eq!(
-                same,
-                walk.len(),
-                "{name}, {mode}: {:.2}% of the values agree",
-                100.0 * same as f64 / walk.len() as f64
-            );
+            all_equal(&run(false), &run(true), &format!("{name}, {mode}"));
         }
     }
     // A camera moved after the frame was prepared (the viewer's orbit)
@@ -907,12 +899,17 @@ fn tile_lists_give_the_walks_hits() {
         moved.run(&gpu, 4);
         bits(&moved.image(&gpu).unwrap().0)
     };
-    let (walk, listed) = (image(false), image(true));
-    let same = walk.iter().zip(&listed).filter(|(a, b)| a == b).count();
+    let walk = image(false);
+    all_equal(&walk, &image(true), "a moved camera");
+}
+
+/// Asserts that two renders' values agree bit for bit, saying how many do.
+fn all_equal(a: &[u32], b: &[u32], what: &str) {
+    let same = a.iter().zip(b).filter(|(x, y)| x == y).count();
     assert_eq!(
         same,
-        walk.len(),
-        "a moved camera: {:.2}% of the values agree",
-        100.0 * same as f64 / walk.len() as f64
+        a.len(),
+        "{what}: {:.2}% of the values agree",
+        100.0 * same as f64 / a.len() as f64
     );
 }
