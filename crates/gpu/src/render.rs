@@ -988,8 +988,7 @@ impl GpuFrame {
     /// against the pyramid of its rays) are made either way. The hits are
     /// the same: a list holds, in the walk's order, every object a ray of
     /// the tile can reach. For comparisons (`isolux bench gpu --tiles`)
-    /// and tests. The wavefront path tracer's paths are not laid out by
-    /// tiles and always walk.
+    /// and tests.
     pub fn set_tile_lists(&mut self, on: bool) {
         self.features.tiles = on;
     }

@@ -814,15 +814,16 @@ fn every_example_scene_fits_the_gpus_f32() {
     }
 }
 
-/// Camera rays test their 8 x 8 tile's list of objects (`tile_cull` in
-/// render.wgsl) instead of walking the object hierarchy each, and find the
-/// same hits: the list holds, in the walk's order, every object whose box
-/// the pyramid of the tile's rays meets. So the images are the walk's bit
-/// for bit, path traced and real time, and so are the first hits' AOVs, on
+/// Camera rays test their 8 x 8 tile's list of objects (`cull_tiles` and
+/// `use_tile` in render.wgsl) instead of walking the object hierarchy
+/// each, and find the same hits: the list holds, in the walk's order, every
+/// object whose box the pyramid of the tile's rays meets. So the images are
+/// the walk's bit for bit, path traced (megakernel and wavefront) and real
+/// time, and so are the first hits' AOVs, on
 /// the gallery (partial tiles at its right and bottom edges), with the
 /// camera inside the floor's box and among the spheres (boxes behind it and
 /// around it), and with a crowd of 400 small spheres that fills some tiles'
-/// lists past their 32 entries (those tiles walk). It fails when the list
+/// lists past their 16 entries (those tiles walk). It fails when the list
 /// misses an object a ray hits: with a side plane of the pyramid turned
 /// the wrong way 61% of the gallery's path-traced values agree, with each
 /// list's last entry dropped 57%. A camera moved after the frame was
@@ -850,20 +851,21 @@ fn tile_lists_give_the_walks_hits() {
         }
     }
     crowd.geometry = Aggregate::new(objects);
-    scenes.push(("a crowd past the lists' 32 entries", crowd));
+    scenes.push(("a crowd past the lists' 16 entries", crowd));
     let bits =
         |img: &Image| -> Vec<u32> { img.rgb.iter().flatten().map(|c| c.to_bits()).collect() };
     for (name, mut scene) in scenes {
         scene.film.width = 61;
         scene.film.height = 35;
         scene.film.spp = 4;
-        for mode in ["path traced", "real time", "first hits"] {
+        for mode in ["path traced", "wavefront", "real time", "first hits"] {
             let run = |lists: bool| {
                 let mut frame = match mode {
                     "real time" => gpu.prepare_realtime(&scene).unwrap(),
                     "first hits" => gpu.prepare_first_hits(&scene).unwrap(),
                     _ => gpu.prepare(&scene).unwrap(),
                 };
+                frame.set_wavefront(mode == "wavefront");
                 frame.set_tile_lists(lists);
                 frame.run(&gpu, 4);
                 if mode == "first hits" {

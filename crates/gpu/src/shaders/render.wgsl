@@ -1110,6 +1110,7 @@ fn wf_step(gid: vec3<u32>, last: bool) {
             return;
         }
         pixel = y * width + x;
+        use_tile(vec3<u32>(x, y, 0u));
         start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, 0u)));
     } else {
         if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
