@@ -34,7 +34,7 @@ impl Bvh {
         let mut items: Vec<u32> = (0..boxes.len() as u32).collect();
         let mut nodes = Vec::with_capacity(2 * boxes.len());
         if !boxes.is_empty() {
-            build_rec(boxes, &mut items, 0, boxes.len(), &mut nodes);
+            build_rec(boxes, &mut items, 0, boxes.len(), &mut nodes, 0);
         }
         Self { nodes, items }
     }
@@ -207,12 +207,9 @@ fn half_area(b: &Aabb) -> f64 {
 /// tests, for a ray that meets the node's box `A`. A node of
 /// at most [`LEAF_SIZE`] items stays a leaf unless splitting it costs
 /// less than its `n` item tests. Ties go to the first axis and the first
-/// split, so the hierarchy depends on the boxes alone.
-fn build_rec(boxes: &[Aabb], items: &mut [u32], lo: usize, hi: usize, nodes: &mut Vec<Node>) {
-    build_at(boxes, items, lo, hi, nodes, 0);
-}
-
-fn build_at(
+/// split, so the hierarchy depends on the boxes alone. `depth`: the node's
+/// (the root's 0).
+fn build_rec(
     boxes: &[Aabb],
     items: &mut [u32],
     lo: usize,
@@ -220,14 +217,9 @@ fn build_at(
     nodes: &mut Vec<Node>,
     depth: u32,
 ) {
-    let mut bounds = Aabb::EMPTY;
-    let mut cb = Aabb::EMPTY;
-    for &i in &items[lo..hi] {
-        let b = &boxes[i as usize];
-        bounds = bounds.union(b);
-        let c = b.center();
-        cb = cb.union(&Aabb::new(c, c));
-    }
+    let bounds = items[lo..hi]
+        .iter()
+        .fold(Aabb::EMPTY, |b, &i| b.union(&boxes[i as usize]));
     let me = nodes.len();
     nodes.push(Node {
         bounds,
@@ -277,6 +269,10 @@ fn build_at(
             return;
         }
         // The median along the centres' widest axis.
+        let cb = items[lo..hi].iter().fold(Aabb::EMPTY, |b, &i| {
+            let c = boxes[i as usize].center();
+            b.union(&Aabb::new(c, c))
+        });
         let ext = cb.max - cb.min;
         let axis = if ext.x >= ext.y && ext.x >= ext.z {
             0
@@ -288,9 +284,9 @@ fn build_at(
         (axis, (lo + hi) / 2)
     };
     by_axis(items, axis);
-    build_at(boxes, items, lo, mid, nodes, depth + 1);
+    build_rec(boxes, items, lo, mid, nodes, depth + 1);
     let second = nodes.len();
-    build_at(boxes, items, mid, hi, nodes, depth + 1);
+    build_rec(boxes, items, mid, hi, nodes, depth + 1);
     nodes[me].offset = second as u32;
     nodes[me].count = 0;
     nodes[me].axis = axis as u8;

@@ -16,6 +16,12 @@ pub(crate) const TILE: u32 = 8;
 /// tile whose rays' pyramid meets more walks the hierarchy per ray.
 pub(crate) const TILE_LIST_MAX: u32 = 16;
 
+/// Bytes of the tile lists of a `width x height` film (`tile_lists` in
+/// `render.wgsl`: `TILE_LIST_MAX + 1` words per tile).
+fn tile_list_bytes(width: u32, height: u32) -> u64 {
+    width.div_ceil(TILE) as u64 * height.div_ceil(TILE) as u64 * (TILE_LIST_MAX as u64 + 1) * 4
+}
+
 /// Bytes of one path's state between the wavefront's steps (`WfPath` in
 /// render.wgsl).
 const WF_PATH_BYTES: u64 = 96;
@@ -743,10 +749,7 @@ impl Gpu {
             ),
             (
                 format!("the {} x {} film's tile lists", film.width, film.height),
-                film.width.div_ceil(TILE) as u64
-                    * film.height.div_ceil(TILE) as u64
-                    * (TILE_LIST_MAX as u64 + 1)
-                    * 4,
+                tile_list_bytes(film.width, film.height),
             ),
         ] {
             if bytes > limit {
@@ -782,8 +785,7 @@ impl Gpu {
         let albedos = self.storage("albedos", bytemuck::cast_slice(&albedos));
         let aov = with_aov.then(|| self.output("aov", npix * 32));
         let aov_stub = self.output("aov stub", 32);
-        let tiles = film.width.div_ceil(TILE) as u64 * film.height.div_ceil(TILE) as u64;
-        let tile_lists = self.output("tile lists", tiles * (TILE_LIST_MAX as u64 + 1) * 4);
+        let tile_lists = self.output("tile lists", tile_list_bytes(film.width, film.height));
         let buffers = vec![
             objects,
             perts,
