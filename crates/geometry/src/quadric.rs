@@ -219,28 +219,54 @@ impl Quadric {
         [c, b, a]
     }
 
+    /// `(-M)^-1` and a bound on its relative rounding error, when `M` is
+    /// negative definite and far enough from degenerate for that inverse
+    /// to mean something; `None` otherwise (the positive set is then taken
+    /// as unbounded).
+    ///
+    /// `-M` is first scaled to a unit diagonal (`S (-M) S`, `S` diagonal),
+    /// which leaves its definiteness and the shape of its inverse alone
+    /// (`(-M)^-1 = S (S (-M) S)^-1 S`) and removes a spread of scales
+    /// between the axes: a disc of radii 0.45, 0.6 and 1e-6 along the
+    /// axes, whose diagonal spans 12 orders of magnitude, is the identity
+    /// then. Definiteness is Sylvester's test on the scaled matrix's
+    /// leading minors, whose determinant `det` (at most 1, by Hadamard's
+    /// inequality; 1 along the axes, near 0 near a degenerate quadric such
+    /// as a cylinder or a slab) must exceed `1e-14`, and the inverse's
+    /// relative error is about `64 eps / det`: its cofactors and
+    /// determinant are sums of products of entries at most 1 in size, so
+    /// their absolute rounding stays within a few tens of `eps`, and each
+    /// cofactor on the diagonal is at least `det`.
+    fn definite_inverse(&self) -> Option<(DMat3, f64)> {
+        /// The smallest scaled determinant taken as definite.
+        const DET_FLOOR: f64 = 1e-14;
+        let neg = -self.m;
+        let diag = DVec3::new(neg.x_axis.x, neg.y_axis.y, neg.z_axis.z);
+        if !(diag.min_element() > 0.0) || !diag.is_finite() {
+            return None;
+        }
+        let scale = DMat3::from_diagonal(DVec3::ONE / diag.map(f64::sqrt));
+        let unit = scale * neg * scale;
+        let m2 = unit.x_axis.x * unit.y_axis.y - unit.x_axis.y * unit.y_axis.x;
+        let det = unit.determinant();
+        if !(m2 > DET_FLOOR && det > DET_FLOOR) {
+            return None;
+        }
+        Some((scale * unit.inverse() * scale, 64.0 * f64::EPSILON / det))
+    }
+
     /// Bounding box of the positive set `{Q >= 0}` when it is bounded (an
     /// ellipsoid, possibly a point or empty), `None` when unbounded.
     ///
     /// For negative definite `M` the set is `{(p - m)^T (-M) (p - m) <= k}`
     /// with centre `m = -M^-1 b` and `k = Q(m)`; its half-extent along axis
-    /// `i` is `sqrt(k ((-M)^-1)_ii)`.
+    /// `i` is `sqrt(k ((-M)^-1)_ii)`. The box is padded by a relative hair
+    /// (1e-9) and by the rounding of `(-M)^-1` (`definite_inverse`), which
+    /// for most quadrics is far below the hair and for an ellipsoid thin
+    /// along a turned axis can exceed it (a disc 1e-4 thick turned off the
+    /// axes: about 1e-3), so that boundary roots are never culled.
     pub fn positive_bounds(&self) -> Option<Aabb> {
-        let neg = -self.m;
-        // Negative definiteness of M <=> positive leading minors of -M.
-        let m1 = neg.x_axis.x;
-        let m2 = neg.x_axis.x * neg.y_axis.y - neg.x_axis.y * neg.y_axis.x;
-        let m3 = neg.determinant();
-        let scale = neg
-            .x_axis
-            .x
-            .abs()
-            .max(neg.y_axis.y.abs())
-            .max(neg.z_axis.z.abs());
-        if !(m1 > 0.0 && m2 > 1e-14 * scale * scale && m3 > 1e-14 * scale * scale * scale) {
-            return None;
-        }
-        let inv = neg.inverse();
+        let (inv, err) = self.definite_inverse()?;
         let centre = inv * self.b; // -M^-1 b = (-M)^-1 b
         let k = self.eval(centre);
         if !(k >= 0.0) {
@@ -251,8 +277,16 @@ impl Quadric {
             (k * inv.y_axis.y).max(0.0).sqrt(),
             (k * inv.z_axis.z).max(0.0).sqrt(),
         );
-        // Pad by a relative hair so that boundary roots are never culled.
-        let pad = half * 1e-9 + DVec3::splat(1e-12 * (1.0 + centre.abs().max_element()));
+        // `k` is a sum of terms that can dwarf it (a thin ellipsoid away
+        // from the origin: `1 - (z / 1e-6)^2` written out about the
+        // origin), rounded within a few `eps` of their sizes; the
+        // half-extents go as its square root.
+        let terms =
+            centre.dot(self.m * centre).abs() + 2.0 * self.b.dot(centre).abs() + self.c.abs();
+        let k_err = 8.0 * f64::EPSILON * terms / k.max(f64::MIN_POSITIVE);
+        let reach = half.max_element() + centre.abs().max_element();
+        let pad = half * (1e-9 + k_err.min(1.0))
+            + DVec3::splat(err * reach + 1e-12 * (1.0 + centre.abs().max_element()));
         Some(Aabb::new(centre - half - pad, centre + half + pad))
     }
 
@@ -263,7 +297,7 @@ impl Quadric {
         if b.is_empty() {
             return None;
         }
-        let centre = (-self.m).inverse() * self.b;
+        let centre = self.definite_inverse()?.0 * self.b;
         Some(self.eval(centre).max(0.0))
     }
 
@@ -281,7 +315,7 @@ impl Quadric {
         if b.is_empty() {
             return None;
         }
-        let inv = (-self.m).inverse();
+        let (inv, err) = self.definite_inverse()?;
         let centre = inv * self.b;
         let k = self.eval(centre).max(0.0);
         let row = |i: usize| {
@@ -291,7 +325,9 @@ impl Quadric {
         let lambda = row(0).max(row(1)).max(row(2));
         let diagonal = 0.5 * (b.max - b.min).length();
         let radius = (k * lambda).sqrt().min(diagonal);
-        let pad = radius * 1e-9 + 1e-12 * (1.0 + centre.abs().max_element());
+        let pad = radius * 1e-9
+            + err * (radius + centre.abs().max_element())
+            + 1e-12 * (1.0 + centre.abs().max_element());
         Some((centre, radius + pad))
     }
 }
@@ -412,6 +448,75 @@ mod tests {
         assert!(e.eval(c) > 0.0);
         let b = e.positive_bounds().unwrap();
         assert!(b.contains(p) && b.contains(c + rot * DVec3::new(0.0, -1.0, 0.0)));
+    }
+
+    /// Thin ellipsoids, axis-aligned and turned, down to a disc 1e-6
+    /// thick: bounded, and every point of the surface inside the box
+    /// (points from the parameterization, an independent computation).
+    #[test]
+    fn thin_ellipsoids_keep_their_boxes() {
+        for thin in [1e-2, 1e-4, 1e-6, 1e-8] {
+            for rot in [
+                DMat3::IDENTITY,
+                DMat3::from_rotation_x(0.7) * DMat3::from_rotation_y(-0.4),
+            ] {
+                let c = DVec3::new(0.75, -0.2, 0.3);
+                let radii = DVec3::new(0.45, 0.6, thin);
+                let e = Quadric::ellipsoid(c, radii, rot);
+                let Some(b) = e.positive_bounds() else {
+                    // Too thin off the axes to bound in f64: unbounded,
+                    // which is safe. Along the axes, never.
+                    assert!(
+                        rot != DMat3::IDENTITY && thin < 1e-3,
+                        "radius {thin}: no box"
+                    );
+                    continue;
+                };
+                // The exact half extents, |row i of rot diag(radii)|: met
+                // within 1e-3 along the axes (the box is padded by the
+                // rounding of the disc's coefficients, 1e12 and its
+                // products with the centre); a turned thin disc's box also
+                // by its inverse's rounding, and stays within 2x, as does
+                // a disc 1e-8 thick, whose coefficient 1e16 leaves its
+                // constant term barely resolved.
+                let aligned = rot == DMat3::IDENTITY;
+                for i in 0..3 {
+                    let half = (rot.row(i) * radii).length();
+                    let (lo, hi) = (c[i] - b.min[i], b.max[i] - c[i]);
+                    for side in [lo, hi] {
+                        let ok = if aligned && thin >= 1e-6 {
+                            side >= half && side < (1.0 + 1e-3) * half + 1e-11
+                        } else {
+                            side >= half && side < 2.0 * half + 1e-9
+                        };
+                        assert!(ok, "radius {thin}, axis {i}: [{lo}, {hi}] against {half}");
+                    }
+                }
+                for k in 0..400 {
+                    let (u, v) = (k as f64 * 0.618_034 % 1.0, (k as f64 + 0.5) / 400.0);
+                    let (phi, cos_t) = (2.0 * PI * u, 1.0 - 2.0 * v);
+                    let sin_t = (1.0 - cos_t * cos_t).sqrt();
+                    let local = DVec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t);
+                    let p = c + rot * (local * radii);
+                    assert!(b.contains(p), "radius {thin}: {p} outside {b:?}");
+                }
+            }
+        }
+        // A long ellipsoid along an axis is bounded, however long; the
+        // degenerate ones still have no box: a cylinder along an axis (a
+        // zero on the diagonal) and one turned off the axes (a determinant
+        // within rounding of zero).
+        let long = Quadric::ellipsoid(DVec3::ZERO, DVec3::new(1.0, 1.0, 1e9), DMat3::IDENTITY);
+        let b = long.positive_bounds().expect("a long ellipsoid is bounded");
+        assert!(
+            b.max.z >= 1e9 && b.max.z < 1.001e9 && b.max.x < 1.001,
+            "{b:?}"
+        );
+        assert!(Quadric::cylinder(DVec3::ZERO, DVec3::Y, 0.5)
+            .positive_bounds()
+            .is_none());
+        let turned = Quadric::cylinder(DVec3::ZERO, DVec3::new(1.0, 2.0, 3.0).normalize(), 0.5);
+        assert!(turned.positive_bounds().is_none());
     }
 
     #[test]

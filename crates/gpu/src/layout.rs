@@ -151,11 +151,25 @@ fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
 /// widens the box) would put the base's quadric about a point 5000 units
 /// away, where f32 loses a sphere of radius 0.55 to rounding
 /// (`conformance.rs`, `a_far_support_keeps_the_base_precise`).
+///
+/// Where the base is an ellipsoid, its own centre instead (in f64, from
+/// the CPU's coefficients, which hold it to f64's precision): the CPU
+/// keeps an object's frame at the point it was given when its box lies
+/// within the box's size of that point (`Object::in_frame`), which for a
+/// thin object is not close enough for f32. A disc 2e-4 thick at 0.3 from
+/// its frame's zero has a constant term of 9e6 in its quadric, whose f32
+/// rounding (0.5) is half the term that makes the disc (`conformance.rs`,
+/// `thin_discs_are_bounded_and_hit`: 64% of rays hit it, 14% within a
+/// tenth of its thickness; about its centre, all of them).
 fn object_origin(o: &Object, at: DVec3) -> DVec3 {
     if !o.bbox().is_finite() {
         return DVec3::ZERO;
     }
-    f32_exact(o.origin() - at)
+    let anchor = match o.base().positive_bounds() {
+        Some(b) if !b.is_empty() && b.is_finite() => o.origin() + b.center(),
+        _ => o.origin(),
+    };
+    f32_exact(anchor - at)
 }
 
 /// `v` rounded to f32, back in f64: a point the kernels hold exactly.
