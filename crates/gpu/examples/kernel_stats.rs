@@ -61,6 +61,7 @@ const KEYWORDS: [&str; 10] = [
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut every_stat = false;
+    let mut checks = Checks::Wgpu;
     let mut dump = None;
     let mut sources = Vec::new();
     let mut scenes = Vec::new();
@@ -68,6 +69,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     while let Some(a) = args.next() {
         match a.as_str() {
             "--all" => every_stat = true,
+            "--checks" => {
+                checks = match args.next().as_deref() {
+                    Some("wgpu") => Checks::Wgpu,
+                    Some("none") => Checks::None,
+                    _ => return Err("--checks needs wgpu or none".into()),
+                }
+            }
             "--dump" => dump = Some(args.next().ok_or("--dump needs a directory")?),
             "--source" => sources.push(args.next().ok_or("--source needs a file")?),
             _ => scenes.push(a),
@@ -147,7 +155,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!();
     let mut columns: Vec<String> = Vec::new();
     for (label, models, entry, src) in &kernels {
-        let stats = compiler.stats(src, entry)?;
+        let stats = compiler.stats(src, entry, checks)?;
         if columns.is_empty() {
             columns = stats
                 .iter()
@@ -172,6 +180,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("| {label} | {models} | {} |", cells.join(" | "));
     }
     Ok(())
+}
+
+/// The run-time checks naga writes into the SPIR-V.
+#[derive(Clone, Copy, PartialEq)]
+enum Checks {
+    /// What wgpu's Vulkan back end writes for a checked module on a device
+    /// with `robustBufferAccess2` (RADV, NVIDIA, lavapipe): indices into
+    /// arrays clamped (`Restrict`), buffers left to the driver, and every
+    /// loop given an iteration counter (`force_loop_bounding`).
+    Wgpu,
+    /// None of them (`Device::create_shader_module_trusted` with
+    /// `ShaderRuntimeChecks::unchecked()`).
+    None,
+}
+
+impl Checks {
+    fn policies(self) -> naga::proc::BoundsCheckPolicies {
+        use naga::proc::BoundsCheckPolicy::{Restrict, Unchecked};
+        naga::proc::BoundsCheckPolicies {
+            index: if self == Checks::Wgpu {
+                Restrict
+            } else {
+                Unchecked
+            },
+            buffer: Unchecked,
+            image_load: Unchecked,
+            binding_array: Unchecked,
+        }
+    }
 }
 
 /// A Vulkan device that compiles compute pipelines with statistics.
@@ -283,6 +320,7 @@ impl Compiler {
         &self,
         src: &str,
         entry: &str,
+        checks: Checks,
     ) -> Result<Vec<(String, String)>, Box<dyn std::error::Error>> {
         let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
         let info = naga::valid::Validator::new(
@@ -297,6 +335,8 @@ impl Compiler {
             &naga::back::spv::Options {
                 lang_version: (1, 3),
                 flags: naga::back::spv::WriterFlags::empty(),
+                bounds_check_policies: checks.policies(),
+                force_loop_bounding: checks == Checks::Wgpu,
                 ..Default::default()
             },
             Some(&naga::back::spv::PipelineOptions {

@@ -25,8 +25,8 @@ pub mod layout;
 mod render;
 
 pub use render::{
-    f32_shortfall, rebase_point, replace_unsupported, unsupported_material, worst_scale_ratio,
-    GpuFrame, ScaleRatio, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
+    f32_shortfall, rebase_point, replace_unsupported, thin_object_warning, unsupported_material,
+    worst_scale_ratio, GpuFrame, ScaleRatio, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;

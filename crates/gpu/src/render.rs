@@ -185,6 +185,44 @@ pub fn f32_shortfall(scene: &Scene) -> Option<String> {
     })
 }
 
+/// A warning for the thinnest object of `scene` whose box is thinner than
+/// `THIN_FACTOR` times the offset at which the GPU starts a ray leaving its
+/// surface ([`crate::SPAWN_OFFSET`] plus [`crate::SPAWN_OFFSET_WORLD`]
+/// times its distance from the GPU's origin), if there is one: a ray
+/// leaving one face of it can start beyond the other, so light through a
+/// thin glass or translucent sheet, and shadows right behind it, differ
+/// from the CPU's image (whose offset is about 1e-7 of the object's size).
+/// A warning, not a refusal: an opaque thin object seen from outside
+/// renders the same. (Found by `scripts/gpu-diff-fuzz.py`: a subsurface
+/// disc 2e-6 thick rendered dark on the GPU.)
+pub fn thin_object_warning(scene: &Scene) -> Option<String> {
+    /// How many offsets thick an object must be not to be warned about.
+    const THIN_FACTOR: f64 = 4.0;
+    let at = rebase_point(scene);
+    let mut worst: Option<(usize, f64, f64)> = None;
+    for (i, o) in scene.geometry.objects().iter().enumerate() {
+        let b = o.bbox();
+        if !b.is_finite() || b.is_empty() {
+            continue;
+        }
+        let reach = (b.min - at).abs().max((b.max - at).abs()).max_element();
+        let offset = crate::SPAWN_OFFSET as f64 + crate::SPAWN_OFFSET_WORLD as f64 * reach;
+        let thickness = (b.max - b.min).min_element();
+        if thickness < THIN_FACTOR * offset && worst.is_none_or(|(_, t, _)| thickness < t) {
+            worst = Some((i, thickness, offset));
+        }
+    }
+    worst.map(|(i, thickness, offset)| {
+        format!(
+            "object[{i}]'s box is {thickness:.2e} units thick, under {THIN_FACTOR} times the \
+             {offset:.2e} units at which \
+             the GPU starts rays off a surface: light through it and shadows right behind it \
+             can differ from the CPU's image (docs/gpu.md, \"Precision\"); render without \
+             --gpu where they matter"
+        )
+    })
+}
+
 /// Above this magnitude a light's intensity or position (from the GPU's
 /// origin), the environment's radiance, or a quadric coefficient or
 /// perturbation factor is refused by `--gpu`: f32 holds up to 3.4e38, and

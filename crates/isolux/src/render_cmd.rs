@@ -195,6 +195,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(why) = isolux_gpu::f32_shortfall(&scene) {
             bail!("--gpu: {}: {why}", a.scene.display());
         }
+        if let Some(why) = isolux_gpu::thin_object_warning(&scene) {
+            eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
+        }
         start = Instant::now();
         if a.realtime {
             gpu.render_realtime_with_aov(&scene, a.aov)
