@@ -2,12 +2,13 @@
 # Runs on a lent NVIDIA machine (the `device` tool), over the folder that
 # scripts/device-prepare.sh filled here, everything issue 7 asks to be
 # measured on real hardware, in one call:
-#   1. `isolux bench gpu --general --f64 --wavefront --per-sample --tiles` on the
+#   1. `isolux bench gpu --general --f64 --wavefront --per-sample --tiles --checked` on the
 #      gallery at 1920 x 1080 (real-time 4 spp, path traced 16 spp, direct
 #      light; the specialized and the general kernels, f32 and f64, the
 #      megakernel and the wavefront path tracer, a frame's samples in one
 #      dispatch and one dispatch each, camera rays by tile lists and by
-#      per-ray walks, and the CPU on all cores), then
+#      per-ray walks, the kernels with and without wgpu's run-time checks,
+#      and the CPU on all cores), then
 #      the same geometry with every material diffuse (a control: what the
 #      material library costs); each table's "first hit" row times the
 #      camera rays' intersection alone;
@@ -87,7 +88,7 @@ if [ -x "$bin/isolux-baseline" ] && [ "${QUICK:-0}" != 1 ]; then
         step 45 "$bin/isolux" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
     done
 fi
-step 280 "$bin/isolux" bench gpu --general --f64 --wavefront --per-sample --tiles "${size[@]}" "${repeat[@]}"
+step 280 "$bin/isolux" bench gpu --general --f64 --wavefront --per-sample --tiles --checked "${size[@]}" "${repeat[@]}"
 # The gallery's geometry with every material diffuse (examples/bench): how
 # much of the frame the material library costs on this GPU.
 step 60 "$bin/isolux" bench gpu examples/bench/gallery-diffuse.toml --skip-cpu "${size[@]}" "${few[@]}"

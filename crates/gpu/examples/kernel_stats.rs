@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! cargo run --release -p isolux-gpu --example kernel_stats [-- SCENE.toml ...] [--all]
-//!     [--dump DIR] [--source FILE.wgsl ...]
+//!     [--dump DIR] [--source FILE.wgsl ...] [--checks none|wgpu]
 //! ```
 //!
 //! Kernels: the intersection alone (the conformance kernel), then for each
@@ -21,7 +21,10 @@
 //! `--source FILE` compiles the entry points of a WGSL file as it is
 //! (rows `FILE: main` and so on, after the others; `--source` alone skips
 //! the default scenes), so that an edit of a dumped kernel is weighed in
-//! seconds, without rebuilding:
+//! seconds, without rebuilding. `--checks wgpu` writes the SPIR-V with
+//! the run-time checks of wgpu's checked modules (indices clamped, loops
+//! bounded; `Gpu::set_runtime_checks`), `none` (the default) without, as
+//! the renderer compiles them:
 //!
 //! ```text
 //! kernel_stats examples/scenes/gallery.toml --dump /tmp/k
@@ -61,7 +64,7 @@ const KEYWORDS: [&str; 10] = [
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut every_stat = false;
-    let mut checks = Checks::Wgpu;
+    let mut checks = Checks::None;
     let mut dump = None;
     let mut sources = Vec::new();
     let mut scenes = Vec::new();
@@ -191,7 +194,8 @@ enum Checks {
     /// loop given an iteration counter (`force_loop_bounding`).
     Wgpu,
     /// None of them (`Device::create_shader_module_trusted` with
-    /// `ShaderRuntimeChecks::unchecked()`).
+    /// `ShaderRuntimeChecks::unchecked()`): what the renderer compiles by
+    /// default (`Gpu::set_runtime_checks`), and this tool's default.
     None,
 }
 

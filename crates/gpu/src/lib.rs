@@ -594,6 +594,9 @@ pub struct Gpu {
     /// `TIMESTAMP_QUERY` (for `isolux bench gpu`).
     pub(crate) timestamps: Option<Timestamps>,
     precision: Precision,
+    /// Whether modules are compiled with wgpu's run-time checks
+    /// ([`Gpu::set_runtime_checks`]; off by default).
+    runtime_checks: bool,
     /// How frames prepared from now on path trace ([`Gpu::set_path_kernel`]).
     path_kernel: PathKernel,
     f64_supported: bool,
@@ -671,6 +674,7 @@ impl Gpu {
             wavefront_layout: OnceLock::new(),
             render_modules: Default::default(),
             precision: Precision::F32,
+            runtime_checks: false,
             path_kernel: PathKernel::Auto,
             f64_supported,
             cpu: info.device_type == wgpu::DeviceType::Cpu,
@@ -710,6 +714,55 @@ impl Gpu {
         Ok(())
     }
 
+    /// Whether the kernels are compiled with the run-time checks that wgpu
+    /// writes into a shader it does not trust ([`wgpu::ShaderRuntimeChecks`]):
+    /// every index into an array clamped, and every loop given an iteration
+    /// counter that ends it after 2^64 iterations (`force_loop_bounding`;
+    /// buffers are left to the driver's robust access where it has it).
+    /// Off by default: the shaders are this crate's own, every loop in
+    /// them ends by construction (the hierarchies' skip links only move
+    /// forward, the root isolation and segment walks have guards, the
+    /// path's bounces a bound), and their indices stay in bounds (the
+    /// conformance and image tests run them without the checks). On RADV's
+    /// compiler the checks cost the gallery's path tracer 7 VGPRs and 6%
+    /// of its instructions (`kernel_stats --checks`; docs/gpu.md). Frames
+    /// prepared from now on use the setting; kernels are compiled again.
+    pub fn set_runtime_checks(&mut self, on: bool) {
+        if on != self.runtime_checks {
+            self.runtime_checks = on;
+            self.intersect = OnceLock::new();
+            self.material_eval = OnceLock::new();
+            self.kernels = Default::default();
+            self.render_modules = Default::default();
+        }
+    }
+
+    /// Whether the kernels are compiled with wgpu's run-time checks.
+    pub fn runtime_checks(&self) -> bool {
+        self.runtime_checks
+    }
+
+    /// A module of this crate's WGSL, with or without wgpu's run-time
+    /// checks ([`Gpu::set_runtime_checks`]).
+    fn module(&self, label: &str, source: String) -> wgpu::ShaderModule {
+        let desc = wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        };
+        if self.runtime_checks {
+            return self.device.create_shader_module(desc);
+        }
+        // SAFETY: `ShaderRuntimeChecks::unchecked` asks that no loop of
+        // the module runs forever and no index leaves its array. The
+        // modules are this crate's own shaders, whose loops all end and
+        // whose indices stay in bounds (`set_runtime_checks`); buffer
+        // accesses keep the driver's robust access where it offers it.
+        unsafe {
+            self.device
+                .create_shader_module_trusted(desc, wgpu::ShaderRuntimeChecks::unchecked())
+        }
+    }
+
     /// How frames prepared from now on (and [`Gpu::render`]) path trace
     /// ([`PathKernel`]; the same image either way).
     pub fn set_path_kernel(&mut self, kernel: PathKernel) {
@@ -738,12 +791,7 @@ impl Gpu {
         source: impl FnOnce() -> String,
     ) -> &'a wgpu::ComputePipeline {
         cell.get_or_init(|| {
-            let module = self
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(label),
-                    source: wgpu::ShaderSource::Wgsl(source().into()),
-                });
+            let module = self.module(label, source());
             self.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(label),
@@ -914,13 +962,7 @@ impl Gpu {
                     .lock()
                     .unwrap_or_else(|e| e.into_inner());
                 let module = modules.entry(features).or_insert_with(|| {
-                    self.device
-                        .create_shader_module(wgpu::ShaderModuleDescriptor {
-                            label: Some("render"),
-                            source: wgpu::ShaderSource::Wgsl(
-                                render_source_variant(self.precision, features).into(),
-                            ),
-                        })
+                    self.module("render", render_source_variant(self.precision, features))
                 });
                 self.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

@@ -962,3 +962,53 @@ fn all_equal(a: &[u32], b: &[u32], what: &str) {
         100.0 * same as f64 / a.len() as f64
     );
 }
+
+/// The kernels are compiled without wgpu's run-time checks by default
+/// (`Gpu::set_runtime_checks`: no index clamping, no loop counters), which
+/// is sound only if no index leaves its array and every loop ends. With
+/// the checks on, an out-of-bounds index would be clamped and read
+/// another element, and a loop cut short: the images would differ. They
+/// are the same bit for bit, path traced (megakernel and wavefront) and in
+/// real time, on the gallery (13 models, tile lists where the adapter
+/// takes them), the dipole scene (subsurface probes) and the grating
+/// (`wave`'s loops over the heightfield).
+#[test]
+fn runtime_checks_change_nothing() {
+    let Some(mut gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    assert!(!gpu.runtime_checks(), "off by default");
+    let bits =
+        |img: &Image| -> Vec<u32> { img.rgb.iter().flatten().map(|c| c.to_bits()).collect() };
+    for (file, modes) in [
+        (
+            "gallery.toml",
+            &["path traced", "wavefront", "real time"][..],
+        ),
+        ("translucent.toml", &["path traced"][..]),
+        ("wave-grating.toml", &["path traced"][..]),
+    ] {
+        let mut scene = common::example(file);
+        scene.film.width = 40;
+        scene.film.height = 24;
+        scene.film.spp = 4;
+        for mode in modes {
+            let mut run = |checks: bool| {
+                gpu.set_runtime_checks(checks);
+                let mut frame = match *mode {
+                    "real time" => gpu.prepare_realtime(&scene).unwrap(),
+                    _ => gpu.prepare(&scene).unwrap(),
+                };
+                frame.set_wavefront(*mode == "wavefront");
+                frame.run(&gpu, 4);
+                let (img, _) = frame.image(&gpu).unwrap();
+                assert!(img.rgb.iter().flatten().any(|&c| c > 0.0), "{file}");
+                bits(&img)
+            };
+            let unchecked = run(false);
+            let checked = run(true);
+            all_equal(&unchecked, &checked, &format!("{file}, {mode}"));
+        }
+    }
+    gpu.set_runtime_checks(false);
+}

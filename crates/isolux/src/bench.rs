@@ -76,6 +76,11 @@ pub struct BenchArgs {
     /// driver), in two columns, with their ratio.
     #[arg(long)]
     pub tiles: bool,
+    /// `gpu`: also time the kernels compiled with wgpu's run-time checks
+    /// (indices clamped, loops bounded; `Gpu::set_runtime_checks`, off by
+    /// default), in a column beside them, with their ratio.
+    #[arg(long)]
+    pub checked: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -496,6 +501,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU tile lists (ms/frame) | GPU per-ray walks (ms/frame) | lists / walks |";
         rule += "---:|---:|---:|";
     }
+    if a.checked {
+        extra += " GPU run-time checks (ms/frame) | checked / unchecked |";
+        rule += "---:|---:|";
+    }
     println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
     println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
@@ -618,6 +627,13 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 let gw = time(&gpu, &mut frame)?.0;
                 frame.set_tile_lists(default);
                 cols += &format!(" {:.2} | {:.2} | {:.2} |", gl * 1e3, gw * 1e3, gl / gw);
+            }
+            if a.checked {
+                gpu.set_runtime_checks(true);
+                let t = time(&gpu, &mut frame);
+                gpu.set_runtime_checks(false);
+                let gc = t?.0;
+                cols += &format!(" {:.2} | {:.2} |", gc * 1e3, gc / g);
             }
             // The CPU has no mode that traces first hits alone.
             let (c, ratio) = if a.skip_cpu || first_hit {

@@ -135,6 +135,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "--wavefront",
         "--per-sample",
         "--tiles",
+        "--checked",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
@@ -149,7 +150,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "{out}"
     );
     assert!(
-        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel | GPU one sample per dispatch (ms/frame) | per sample / layered | GPU tile lists (ms/frame) | GPU per-ray walks (ms/frame) | lists / walks |"),
+        out.contains("| GPU wavefront (ms/frame) | wavefront / megakernel | GPU one sample per dispatch (ms/frame) | per sample / layered | GPU tile lists (ms/frame) | GPU per-ray walks (ms/frame) | lists / walks | GPU run-time checks (ms/frame) | checked / unchecked |"),
         "{out}"
     );
     let rows: Vec<&str> = out
@@ -200,6 +201,11 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
             (ratio - lists / walks).abs() <= 0.01 + 0.01 * ratio,
             "{row}"
         );
+        // `--checked`: in every mode.
+        let checked: f64 = cells[14].parse().unwrap();
+        let ratio: f64 = cells[15].parse().unwrap();
+        assert!(checked.is_finite() && checked > 0.0, "{row}");
+        assert!((ratio - checked / ms).abs() <= 0.01 + 0.01 * ratio, "{row}");
     }
 }
 
