@@ -310,9 +310,41 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
                      the {F32_VALUE_LIMIT:e} that the GPU's f32 arithmetic holds: {fix}"
                 ));
             }
+            let peak = bump_peak(o, q);
+            if beyond(peak) {
+                return Some(format!(
+                    "object[{i}]: perturbation {k} adds f Q^3 = {} inside the object, beyond \
+                     the {F32_VALUE_LIMIT:e} that the GPU's f32 arithmetic holds (a support of \
+                     radius R gives Q up to R^2, so Q^3 up to R^6): {fix}",
+                    num(peak)
+                ));
+            }
         }
     }
     None
+}
+
+/// About the largest `|f| Q^3` that perturbation `q` adds inside object
+/// `o`'s box: `Q` at the point of the box nearest its support's centre
+/// (exact for a sphere, whose `Q` falls off with the distance from its
+/// centre), 0 where the box or the support is unbounded. The kernels
+/// build the degree-6 polynomial from it, so a support of radius 1e5
+/// (`Q` up to 1e10, `Q^3` up to 1e30) overflows f32 on the way, where the
+/// coefficients alone stay far inside it. (Found by
+/// `scripts/gpu-diff-fuzz.py`: a sphere of radius 1e5 on the quadrics
+/// example rendered with arcs of noise on the GPU.)
+fn bump_peak(o: &isolux_geometry::Object, q: &isolux_geometry::Perturbation) -> f64 {
+    let b = o.bbox();
+    let Some(support) = q.quadric.positive_bounds() else {
+        return 0.0;
+    };
+    if !b.is_finite() || support.is_empty() {
+        return 0.0;
+    }
+    // The quadrics are in the object's frame, the box in the world's.
+    let centre = o.origin() + support.center();
+    let nearest = centre.clamp(b.min, b.max) - o.origin();
+    q.factor.abs() * q.quadric.eval(nearest).max(0.0).powi(3)
 }
 
 /// Whether an object of `scene` wears a `wave` material (alone or in a

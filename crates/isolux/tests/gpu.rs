@@ -251,7 +251,8 @@ base = { type = "sphere", center = [500000, 0, 0], radius = 1 }
 /// dropped as non-finite: a darker image with only a warning) are refused
 /// by `--gpu`, naming what (`isolux_gpu::F32_VALUE_LIMIT`, and any
 /// material parameter that is not finite in f32), with no image; the CPU
-/// renders each of them.
+/// renders each of them. So is a bump whose `f Q^3` inside its object
+/// goes beyond that limit, although its coefficients stay inside it.
 #[test]
 fn render_gpu_refuses_values_beyond_f32() {
     let dir = tempfile::tempdir().unwrap();
@@ -307,6 +308,11 @@ factor = {factor}
         (
             base("20", "0.5", "1e300", "100"),
             "material \"glass\" has a parameter beyond the range of the GPU's f32",
+        ),
+        (
+            // A support of radius 1e5: Q up to 1e10, 100 Q^3 up to 1e32.
+            base("20", "0.5", "1.5", "100").replace("radius = 0.3 ", "radius = 1e5 "),
+            "object[0]: perturbation 0 adds f Q^3 = 1e32 inside the object, beyond the 1e30",
         ),
     ];
     for (k, (text, want)) in cases.iter().enumerate() {
