@@ -133,11 +133,36 @@ pub struct GpuScene {
 
 /// Boxes are clamped to +-1e30 for f32.
 fn clamp_box(b: &Aabb) -> ([f32; 4], [f32; 4]) {
-    let c = |v: f64| v.clamp(-1e30, 1e30) as f32;
+    let lo = |v: f64| round_down(v.clamp(-1e30, 1e30));
+    let hi = |v: f64| round_up(v.clamp(-1e30, 1e30));
     (
-        [c(b.min.x), c(b.min.y), c(b.min.z), 0.0],
-        [c(b.max.x), c(b.max.y), c(b.max.z), 0.0],
+        [lo(b.min.x), lo(b.min.y), lo(b.min.z), 0.0],
+        [hi(b.max.x), hi(b.max.y), hi(b.max.z), 0.0],
     )
+}
+
+/// The largest f32 at most `v` (finite `v`): a box's lower corner rounded
+/// outward, so that the f32 box still holds what the f64 one does (rounded
+/// to nearest, a face could move inside a surface that touches it, a
+/// sphere's pole, by half a unit in the last place).
+fn round_down(v: f64) -> f32 {
+    let f = v as f32;
+    if f as f64 <= v {
+        return f;
+    }
+    if f > 0.0 {
+        f32::from_bits(f.to_bits() - 1)
+    } else if f < 0.0 {
+        f32::from_bits(f.to_bits() + 1)
+    } else {
+        -f32::from_bits(1)
+    }
+}
+
+/// The smallest f32 at least `v` (finite `v`): a box's upper corner
+/// rounded outward ([`round_down`]).
+fn round_up(v: f64) -> f32 {
+    -round_down(-v)
 }
 
 /// The origin of an object's frame (`GpuObject::origin`), from the GPU's
@@ -980,6 +1005,34 @@ pub struct GpuAnswer {
 
 #[cfg(test)]
 mod tests {
+    /// Boxes round outward to f32: never inside the f64 value, at most one
+    /// unit in the last place away, exact where f32 holds the value.
+    #[test]
+    fn boxes_round_outward() {
+        for v in [
+            0.1,
+            -0.1,
+            0.45 + 1e-12,
+            -0.45 - 1e-12,
+            1e-40,
+            -1e-40,
+            0.0,
+            0.5,
+            -3.0,
+            1e30,
+        ] {
+            let (d, u) = (super::round_down(v), super::round_up(v));
+            assert!((d as f64) <= v && (u as f64) >= v, "{v}: [{d}, {u}]");
+            assert!(
+                u.to_bits().abs_diff(d.to_bits()) <= 2 || d == -u,
+                "{v}: [{d}, {u}]"
+            );
+            if v as f32 as f64 == v {
+                assert!(d == u && d as f64 == v, "{v}");
+            }
+        }
+    }
+
     use super::*;
     use isolux_geometry::Perturbation;
     use isolux_materials::{Diffuse, Mix};

@@ -470,7 +470,17 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     if (!(entry.x <= entry.y)) {
         return vec4<real>(MISS, 0.0, 0.0, 0.0);
     }
-    let shift = entry.x;
+    // A ray that enters through the box's face restarts a hair before it
+    // (never before t0, where it starts): the entry point is rounded, and
+    // where the surface touches the face (a sphere's poles, a disc's
+    // whole face) a point rounded to the inside made the first crossing
+    // found the far side's. Outside the box the object is not, so the
+    // walk starts on the outside, as the ray does.
+    var shift = entry.x;
+    if (entry.x > t0) {
+        let reach = max(max(abs(o_obj.x), abs(o_obj.y)), max(abs(o_obj.z), abs(entry.x)));
+        shift = max(t0, entry.x - 16.0 * REAL_EPS * reach / length(d));
+    }
     let o = o_obj + shift * d;
     let span = vec2<real>(0.0, entry.y - shift);
     let first = obj.range.x;
