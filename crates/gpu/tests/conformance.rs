@@ -178,9 +178,9 @@ fn f64_intersection_matches_the_cpu() {
     // rays: lavapipe, f64 against f32, median 6.1e-8 against 9.3e-8, 99th
     // percentile 2.1e-7 against 8.7e-7, 99.9th 4.5e-7 against 3.1e-6. So
     // f64 is no worse at the median and at most half of f32 in the tail.
-    // (Since the hit's Newton step on F' itself, 2026-12-03, f32 is closer
-    // still: 7.6e-8, 5.1e-7 and 1.6e-6 against f64's 6.1e-8, 2.3e-7 and
-    // 6.0e-7.)
+    // (Since the Newton step on F' itself that polishes a polynomial's
+    // root, 2026-12-03, f32 is closer still: 8.0e-8, 5.6e-7 and 1.9e-6
+    // against f64's 6.1e-8, 2.3e-7 and 6.0e-7.)
     assert!(double.quantile(0.5) <= single.quantile(0.5));
     assert!(double.quantile(0.99) < 0.5 * single.quantile(0.99));
     assert!(double.quantile(0.999) < 0.5 * single.quantile(0.999));
