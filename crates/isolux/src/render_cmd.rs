@@ -140,6 +140,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bail!("{name} must be at least 1");
         }
     }
+    if let Some(why) = scene.camera_in_medium() {
+        eprintln!("isolux: warning: {}: {why}", a.scene.display());
+    }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),
         Some(n) => n,

@@ -459,3 +459,69 @@ fn sss_media_and_profile() {
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("unknown medium \"jelly\" (valid: apple,"));
 }
+
+/// A camera inside a random-walk medium is warned about, naming the object
+/// and its material (paths start outside every medium, so neither back end
+/// renders the medium around the camera); the same scene with the camera
+/// outside is not, nor is a camera inside an opaque solid.
+#[test]
+fn a_camera_inside_a_random_walk_medium_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |camera_z: f64, material: &str| {
+        format!(
+            r#"
+[camera]
+position = [0.0, 0.0, {camera_z}]
+look_at = [0.0, 0.0, -5.0]
+fov_y = 40.0
+[film]
+width = 8
+height = 6
+spp = 1
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "milk"
+type = "subsurface"
+medium = "skimmilk"
+scale = 20.0
+mode = "random_walk"
+[[material]]
+name = "plaster"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+[[object]]
+material = "{material}"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
+"#
+        )
+    };
+    for (camera_z, material, warned) in [
+        (0.2, "milk", true),
+        (3.0, "milk", false),
+        (0.2, "plaster", false),
+    ] {
+        let file = write_scene(dir.path(), &scene(camera_z, material));
+        let out = dir.path().join("out.png");
+        let o = isolux()
+            .args([
+                "render",
+                file.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--quiet",
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        let want =
+            "the camera is inside object[0], whose material \"milk\" is a random-walk medium";
+        assert_eq!(
+            err.contains(want),
+            warned,
+            "camera at z = {camera_z}, {material}: {err}"
+        );
+    }
+}

@@ -26,7 +26,9 @@
 //! coefficients differ per colour channel, so the first entry picks one
 //! channel uniformly and carries it with weight 3 (unbiased; colour noise
 //! is the price). Events inside a medium do not count toward `max_depth`;
-//! a path is cut after 100,000 of them. Media do not nest.
+//! a path is cut after 100,000 of them. Media do not nest, and paths start
+//! outside every medium: a camera inside one sees it as empty space
+//! (`isolux render` warns, [`crate::Scene::camera_in_medium`]).
 //!
 //! Spawned rays start at the hit point moved by [`Hit::offset`] along the
 //! geometric normal, to the side of the new direction ([`Hit::spawn`]):
