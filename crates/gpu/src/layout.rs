@@ -1005,6 +1005,10 @@ pub struct GpuAnswer {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use isolux_geometry::Perturbation;
+    use isolux_materials::{Diffuse, Mix};
+
     /// Boxes round outward to f32: never inside the f64 value, at most one
     /// unit in the last place away, exact where f32 holds the value.
     #[test]
@@ -1021,7 +1025,7 @@ mod tests {
             -3.0,
             1e30,
         ] {
-            let (d, u) = (super::round_down(v), super::round_up(v));
+            let (d, u) = (round_down(v), round_up(v));
             assert!((d as f64) <= v && (u as f64) >= v, "{v}: [{d}, {u}]");
             assert!(
                 u.to_bits().abs_diff(d.to_bits()) <= 2 || d == -u,
@@ -1032,10 +1036,6 @@ mod tests {
             }
         }
     }
-
-    use super::*;
-    use isolux_geometry::Perturbation;
-    use isolux_materials::{Diffuse, Mix};
 
     fn grey(r: f64) -> Material {
         Material::Diffuse(Diffuse {

@@ -127,6 +127,12 @@ pub struct ScaleRatio {
     pub ratio: f64,
 }
 
+/// The farthest coordinate of box `b` from the point `at` (the GPU's
+/// origin): how large the f32 coordinates of what lies in it get.
+fn box_reach(b: &isolux_core::Aabb, at: glam::DVec3) -> f64 {
+    (b.min - at).abs().max((b.max - at).abs()).max_element()
+}
+
 /// The bounded object of `scene` with the largest [`ScaleRatio`], if it
 /// has one.
 pub fn worst_scale_ratio(scene: &Scene) -> Option<ScaleRatio> {
@@ -137,7 +143,7 @@ pub fn worst_scale_ratio(scene: &Scene) -> Option<ScaleRatio> {
         if !b.is_finite() {
             continue;
         }
-        let reach = (b.min - at).abs().max((b.max - at).abs()).max_element();
+        let reach = box_reach(&b, at);
         let size = (b.max - b.min).max_element();
         let ratio = reach / size.max(f64::MIN_POSITIVE);
         if worst.is_none_or(|w| ratio > w.ratio) {
@@ -205,7 +211,7 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
         if !b.is_finite() || b.is_empty() {
             continue;
         }
-        let reach = (b.min - at).abs().max((b.max - at).abs()).max_element();
+        let reach = box_reach(&b, at);
         let offset = crate::SPAWN_OFFSET as f64 + crate::SPAWN_OFFSET_WORLD as f64 * reach;
         let thickness = (b.max - b.min).min_element();
         if thickness < THIN_FACTOR * offset && worst.is_none_or(|(_, t, _)| thickness < t) {
@@ -215,10 +221,9 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
     worst.map(|(i, thickness, offset)| {
         format!(
             "object[{i}]'s box is {thickness:.2e} units thick, under {THIN_FACTOR} times the \
-             {offset:.2e} units at which \
-             the GPU starts rays off a surface: light through it and shadows right behind it \
-             can differ from the CPU's image (docs/gpu.md, \"Precision\"); render without \
-             --gpu where they matter"
+             {offset:.2e} units at which the GPU starts rays off a surface: light through it \
+             and shadows right behind it can differ from the CPU's image (docs/gpu.md, \
+             \"Precision\"); render without --gpu where they matter"
         )
     })
 }
