@@ -439,10 +439,6 @@ pub mod fresnel_kind {
     ];
 }
 
-/// The most components a `mix` may have on the GPU, after nested mixes
-/// are flattened (the weights fill two `vec4`s).
-pub const MAX_MIX_COMPONENTS: usize = 8;
-
 /// A material of the GPU library. WGSL: `struct Material { tag:
 /// vec4<u32>, a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, e:
 /// vec4<f32>, idx: vec4<u32> }`; the meaning of the blocks per tag is in
@@ -503,44 +499,23 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
     }
 }
 
-/// Whether `m` has a GPU implementation (a `mix` when all its components
-/// have, at most [`MAX_MIX_COMPONENTS`] once flattened; see [`mix_fits`]).
+/// Whether `m` has a GPU implementation: a `mix` when all its components
+/// have, its weights do not all vanish, and at most one of its leaves is a
+/// `wave` (the kernels evaluate one per material: two, in a loop, met
+/// Mesa 22.3's loop miscompile, docs/gpu.md).
 pub fn supported(m: &Material) -> bool {
     match m {
         // A medium inside a mix is its boundary alone ([`flatten_mix`]).
         Material::Mix(_) => flatten_mix(m, 1.0, 1.0).is_some_and(|c| {
-            c.len() <= MAX_MIX_COMPONENTS && c.iter().all(|(m, ..)| supported(m)) && mix_fits(&c)
+            c.iter().all(|(m, ..)| supported(m))
+                && c.iter()
+                    .filter(|(m, ..)| matches!(m, Material::Wave(_)))
+                    .count()
+                    <= 1
         }),
         // Without copying its kernels.
         Material::Wave(_) => true,
         _ => GpuMaterials::default().leaf(m).is_some(),
-    }
-}
-
-/// Whether a flattened mix fits the GPU's mix record, whose blocks `d`
-/// and `e` hold either the selection weights of components 5-8 or, with
-/// at most four components, the shading frame's tangent and a placed
-/// `wave`'s state (`place_material`):
-/// - at most one `wave` component, with at most four components in all,
-///   and no component before it carrying a tangent (the CPU's frame takes
-///   the first component's tangent, which is then the placed `wave`'s);
-/// - without a `wave`, a tangent (the first component's, as on the CPU)
-///   only with at most four components.
-fn mix_fits(parts: &[(Material, f64, f64)]) -> bool {
-    let waves = parts
-        .iter()
-        .filter(|(m, ..)| matches!(m, Material::Wave(_)))
-        .count();
-    let tangent = parts.iter().position(|(m, ..)| m.tangent().is_some());
-    match waves {
-        0 => tangent.is_none() || parts.len() <= 4,
-        1 => {
-            let wave = parts
-                .iter()
-                .position(|(m, ..)| matches!(m, Material::Wave(_)));
-            parts.len() <= 4 && tangent == wave
-        }
-        _ => false,
     }
 }
 
@@ -601,7 +576,7 @@ impl GpuMaterials {
     /// | conductor | | Fresnel | Fresnel | | |
     /// | dielectric | ior | | | | |
     /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | | |
-    /// | mix | f weights 0-3 | f weights 4-7 | p weights 0-3 | p weights 4-7, or (at most 4 components) tangent / the `wave` component's (placed) | the `wave` component's (placed) |
+    /// | mix | | | | the frame's tangent (`xyz`; placed when a `wave`'s), comb offset (placed) | the hit point, footprint (placed, with a `wave` leaf) |
     /// | factored | scale | | | | |
     /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
     /// | merl | | | | | |
@@ -611,8 +586,12 @@ impl GpuMaterials {
     /// `cook_torrance` and `gaussian` keep the distribution in `tag.w`
     /// ([`distribution`]); the Gaussian's sampling table is `[n, cdf (n +
     /// 1), pdf per bin (n)]` at `idx[0]` of `data`. A mix's components are
-    /// `idx[2]` materials from `idx[1]`, its `wave` component (placed
-    /// per hit into the mix's `d` and `e`) at `idx[3] - 1`. A `factored` material's data at
+    /// `idx[2]` materials from `idx[1]`, their weights `(w_k, p_k)` in
+    /// `f` and in the choice of a sample at `idx[0]` of `data`; `tag[3] -
+    /// 1` is its `wave` component (0: none), placed per hit from the point,
+    /// footprint and comb offset kept in the mix's `e` and `d.w`; `idx[3]`
+    /// is 1 when the frame's tangent is the placed `wave`'s (else a fixed
+    /// tangent, if any, is in `d`, with `tag[2]` 1). A `factored` material's data at
     /// `idx[0]`: `res`, then `ln p` and `ln q` per texel (3 floats each,
     /// row-major, stand-ins substituted), then the half-vector density's
     /// marginal table and its `res` conditional tables (each `[n, cdf,
@@ -649,37 +628,41 @@ impl GpuMaterials {
         Ok(out)
     }
 
+    /// A mix: its flattened leaves as records of their own after the
+    /// scene's, their weights `(w_k, p_k)` in `data` (any number of
+    /// leaves), its `wave` leaf + 1 in `tag[3]` (0: none), and the frame's
+    /// tangent: the first leaf's that has one, as on the CPU, written
+    /// here, or placed per hit when that leaf is the `wave` (`idx[3]` 1;
+    /// `place_material`).
     fn mix(&mut self, m: &Material) -> Option<GpuMaterial> {
         let parts = flatten_mix(m, 1.0, 1.0)?;
         let mut g = GpuMaterial::default();
         g.tag[0] = tag::MIX;
-        let mut w = [0.0f32; 8];
-        let mut p = [0.0f32; 8];
+        // The weights first: a leaf may append tables of its own.
+        let weights = self.data.len() as u32;
+        for (_, cw, cp) in &parts {
+            self.data.extend([*cw as f32, *cp as f32]);
+        }
         let first = self.materials.len();
-        for (k, (c, cw, cp)) in parts.iter().enumerate() {
-            w[k] = *cw as f32;
-            p[k] = *cp as f32;
+        for (c, ..) in &parts {
             let leaf = self.leaf(c)?;
             self.materials.push(leaf);
         }
-        g.a.copy_from_slice(&w[..4]);
-        g.b.copy_from_slice(&w[4..]);
-        g.c.copy_from_slice(&p[..4]);
-        g.d.copy_from_slice(&p[4..]);
-        // A `wave` component (placed per hit into `d` and `e`, which also
-        // sets the frame's tangent), or the first component's tangent
-        // (`mix_fits`: at most four components then, `d` is free).
-        let wave = parts
-            .iter()
-            .position(|(c, ..)| matches!(c, Material::Wave(_)))
-            .map_or(0, |k| k as u32 + 1);
-        if wave == 0 {
-            if let Some(t) = m.tangent() {
+        let is_wave = |c: &Material| matches!(c, Material::Wave(_));
+        if let Some(k) = parts.iter().position(|(c, ..)| is_wave(c)) {
+            g.tag[3] = k as u32 + 1;
+        }
+        let mut tangent_is_wave = 0;
+        match parts.iter().position(|(c, ..)| c.tangent().is_some()) {
+            Some(k) if is_wave(&parts[k].0) => tangent_is_wave = 1,
+            Some(k) => {
+                let t = parts[k].0.tangent()?;
                 g.tag[2] = 1;
                 g.d = [t.x as f32, t.y as f32, t.z as f32, 0.0];
             }
+            None => {}
         }
-        g.idx = [0, first as u32, parts.len() as u32, wave];
+        g.idx = [weights, first as u32, parts.len() as u32, tangent_is_wave];
         Some(g)
     }
 
@@ -1060,21 +1043,30 @@ mod tests {
         let top = g.materials[1];
         assert_eq!(top.tag[0], tag::MIX);
         assert_eq!(top.idx[1..3], [2, 3]);
-        assert_eq!(top.a, [2.0, 2.0, 6.0, 0.0]);
-        assert_eq!(top.c, [0.5, 0.125, 0.375, 0.0]);
+        let at = top.idx[0] as usize;
+        assert_eq!(
+            g.data[at..at + 6],
+            [2.0, 0.5, 2.0, 0.125, 6.0, 0.375],
+            "(w, p) per leaf"
+        );
         let leaf_r: Vec<f32> = g.materials[2..].iter().map(|m| m.a[0]).collect();
         assert_eq!(leaf_r, [0.1, 0.2, 0.3]);
     }
 
     #[test]
-    fn unsupported_materials_and_oversized_mixes_are_refused() {
-        let nine = mix((0..9).map(|i| (grey(0.1 * i as f64), 1.0)).collect());
-        let eight = mix((0..8).map(|i| (grey(0.1 * i as f64), 1.0)).collect());
-        assert!(supported(&eight));
-        assert!(!supported(&nine));
-        assert_eq!(GpuMaterials::new(&[grey(0.5), nine]).unwrap_err(), 1);
+    fn mixes_of_any_size_are_supported_and_weightless_ones_refused() {
+        // Two mixes of 40 leaves: each one's weights at its own offset.
+        let big = |r: f64| mix((0..40).map(|i| (grey(r), 1.0 + i as f64)).collect());
+        let g = GpuMaterials::new(&[big(0.1), grey(0.5), big(0.2)]).unwrap();
+        assert_eq!(g.materials.len(), 83);
+        for (m, first) in [(g.materials[0], 3), (g.materials[2], 43)] {
+            assert_eq!(m.idx[1..3], [first, 40]);
+            let w = &g.data[m.idx[0] as usize..][..80];
+            assert_eq!((w[78], w[79]), (40.0, 40.0 / 820.0));
+        }
         let zero = mix(vec![(grey(0.5), 0.0)]);
         assert!(!supported(&zero));
+        assert_eq!(GpuMaterials::new(&[grey(0.5), zero]).unwrap_err(), 1);
         // A medium alone runs on the GPU; inside a mix, its boundary.
         let milk = Material::Subsurface(isolux_materials::Subsurface::new(
             Rgb::new(2.0, 2.5, 3.0),
@@ -1113,8 +1105,10 @@ mod tests {
         let plain = Wave::new(surface, isolux_wave::Model::Ohs, WaveFresnel::None);
         let (a, b) = (Material::Wave(silver), Material::Wave(plain));
         assert!(supported(&a));
-        // Inside a mix: one `wave`, at most four components, and no tangent
-        // before it (the CPU's frame would take that one).
+        // Inside mixes: one `wave` component among any number of others;
+        // the frame's tangent is the first component's that has one, as on
+        // the CPU. Two `wave` components are refused.
+        let along = Some(glam::DVec3::X);
         let ggx = |tangent: Option<glam::DVec3>| {
             let mut g = isolux_materials::Ggx::new(
                 0.2,
@@ -1126,23 +1120,46 @@ mod tests {
             g.tangent = tangent;
             Material::Ggx(g)
         };
-        let along = Some(glam::DVec3::X);
-        let with = mix(vec![(grey(0.5), 1.0), (a.clone(), 2.0), (ggx(along), 1.0)]);
-        assert!(supported(&with));
+        let five: Vec<_> = (0..5).map(|i| (grey(0.1 * i as f64), 1.0)).collect();
+        let mixes = [
+            // (mix, (fixed tangent, tangent is the wave's), wave + 1)
+            (
+                mix(vec![(grey(0.5), 1.0), (a.clone(), 2.0), (ggx(along), 1.0)]),
+                (0, 1),
+                2,
+            ),
+            (
+                mix(vec![(ggx(along), 1.0), (grey(0.5), 1.0), (a.clone(), 1.0)]),
+                (1, 0),
+                3,
+            ),
+            (mix(vec![(ggx(None), 1.0), (b.clone(), 1.0)]), (0, 1), 2),
+            (
+                mix([five.clone(), vec![(a.clone(), 1.0)]].concat()),
+                (0, 1),
+                6,
+            ),
+            (mix(vec![(grey(0.5), 1.0), (ggx(along), 1.0)]), (1, 0), 0),
+        ];
+        for (i, (m, tangent, wave)) in mixes.iter().enumerate() {
+            assert!(supported(m), "mix {i}");
+            let g = GpuMaterials::new(std::slice::from_ref(m)).unwrap();
+            let top = g.materials[0];
+            assert_eq!((top.tag[2], top.idx[3]), *tangent, "mix {i}");
+            assert_eq!(top.tag[3], *wave, "mix {i}");
+            if *wave > 0 {
+                assert_eq!(g.materials[*wave as usize].tag[0], tag::WAVE);
+            }
+            if tangent.0 == 1 {
+                assert_eq!(top.d, [1.0, 0.0, 0.0, 0.0]);
+            }
+        }
         assert!(!supported(&mix(vec![(a.clone(), 1.0), (b.clone(), 1.0)])));
-        assert!(!supported(&mix(vec![(ggx(along), 1.0), (a.clone(), 1.0)])));
-        assert!(supported(&mix(vec![(ggx(None), 1.0), (a.clone(), 1.0)])));
-        let five: Vec<_> = (0..4).map(|i| (grey(0.1 * i as f64), 1.0)).collect();
-        assert!(!supported(&mix([five, vec![(a.clone(), 1.0)]].concat())));
-        let g = GpuMaterials::new(&[with]).unwrap();
-        assert_eq!(g.materials[0].idx[2..], [3, 2]);
-        assert_eq!(g.materials[2].tag[0], tag::WAVE);
-        // Without a `wave`: the first tangent is the frame's.
-        let g = GpuMaterials::new(&[mix(vec![(grey(0.5), 1.0), (ggx(along), 1.0)])]).unwrap();
-        assert_eq!(
-            (g.materials[0].tag[2], g.materials[0].d),
-            (1, [1.0, 0.0, 0.0, 0.0])
-        );
+        let nested = mix(vec![
+            (a.clone(), 1.0),
+            (mix([five, vec![(b.clone(), 1.0)]].concat()), 1.0),
+        ]);
+        assert!(!supported(&nested));
         let g = GpuMaterials::new(&[a, b]).unwrap();
         let (m0, m1) = (g.materials[0], g.materials[1]);
         assert_eq!(

@@ -274,6 +274,36 @@ fn library() -> Vec<(&'static str, Material)> {
             }),
         ),
         (
+            // More leaves than a material record has weights for, among
+            // them two with tangents.
+            "mix of 12 leaves",
+            Material::Mix(Mix {
+                components: (0..12)
+                    .map(|i| {
+                        let r = 0.05 + 0.07 * i as f64;
+                        let m = match i % 4 {
+                            0 => Material::Diffuse(Diffuse {
+                                reflectance: Rgb::new(r, 0.5, 0.3),
+                            }),
+                            1 => Material::Ggx(Ggx::new(0.05 + r, 0.3, Fresnel::One)),
+                            2 => Material::Phong(Phong::new(
+                                10.0 + 10.0 * r,
+                                Rgb::splat(0.3),
+                                Rgb::splat(r),
+                            )),
+                            _ => Material::Ward(Ward::new(
+                                0.1,
+                                0.2 + r,
+                                Rgb::splat(0.2),
+                                Rgb::splat(0.3),
+                            )),
+                        };
+                        (m, 0.2 + r)
+                    })
+                    .collect(),
+            }),
+        ),
+        (
             "mix nested, unnormalized",
             Material::Mix(Mix {
                 components: vec![
@@ -482,9 +512,29 @@ fn wave_library() -> Vec<(&'static str, Material, f64)> {
             (rough, 1.0),
         ],
     });
+    // A `wave` of seven wavelengths among seven components, after a
+    // tangent-carrying one (placed from the mix's record).
+    let grey = |r: f64| {
+        Material::Diffuse(isolux_materials::Diffuse {
+            reflectance: Rgb::splat(r),
+        })
+    };
+    let mut brushed = isolux_materials::Ggx::new(0.1, 0.4, isolux_materials::Fresnel::One);
+    brushed.tangent = Some(DVec3::new(0.0, 0.6, 0.8));
+    let crowded = Material::Mix(isolux_materials::Mix {
+        components: vec![
+            (grey(0.2), 0.5),
+            (Material::Ggx(brushed), 1.0),
+            (Material::Wave(c.clone()), 1.5),
+            (grey(0.4), 0.25),
+            (grey(0.6), 0.25),
+            (grey(0.8), 0.5),
+        ],
+    });
     vec![
         ("wave grating Ag planar, 4 wl", Material::Wave(a), 0.0),
         ("mix: diffuse 1, wave noise ohs 2, ggx 1", mixed, 0.004),
+        ("mix: 6 leaves, a wave after a tangent", crowded, 0.004),
         ("wave noise ohs seed ior, 1 wl", Material::Wave(b), 0.004),
         (
             "wave noise cylinder, 7 wl, no tree",

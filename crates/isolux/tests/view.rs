@@ -154,14 +154,18 @@ fn viewer_without_a_display_says_so() {
 fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("s.toml");
-    // A mix of nine leaves (the GPU takes at most eight): refused by name.
+    // A mix of two `wave` leaves (the GPU takes one): refused by name.
+    let field = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/heightfields/brushed.exr"
+    );
     let mut leaves = String::new();
     let mut parts = Vec::new();
-    for i in 0..9 {
+    for i in 0..2 {
         leaves += &format!(
-            "[[material]]\nname = \"leaf{i}\"\ntype = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]\n\n"
+            "[[material]]\nname = \"leaf{i}\"\ntype = \"wave\"\nheightfield = \"{field}\"\n\n"
         );
-        parts.push(format!("{{ material = \"leaf{i}\", weight = 0.1 }}"));
+        parts.push(format!("{{ material = \"leaf{i}\", weight = 0.5 }}"));
     }
     std::fs::write(
         &scene,

@@ -1434,18 +1434,14 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
 
 // ---- Mixtures (materials[idx.y .. idx.y + idx.z], flattened on the host) ---
 
+// The weights (w_k, p_k) of component k in f and in the choice of a
+// sample, at idx.x of material_data (layout.rs `GpuMaterials::mix`).
 fn mix_w(m: Material, k: u32) -> f32 {
-    if (k < 4u) {
-        return m.a[k];
-    }
-    return m.b[k - 4u];
+    return material_data[m.idx.x + 2u * k];
 }
 
 fn mix_p(m: Material, k: u32) -> f32 {
-    if (k < 4u) {
-        return m.c[k];
-    }
-    return m.d[k - 4u];
+    return material_data[m.idx.x + 2u * k + 1u];
 }
 
 // The union of the leaves' flags (`leaf`, below).
@@ -1457,16 +1453,12 @@ fn material_flags(m: Material) -> u32 {
     return f;
 }
 
-// A mix may hold one `wave` component (`idx.w`: its position + 1, at
-// most four components, so that the mix's `d` and `e` are free):
-// `place_material` keeps the placed state there, and `mix_wave` rebuilds
-// the placed component from it.
+// A mix's `wave` component (`tag.w`: its position + 1; at most one, see
+// layout.rs `supported`): `place_material` keeps the hit point, footprint
+// and comb offset in the mix (`e`, `d.w`), and `mix_wave` places the
+// component from them, as the CPU's `Material::at_point` does.
 fn mix_wave(m: Material) -> Material {
-    var w = materials[m.idx.y + m.idx.w - 1u];
-    w.d = m.d;
-    w.e = m.e;
-    w.tag.z = 1u;
-    return w;
+    return place_wave(materials[m.idx.y + m.tag.w - 1u], m.e.xyz, m.e.w, m.d.w);
 }
 
 // The leaves of m: a mix's components (weights `mix_w`, selection
@@ -1509,10 +1501,10 @@ fn leaves_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 
 // Whether m is or holds a `wave`.
 fn has_wave(m: Material) -> bool {
-    return has_model(MAT_WAVE) && (m.tag.x == MAT_WAVE || (is_mix(m) && m.idx.w > 0u));
+    return has_model(MAT_WAVE) && (m.tag.x == MAT_WAVE || (is_mix(m) && m.tag.w > 0u));
 }
 
-// The `wave` of m, placed (a mix's rebuilt by `mix_wave`).
+// The `wave` of m, placed (a mix's by `mix_wave`).
 fn wave_of(m: Material) -> Material {
     if (is_mix(m)) {
         return mix_wave(m);
@@ -1524,7 +1516,7 @@ fn wave_of(m: Material) -> Material {
 // (weight, probability), both 1 for a plain `wave`.
 fn wave_weights(m: Material) -> vec2<f32> {
     if (is_mix(m)) {
-        let k = m.idx.w - 1u;
+        let k = m.tag.w - 1u;
         return vec2<f32>(mix_w(m, k), mix_p(m, k));
     }
     return vec2<f32>(1.0);
@@ -1579,7 +1571,7 @@ fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSampl
             }
             acc += p;
         }
-        wave_drew = has_model(MAT_WAVE) && chosen + 1u == m.idx.w;
+        wave_drew = has_model(MAT_WAVE) && chosen + 1u == m.tag.w;
         sm = materials[m.idx.y + chosen];
     }
     if (wave_drew) {

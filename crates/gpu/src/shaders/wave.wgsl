@@ -25,15 +25,18 @@
 // units; <= 0: none) when smaller, with the comb offset `xi`; every other
 // model is returned as is.
 fn place_material(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
-    if (m.tag.x == MAT_MIX && m.idx.w > 0u) {
-        // A mix's `wave` component: placed, its state kept in the mix.
-        // The CPU's frame takes the first component's tangent, which the
-        // layout makes the `wave`'s.
-        let w = place_wave(materials[m.idx.y + m.idx.w - 1u], p, footprint, xi);
+    if (m.tag.x == MAT_MIX && m.tag.w > 0u) {
+        // A mix's `wave` component (`tag.w` its position + 1): the place,
+        // kept in the mix for `mix_wave`, and the frame's tangent when
+        // the first component with a tangent is the `wave` (`idx.w` 1).
         var out = m;
-        out.d = w.d;
-        out.e = w.e;
-        out.tag.z = 1u;
+        out.e = vec4<f32>(p, footprint);
+        out.d.w = xi;
+        if (m.idx.w == 1u) {
+            let w = place_wave(materials[m.idx.y + m.tag.w - 1u], p, footprint, xi);
+            out.d = vec4<f32>(w.d.xyz, xi);
+            out.tag.z = 1u;
+        }
         return out;
     }
     if (m.tag.x != MAT_WAVE) {
