@@ -500,19 +500,20 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
 }
 
 /// Whether `m` has a GPU implementation: a `mix` when all its components
-/// have, its weights do not all vanish, and at most one of its leaves is a
-/// `wave` (the kernels evaluate one per material: two, in a loop, met
-/// Mesa 22.3's loop miscompile, docs/gpu.md).
+/// have and at most one of its leaves is a `wave` (the kernels evaluate one
+/// per material: two, in a loop, met Mesa 22.3's loop miscompile,
+/// docs/gpu.md).
 pub fn supported(m: &Material) -> bool {
     match m {
         // A medium inside a mix is its boundary alone ([`flatten_mix`]).
-        Material::Mix(_) => flatten_mix(m, 1.0, 1.0).is_some_and(|c| {
+        Material::Mix(_) => {
+            let c = flatten_mix(m, 1.0, 1.0);
             c.iter().all(|(m, ..)| supported(m))
                 && c.iter()
                     .filter(|(m, ..)| matches!(m, Material::Wave(_)))
                     .count()
                     <= 1
-        }),
+        }
         // Without copying its kernels.
         Material::Wave(_) => true,
         _ => GpuMaterials::default().leaf(m).is_some(),
@@ -527,23 +528,26 @@ pub fn supported(m: &Material) -> bool {
 /// medium inside a mix as its boundary's BSDF (`Subsurface`'s
 /// `BxdfModel`), so a path refracted through it carries on as through
 /// glass, on both back ends.
-fn flatten_mix(m: &Material, w: f64, p: f64) -> Option<Vec<(Material, f64, f64)>> {
+///
+/// A mix whose weights are all zero is black and draws no sample on the
+/// CPU (`Mix::sample`): its leaves get weight 0 and probability 0, so the
+/// probabilities then sum below 1 and the GPU draws nothing for a `uc`
+/// beyond their sum (the mix's `tag[1]`, [`GpuMaterials::mix`]).
+fn flatten_mix(m: &Material, w: f64, p: f64) -> Vec<(Material, f64, f64)> {
     let Material::Mix(mix) = m else {
         let leaf = match m {
             Material::Subsurface(s) => Material::Dielectric(s.boundary),
             _ => m.clone(),
         };
-        return Some(vec![(leaf, w, p)]);
+        return vec![(leaf, w, p)];
     };
     let total: f64 = mix.components.iter().map(|c| c.1).sum();
-    if !(total > 0.0) {
-        return None;
-    }
     let mut out = Vec::new();
     for (c, cw) in &mix.components {
-        out.extend(flatten_mix(c, w * cw, p * cw / total)?);
+        let pc = if total > 0.0 { p * cw / total } else { 0.0 };
+        out.extend(flatten_mix(c, w * cw, pc));
     }
-    Some(out)
+    out
 }
 
 /// The materials of a scene on the GPU: one [`GpuMaterial`] per scene
@@ -630,14 +634,20 @@ impl GpuMaterials {
 
     /// A mix: its flattened leaves as records of their own after the
     /// scene's, their weights `(w_k, p_k)` in `data` (any number of
-    /// leaves), its `wave` leaf + 1 in `tag[3]` (0: none), and the frame's
+    /// leaves), `tag[1]` 1 when the `p_k` sum below 1 ([`flatten_mix`]),
+    /// its `wave` leaf + 1 in `tag[3]` (0: none), and the frame's
     /// tangent: the first leaf's that has one, as on the CPU, written
     /// here, or placed per hit when that leaf is the `wave` (`idx[3]` 1;
     /// `place_material`).
     fn mix(&mut self, m: &Material) -> Option<GpuMaterial> {
-        let parts = flatten_mix(m, 1.0, 1.0)?;
+        let parts = flatten_mix(m, 1.0, 1.0);
         let mut g = GpuMaterial::default();
         g.tag[0] = tag::MIX;
+        // Probabilities that sum below 1 (a mix of zero weights inside):
+        // a `uc` beyond their sum draws nothing.
+        if parts.iter().map(|c| c.2).sum::<f64>() < 1.0 - 1e-9 {
+            g.tag[1] = 1;
+        }
         // The weights first: a leaf may append tables of its own.
         let weights = self.data.len() as u32;
         for (_, cw, cp) in &parts {
@@ -1054,7 +1064,7 @@ mod tests {
     }
 
     #[test]
-    fn mixes_of_any_size_are_supported_and_weightless_ones_refused() {
+    fn mixes_of_any_size_and_of_zero_weights_are_supported() {
         // Two mixes of 40 leaves: each one's weights at its own offset.
         let big = |r: f64| mix((0..40).map(|i| (grey(r), 1.0 + i as f64)).collect());
         let g = GpuMaterials::new(&[big(0.1), grey(0.5), big(0.2)]).unwrap();
@@ -1064,9 +1074,17 @@ mod tests {
             let w = &g.data[m.idx[0] as usize..][..80];
             assert_eq!((w[78], w[79]), (40.0, 40.0 / 820.0));
         }
+        // Zero weights: black, and no sample beyond the other leaves'
+        // probabilities.
         let zero = mix(vec![(grey(0.5), 0.0)]);
-        assert!(!supported(&zero));
-        assert_eq!(GpuMaterials::new(&[grey(0.5), zero]).unwrap_err(), 1);
+        let inside = mix(vec![(grey(0.5), 0.25), (zero.clone(), 0.75)]);
+        let g = GpuMaterials::new(&[zero, inside, grey(0.2)]).unwrap();
+        let (z, i) = (g.materials[0], g.materials[1]);
+        assert_eq!((z.tag[1], i.tag[1]), (1, 1));
+        assert_eq!(g.data[z.idx[0] as usize..][..2], [0.0, 0.0]);
+        assert_eq!(g.data[i.idx[0] as usize..][..4], [0.25, 0.25, 0.0, 0.0]);
+        let full = GpuMaterials::new(&[big(0.3)]).unwrap();
+        assert_eq!(full.materials[0].tag[1], 0);
         // A medium alone runs on the GPU; inside a mix, its boundary.
         let milk = Material::Subsurface(isolux_materials::Subsurface::new(
             Rgb::new(2.0, 2.5, 3.0),

@@ -304,6 +304,26 @@ fn library() -> Vec<(&'static str, Material)> {
             }),
         ),
         (
+            // A mix of zero weights inside: no sample for a quarter of uc.
+            "mix with a zero mix inside",
+            Material::Mix(Mix {
+                components: vec![
+                    (Material::Ggx(Ggx::new(0.2, 0.2, Fresnel::One)), 0.6),
+                    (
+                        Material::Mix(Mix {
+                            components: vec![(
+                                Material::Diffuse(Diffuse {
+                                    reflectance: Rgb::splat(0.5),
+                                }),
+                                0.0,
+                            )],
+                        }),
+                        0.2,
+                    ),
+                ],
+            }),
+        ),
+        (
             "mix nested, unnormalized",
             Material::Mix(Mix {
                 components: vec![
