@@ -508,7 +508,7 @@ pub fn supported(m: &Material) -> bool {
         // A medium inside a mix is its boundary alone ([`flatten_mix`]).
         Material::Mix(_) => {
             let c = flatten_mix(m, 1.0, 1.0);
-            c.iter().all(|(m, ..)| supported(m))
+            c.iter().all(|(m, ..)| is_void(m) || supported(m))
                 && c.iter()
                     .filter(|(m, ..)| matches!(m, Material::Wave(_)))
                     .count()
@@ -518,6 +518,16 @@ pub fn supported(m: &Material) -> bool {
         Material::Wave(_) => true,
         _ => GpuMaterials::default().leaf(m).is_some(),
     }
+}
+
+/// The leaf [`flatten_mix`] puts in the place of a mix whose weights are
+/// all zero: an empty mix (which scene files cannot write).
+fn void_leaf() -> Material {
+    Material::Mix(isolux_materials::Mix { components: vec![] })
+}
+
+fn is_void(m: &Material) -> bool {
+    matches!(m, Material::Mix(x) if x.components.is_empty())
 }
 
 /// The leaves of a (nested) mix with their weight in `f` and their
@@ -530,9 +540,9 @@ pub fn supported(m: &Material) -> bool {
 /// glass, on both back ends.
 ///
 /// A mix whose weights are all zero is black and draws no sample on the
-/// CPU (`Mix::sample`): its leaves get weight 0 and probability 0, so the
-/// probabilities then sum below 1 and the GPU draws nothing for a `uc`
-/// beyond their sum (the mix's `tag[1]`, [`GpuMaterials::mix`]).
+/// CPU (`Mix::sample`): it flattens to one *void* leaf (an empty mix, see
+/// [`GpuMaterials::mix`]) of weight 0 in its place, whose selection
+/// probability is the mix's, and which draws nothing.
 fn flatten_mix(m: &Material, w: f64, p: f64) -> Vec<(Material, f64, f64)> {
     let Material::Mix(mix) = m else {
         let leaf = match m {
@@ -542,10 +552,12 @@ fn flatten_mix(m: &Material, w: f64, p: f64) -> Vec<(Material, f64, f64)> {
         return vec![(leaf, w, p)];
     };
     let total: f64 = mix.components.iter().map(|c| c.1).sum();
+    if !(total > 0.0) {
+        return vec![(void_leaf(), 0.0, p)];
+    }
     let mut out = Vec::new();
     for (c, cw) in &mix.components {
-        let pc = if total > 0.0 { p * cw / total } else { 0.0 };
-        out.extend(flatten_mix(c, w * cw, pc));
+        out.extend(flatten_mix(c, w * cw, p * cw / total));
     }
     out
 }
@@ -634,8 +646,7 @@ impl GpuMaterials {
 
     /// A mix: its flattened leaves as records of their own after the
     /// scene's, their weights `(w_k, p_k)` in `data` (any number of
-    /// leaves), `tag[1]` 1 when the `p_k` sum below 1 ([`flatten_mix`]),
-    /// its `wave` leaf + 1 in `tag[3]` (0: none), and the frame's
+    /// leaves), its `wave` leaf + 1 in `tag[3]` (0: none), and the frame's
     /// tangent: the first leaf's that has one, as on the CPU, written
     /// here, or placed per hit when that leaf is the `wave` (`idx[3]` 1;
     /// `place_material`).
@@ -643,11 +654,6 @@ impl GpuMaterials {
         let parts = flatten_mix(m, 1.0, 1.0);
         let mut g = GpuMaterial::default();
         g.tag[0] = tag::MIX;
-        // Probabilities that sum below 1 (a mix of zero weights inside):
-        // a `uc` beyond their sum draws nothing.
-        if parts.iter().map(|c| c.2).sum::<f64>() < 1.0 - 1e-9 {
-            g.tag[1] = 1;
-        }
         // The weights first: a leaf may append tables of its own.
         let weights = self.data.len() as u32;
         for (_, cw, cp) in &parts {
@@ -655,7 +661,17 @@ impl GpuMaterials {
         }
         let first = self.materials.len();
         for (c, ..) in &parts {
-            let leaf = self.leaf(c)?;
+            // A void leaf (a mix of zero weights, [`flatten_mix`]): a
+            // record of the mix tag, which no case of the kernels' switches
+            // over the leaves' models takes, so its f, pdf and flags are 0
+            // and it draws no sample.
+            let leaf = match c {
+                _ if is_void(c) => GpuMaterial {
+                    tag: [tag::MIX, 0, 0, 0],
+                    ..Default::default()
+                },
+                _ => self.leaf(c)?,
+            };
             self.materials.push(leaf);
         }
         let is_wave = |c: &Material| matches!(c, Material::Wave(_));
@@ -1076,15 +1092,20 @@ mod tests {
         }
         // Zero weights: black, and no sample beyond the other leaves'
         // probabilities.
-        let zero = mix(vec![(grey(0.5), 0.0)]);
+        let zero = mix(vec![(grey(0.5), 0.0), (grey(0.7), 0.0)]);
         let inside = mix(vec![(grey(0.5), 0.25), (zero.clone(), 0.75)]);
-        let g = GpuMaterials::new(&[zero, inside, grey(0.2)]).unwrap();
+        let g = GpuMaterials::new(&[zero, inside]).unwrap();
         let (z, i) = (g.materials[0], g.materials[1]);
-        assert_eq!((z.tag[1], i.tag[1]), (1, 1));
-        assert_eq!(g.data[z.idx[0] as usize..][..2], [0.0, 0.0]);
-        assert_eq!(g.data[i.idx[0] as usize..][..4], [0.25, 0.25, 0.0, 0.0]);
-        let full = GpuMaterials::new(&[big(0.3)]).unwrap();
-        assert_eq!(full.materials[0].tag[1], 0);
+        // One void leaf each, in the zero mix's place.
+        assert_eq!((z.idx[1], z.idx[2], i.idx[1], i.idx[2]), (2, 1, 3, 2));
+        assert_eq!(g.data[z.idx[0] as usize..][..2], [0.0, 1.0]);
+        assert_eq!(g.data[i.idx[0] as usize..][..4], [0.25, 0.25, 0.0, 0.75]);
+        let void = GpuMaterial {
+            tag: [tag::MIX, 0, 0, 0],
+            ..Default::default()
+        };
+        assert_eq!((g.materials[2], g.materials[4]), (void, void));
+        assert_eq!(g.materials[3].tag[0], tag::DIFFUSE);
         // A medium alone runs on the GPU; inside a mix, its boundary.
         let milk = Material::Subsurface(isolux_materials::Subsurface::new(
             Rgb::new(2.0, 2.5, 3.0),

@@ -1559,24 +1559,17 @@ fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSampl
     // chosen `wave` leaf.
     var wave_drew = has_model(MAT_WAVE) && m.tag.x == MAT_WAVE;
     if (mixed) {
-        // The last leaf takes what rounding leaves of uc, unless the
-        // probabilities sum below 1 (`tag.y`: a mix of zero weights
-        // inside), where the CPU draws nothing beyond their sum.
         let n = m.idx.z;
-        let fallback = select(n - 1u, n, m.tag.y != 0u);
         var acc = 0.0;
-        var chosen = n;
+        var chosen = n - 1u;
         for (var k = 0u; k < n; k++) {
             let p = mix_p(m, k);
-            if (uc < acc + p || k == fallback) {
+            if (uc < acc + p || k + 1u == n) {
                 chosen = k;
                 uc_rest = select(0.0, clamp((uc - acc) / p, 0.0, 0.99999994), p > 0.0);
                 break;
             }
             acc += p;
-        }
-        if (chosen == n) {
-            return no_sample();
         }
         wave_drew = has_model(MAT_WAVE) && chosen + 1u == m.tag.w;
         sm = materials[m.idx.y + chosen];
