@@ -540,9 +540,12 @@ fn is_void(m: &Material) -> bool {
 /// glass, on both back ends.
 ///
 /// A mix whose weights are all zero is black and draws no sample on the
-/// CPU (`Mix::sample`): it flattens to one *void* leaf (an empty mix, see
-/// [`GpuMaterials::mix`]) of weight 0 in its place, whose selection
-/// probability is the mix's, and which draws nothing.
+/// CPU (`Mix::sample`): in its place comes a *void* leaf (an empty mix, see
+/// [`GpuMaterials::mix`]) of weight 0 and of the mix's selection
+/// probability, which draws nothing, then its own leaves with weight and
+/// probability 0, which keep their place in the order that gives the
+/// shading frame its tangent (the first leaf's that has one, on the CPU
+/// too).
 fn flatten_mix(m: &Material, w: f64, p: f64) -> Vec<(Material, f64, f64)> {
     let Material::Mix(mix) = m else {
         let leaf = match m {
@@ -553,7 +556,11 @@ fn flatten_mix(m: &Material, w: f64, p: f64) -> Vec<(Material, f64, f64)> {
     };
     let total: f64 = mix.components.iter().map(|c| c.1).sum();
     if !(total > 0.0) {
-        return vec![(void_leaf(), 0.0, p)];
+        let mut out = vec![(void_leaf(), 0.0, p)];
+        for (c, _) in &mix.components {
+            out.extend(flatten_mix(c, 0.0, 0.0));
+        }
+        return out;
     }
     let mut out = Vec::new();
     for (c, cw) in &mix.components {
@@ -1096,16 +1103,39 @@ mod tests {
         let inside = mix(vec![(grey(0.5), 0.25), (zero.clone(), 0.75)]);
         let g = GpuMaterials::new(&[zero, inside]).unwrap();
         let (z, i) = (g.materials[0], g.materials[1]);
-        // One void leaf each, in the zero mix's place.
-        assert_eq!((z.idx[1], z.idx[2], i.idx[1], i.idx[2]), (2, 1, 3, 2));
-        assert_eq!(g.data[z.idx[0] as usize..][..2], [0.0, 1.0]);
-        assert_eq!(g.data[i.idx[0] as usize..][..4], [0.25, 0.25, 0.0, 0.75]);
+        // A void leaf each in the zero mix's place, then its leaves with
+        // weight and probability 0.
+        assert_eq!((z.idx[1], z.idx[2], i.idx[1], i.idx[2]), (2, 3, 5, 4));
+        assert_eq!(
+            g.data[z.idx[0] as usize..][..6],
+            [0.0, 1.0, 0.0, 0.0, 0.0, 0.0]
+        );
+        assert_eq!(
+            g.data[i.idx[0] as usize..][..8],
+            [0.25, 0.25, 0.0, 0.75, 0.0, 0.0, 0.0, 0.0]
+        );
         let void = GpuMaterial {
             tag: [tag::MIX, 0, 0, 0],
             ..Default::default()
         };
-        assert_eq!((g.materials[2], g.materials[4]), (void, void));
-        assert_eq!(g.materials[3].tag[0], tag::DIFFUSE);
+        assert_eq!((g.materials[2], g.materials[6]), (void, void));
+        let kinds: Vec<u32> = g.materials[2..].iter().map(|m| m.tag[0]).collect();
+        let (d, x) = (tag::DIFFUSE, tag::MIX);
+        assert_eq!(kinds, [x, d, d, d, x, d, d]);
+        // Its leaves' tangents still count, as on the CPU: a ward inside a
+        // zero mix gives the frame its tangent.
+        let mut ward = isolux_materials::Ward::new(0.1, 0.3, Rgb::splat(0.2), Rgb::splat(0.3));
+        ward.tangent = Some(glam::DVec3::Y);
+        let hidden = mix(vec![
+            (mix(vec![(Material::Ward(ward), 0.0)]), 0.5),
+            (grey(0.5), 0.5),
+        ]);
+        assert!(hidden.tangent().is_some());
+        let g = GpuMaterials::new(&[hidden]).unwrap();
+        assert_eq!(
+            (g.materials[0].tag[2], g.materials[0].d),
+            (1, [0.0, 1.0, 0.0, 0.0])
+        );
         // A medium alone runs on the GPU; inside a mix, its boundary.
         let milk = Material::Subsurface(isolux_materials::Subsurface::new(
             Rgb::new(2.0, 2.5, 3.0),
