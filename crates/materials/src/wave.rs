@@ -40,7 +40,7 @@
 //! | `model` | string | `"ghs"` | `"ghs"` (generalized Harvey-Shack) or `"ohs"` (original) |
 //! | `obliquity` | string | `"reciprocal"` | `"reciprocal"` (`O = 1`) or `"seed"` (`O = cos_o / cos_i`) |
 //! | `metal` / `ior` | string / float | none | Fresnel: a metal of [`crate::metals`] or a dielectric index; none means F = 1 |
-//! | `coherence_um` | float | 10 | standard deviation of the coherence area (um) |
+//! | `coherence_um` | float | 10 | standard deviation of the coherence area (um); refused where a query's window would hold over [`MAX_WINDOW_KERNELS`] kernels |
 //! | `mapping` | string | `"planar"` | `"planar"`, `"spherical"` or `"cylindrical"` |
 //! | `axis` | string | `"z"` | planar: the projection axis; the other two (in x, y, z order) are the heightfield's x and y |
 //! | `center` | [float; 3] | [0, 0, 0] | spherical / cylindrical: the centre (the cylinder's axis is +y) |
@@ -77,6 +77,13 @@ use std::sync::Arc;
 
 /// The most hero wavelengths per query (`wavelengths`).
 pub const MAX_WAVELENGTHS: usize = 16;
+
+/// The most Gabor kernels a query's coherence window may hold
+/// ([`Wave::window_kernels`]): scene files with a larger `coherence_um` are
+/// refused. 1e8 kernels (a `coherence_um` of about 830 um over 0.5 um
+/// texels) take seconds per query even with culling, so a render would
+/// not finish; the default window (10 um) holds 14,400 over such texels.
+pub const MAX_WINDOW_KERNELS: f64 = 1e8;
 
 /// Fresnel reflectance per wavelength.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -215,6 +222,14 @@ impl PartialEq for Wave {
 }
 
 impl Wave {
+    /// The number of kernels a query with coherence area `sigma_um` sums
+    /// at most: the window's square, of half side `sigma sqrt(2 ln(1 /
+    /// eps))` (the module docs), over the texel's area.
+    pub fn window_kernels(&self, sigma_um: f64) -> f64 {
+        let r = sigma_um * (2.0 * (1.0 / self.settings.eps).ln()).max(0.0).sqrt();
+        (2.0 * r / self.surface.texel_um).powi(2)
+    }
+
     /// A material over `surface`, queried at the heightfield's origin
     /// until placed with [`Wave::at_point`].
     pub fn new(surface: Arc<GaborSurface>, model: Model, fresnel: WaveFresnel) -> Self {
