@@ -333,6 +333,9 @@ fn brdf(b: BrdfArgs) -> Result<()> {
         },
         ..Settings::default()
     };
+    if let Some(why) = m.window_too_large(b.sigma_um) {
+        bail!("--sigma-um {why}");
+    }
     m.query.center_um = [b.center_um[0], b.center_um[1]];
     m.query.sigma_um = b.sigma_um;
     let res = b.res;

@@ -269,6 +269,18 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
             "--sigma-um must be positive",
         ),
         (
+            // A window no render could sum.
+            vec![
+                "--incident",
+                "0,0,1",
+                "--lambda-um",
+                "0.5",
+                "--sigma-um",
+                "1e5",
+            ],
+            "--sigma-um 100000 um puts about 3.6e11 Gabor kernels",
+        ),
+        (
             vec![
                 "--incident",
                 "0,0,1",

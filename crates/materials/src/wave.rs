@@ -230,6 +230,22 @@ impl Wave {
         (2.0 * r / self.surface.texel_um).powi(2)
     }
 
+    /// Why a coherence area `sigma_um` is too large to render (its window
+    /// holds more than [`MAX_WINDOW_KERNELS`] kernels), naming the largest
+    /// one accepted; `None` when it is not.
+    pub fn window_too_large(&self, sigma_um: f64) -> Option<String> {
+        let n = self.window_kernels(sigma_um);
+        (n > MAX_WINDOW_KERNELS).then(|| {
+            format!(
+                "{sigma_um} um puts about {n:.1e} Gabor kernels of this heightfield ({} um \
+                 texels) in each query's window, beyond the {MAX_WINDOW_KERNELS:.0e} a render \
+                 can sum; use at most {:.0} um",
+                self.surface.texel_um,
+                sigma_um * (MAX_WINDOW_KERNELS / n).sqrt(),
+            )
+        })
+    }
+
     /// A material over `surface`, queried at the heightfield's origin
     /// until placed with [`Wave::at_point`].
     pub fn new(surface: Arc<GaborSurface>, model: Model, fresnel: WaveFresnel) -> Self {

@@ -850,17 +850,8 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
     );
     if let Some(v) = t.get("coherence_um") {
         m.coherence_um = v.positive()?;
-        let n = m.window_kernels(m.coherence_um);
-        if n > isolux_materials::wave::MAX_WINDOW_KERNELS {
-            return Err(v.error(format!(
-                "coherence_um = {} puts about {n:.1e} Gabor kernels of this heightfield \
-                 ({} um texels) in each query's window, beyond the {:.0e} a render can sum; \
-                 use at most {:.0} um",
-                m.coherence_um,
-                m.surface.texel_um,
-                isolux_materials::wave::MAX_WINDOW_KERNELS,
-                m.coherence_um * (isolux_materials::wave::MAX_WINDOW_KERNELS / n).sqrt(),
-            )));
+        if let Some(why) = m.window_too_large(m.coherence_um) {
+            return Err(v.error(format!("coherence_um = {why}")));
         }
     }
     if let Some(v) = t.get("um_per_unit") {
