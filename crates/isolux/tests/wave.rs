@@ -243,8 +243,11 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
         .map(|s| s.to_string())
         .collect()
     };
+    // A valid query, then one flag more.
+    let ok = ["--incident", "0,0,1", "--lambda-um", "0.5"];
+    let with = |flag: &'static str, value: &'static str| [&ok[..], &[flag, value]].concat();
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["--incident", "0,0,1", "--lambda-um", "0.5"], ""),
+        (ok.to_vec(), ""),
         (
             vec!["--incident", "0.5,0,-1", "--lambda-um", "0.5"],
             "below the surface",
@@ -257,52 +260,15 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
             vec!["--incident", "0,0,1", "--lambda-um", "0.1"],
             "outside 0.2-2 um",
         ),
-        (
-            vec![
-                "--incident",
-                "0,0,1",
-                "--lambda-um",
-                "0.5",
-                "--sigma-um",
-                "0",
-            ],
-            "--sigma-um must be positive",
-        ),
+        (with("--sigma-um", "0"), "--sigma-um must be positive"),
         (
             // A window no render could sum.
-            vec![
-                "--incident",
-                "0,0,1",
-                "--lambda-um",
-                "0.5",
-                "--sigma-um",
-                "1e5",
-            ],
+            with("--sigma-um", "1e5"),
             "--sigma-um 100000 um puts about 3.6e11 Gabor kernels",
         ),
-        (
-            vec![
-                "--incident",
-                "0,0,1",
-                "--lambda-um",
-                "0.5",
-                "--texel-um",
-                "0",
-            ],
-            "texel-um must be positive",
-        ),
+        (with("--texel-um", "0"), "texel-um must be positive"),
         (vec!["--incident", "0,0,1"], "exactly one of --lambda-um"),
-        (
-            vec![
-                "--incident",
-                "0,0,1",
-                "--lambda-um",
-                "0.5",
-                "--fresnel",
-                "Unobtainium",
-            ],
-            "unknown Fresnel",
-        ),
+        (with("--fresnel", "Unobtainium"), "unknown Fresnel"),
     ];
     for (extra, want) in cases {
         let mut args = base(f);
