@@ -599,7 +599,7 @@ impl GpuMaterials {
     /// | conductor | | Fresnel | Fresnel | | |
     /// | dielectric | ior | | | | |
     /// | plastic | reflectance | ior, coat alpha, F_dr(internal) | | | |
-    /// | mix | | | | the frame's tangent (`xyz`; placed when a `wave`'s), comb offset (placed) | the hit point, footprint (placed, with a `wave` leaf) |
+    /// | mix | | | | the frame's tangent (fixed, or the `wave`'s, placed) | the `wave` component's `e` (placed) |
     /// | factored | scale | | | | |
     /// | subsurface_brdf | R_d, eta | single-scattering albedo, g | | | |
     /// | merl | | | | | |
@@ -611,10 +611,10 @@ impl GpuMaterials {
     /// 1), pdf per bin (n)]` at `idx[0]` of `data`. A mix's components are
     /// `idx[2]` materials from `idx[1]`, their weights `(w_k, p_k)` in
     /// `f` and in the choice of a sample at `idx[0]` of `data`; `tag[3] -
-    /// 1` is its `wave` component (0: none), placed per hit from the point,
-    /// footprint and comb offset kept in the mix's `e` and `d.w`; `idx[3]`
-    /// is 1 when the frame's tangent is the placed `wave`'s (else a fixed
-    /// tangent, if any, is in `d`, with `tag[2]` 1). A `factored` material's data at
+    /// 1` is its `wave` component (0: none), placed once per hit into the
+    /// mix's `e`; `idx[3]` is 1 when the frame's tangent is the placed
+    /// `wave`'s (else a fixed tangent, if any, is in `d`, with `tag[2]`
+    /// 1). A `factored` material's data at
     /// `idx[0]`: `res`, then `ln p` and `ln q` per texel (3 floats each,
     /// row-major, stand-ins substituted), then the half-vector density's
     /// marginal table and its `res` conditional tables (each `[n, cdf,
@@ -672,12 +672,13 @@ impl GpuMaterials {
             // record of the mix tag, which no case of the kernels' switches
             // over the leaves' models takes, so its f, pdf and flags are 0
             // and it draws no sample.
-            let leaf = match c {
-                _ if is_void(c) => GpuMaterial {
+            let leaf = if is_void(c) {
+                GpuMaterial {
                     tag: [tag::MIX, 0, 0, 0],
                     ..Default::default()
-                },
-                _ => self.leaf(c)?,
+                }
+            } else {
+                self.leaf(c)?
             };
             self.materials.push(leaf);
         }
@@ -686,10 +687,9 @@ impl GpuMaterials {
             g.tag[3] = k as u32 + 1;
         }
         let mut tangent_is_wave = 0;
-        match parts.iter().position(|(c, ..)| c.tangent().is_some()) {
-            Some(k) if is_wave(&parts[k].0) => tangent_is_wave = 1,
-            Some(k) => {
-                let t = parts[k].0.tangent()?;
+        match parts.iter().find_map(|(c, ..)| Some((c, c.tangent()?))) {
+            Some((c, _)) if is_wave(c) => tangent_is_wave = 1,
+            Some((_, t)) => {
                 g.tag[2] = 1;
                 g.d = [t.x as f32, t.y as f32, t.z as f32, 0.0];
             }

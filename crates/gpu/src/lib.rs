@@ -1307,14 +1307,14 @@ mod tests {
         assert!(none.contains("const MANY_LIGHTS: bool = false;"));
         assert!(none.contains("const SUBSURFACE: bool = false;"));
         assert!(none.contains("const TILE_LISTS: bool = false;"));
-        assert!(!none.contains("fn wave_atan2("));
+        assert!(!none.contains("fn place_wave("));
         let full = super::render_source_variant(super::Precision::F32, Features::ALL);
         assert!(full.contains("const MODELS: u32 = 0xfffffu;"));
         assert!(full.contains("const CANDIDATE_LIST: bool = true;"));
         assert!(full.contains("const MANY_LIGHTS: bool = true;"));
         assert!(full.contains("const SUBSURFACE: bool = true;"));
         assert!(full.contains("const TILE_LISTS: bool = true;"));
-        assert!(full.contains("fn wave_atan2("));
+        assert!(full.contains("fn place_wave("));
     }
 
     #[test]

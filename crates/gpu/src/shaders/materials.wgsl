@@ -1454,11 +1454,15 @@ fn material_flags(m: Material) -> u32 {
 }
 
 // A mix's `wave` component (`tag.w`: its position + 1; at most one, see
-// layout.rs `supported`): `place_material` keeps the hit point, footprint
-// and comb offset in the mix (`e`, `d.w`), and `mix_wave` places the
-// component from them, as the CPU's `Material::at_point` does.
+// layout.rs `supported`), placed: `place_material` keeps its placed state
+// `e` (footprint centre, sigma, comb offset) in the mix's `e`, from which
+// `mix_wave` rebuilds it (`wave_f`, `wave_pdf` and `wave_sample_dir` read
+// no placed tangent: they work in the mix's frame, as on the CPU).
 fn mix_wave(m: Material) -> Material {
-    return place_wave(materials[m.idx.y + m.tag.w - 1u], m.e.xyz, m.e.w, m.d.w);
+    var w = materials[m.idx.y + m.tag.w - 1u];
+    w.e = m.e;
+    w.tag.z = 1u;
+    return w;
 }
 
 // The leaves of m: a mix's components (weights `mix_w`, selection

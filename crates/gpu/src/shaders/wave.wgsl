@@ -26,15 +26,15 @@
 // model is returned as is.
 fn place_material(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
     if (m.tag.x == MAT_MIX && m.tag.w > 0u) {
-        // A mix's `wave` component (`tag.w` its position + 1): the place,
-        // kept in the mix for `mix_wave`, and the frame's tangent when
-        // the first component with a tangent is the `wave` (`idx.w` 1).
+        // A mix's `wave` component (`tag.w` its position + 1), placed once
+        // per hit: its state `e` kept in the mix's free `e` for `mix_wave`,
+        // its tangent the frame's when the first component with a tangent
+        // is the `wave` (`idx.w` 1).
+        let w = place_wave(materials[m.idx.y + m.tag.w - 1u], p, footprint, xi);
         var out = m;
-        out.e = vec4<f32>(p, footprint);
-        out.d.w = xi;
+        out.e = w.e;
         if (m.idx.w == 1u) {
-            let w = place_wave(materials[m.idx.y + m.tag.w - 1u], p, footprint, xi);
-            out.d = vec4<f32>(w.d.xyz, xi);
+            out.d = w.d;
             out.tag.z = 1u;
         }
         return out;

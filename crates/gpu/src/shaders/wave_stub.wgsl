@@ -7,10 +7,6 @@ fn place_material(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Materia
     return m;
 }
 
-fn place_wave(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
-    return m;
-}
-
 fn wave_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
