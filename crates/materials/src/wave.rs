@@ -223,10 +223,11 @@ impl PartialEq for Wave {
 
 impl Wave {
     /// The number of kernels a query with coherence area `sigma_um` sums
-    /// at most: the window's square, of half side `sigma sqrt(2 ln(1 /
-    /// eps))` (the module docs), over the texel's area.
+    /// at most: the window's square (`Settings::window_radius`) over the
+    /// texel's area. A closed form, for any `sigma_um`, where
+    /// `GaborSurface::window_kernels` builds the window to count them.
     pub fn window_kernels(&self, sigma_um: f64) -> f64 {
-        let r = sigma_um * (2.0 * (1.0 / self.settings.eps).ln()).max(0.0).sqrt();
+        let r = self.settings.window_radius(sigma_um);
         (2.0 * r / self.surface.texel_um).powi(2)
     }
 

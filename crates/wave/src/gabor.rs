@@ -162,6 +162,15 @@ pub struct Settings {
     pub obliquity: Obliquity,
 }
 
+impl Settings {
+    /// The half side of a query's window square for a coherence area of
+    /// standard deviation `sigma_um`: `sigma sqrt(2 ln(1 / eps))` (module
+    /// docs), where the window's weight falls to `eps`.
+    pub fn window_radius(&self, sigma_um: f64) -> f64 {
+        sigma_um * (2.0 * (1.0 / self.eps).ln()).max(0.0).sqrt()
+    }
+}
+
 impl Default for Settings {
     fn default() -> Self {
         Self {
@@ -346,7 +355,7 @@ impl GaborSurface {
     fn window(&self, fp: &Footprint, set: &Settings) -> Window {
         let l = self.texel_um;
         let s = fp.sigma_um;
-        let r = s * (2.0 * (1.0 / set.eps).ln()).max(0.0).sqrt();
+        let r = set.window_radius(s);
         let span = |c: f64| {
             let a = ((c - r) / l - 0.5).ceil() as i64;
             let b = ((c + r) / l - 0.5).floor() as i64;
@@ -433,7 +442,7 @@ impl GaborSurface {
             kmin: comb.k0,
             eps: set.eps,
             a0: 2.0 * PI * PI * (0.5 * l).powi(2),
-            radius: fp.sigma_um * (2.0 * (1.0 / set.eps).ln()).max(0.0).sqrt(),
+            radius: set.window_radius(fp.sigma_um),
             ex,
         };
         let mut acc = vec![(0.0f64, 0.0f64); comb.n];
