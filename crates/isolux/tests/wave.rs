@@ -99,15 +99,28 @@ fn heightfield_gen_writes_an_exr_with_its_texel_size() {
             &["--width", "100000"][..],
             "--width x --height: 100000 x 100000 texels, more than the 268435456",
         ),
+        // Found by scripts/cli-fuzz.py: a flat field passed off as noise,
+        // and scratches that ran for minutes.
+        (
+            &["--width", "32", "--corr-um", "1e30"][..],
+            "a correlation length of 1e30 um is too long for a field of 32 x 32 um",
+        ),
+        (
+            &[
+                "--width",
+                "32",
+                "--kind",
+                "scratches",
+                "--count",
+                "1000000000",
+            ][..],
+            "texel visits, beyond the 1e9 the generator allows",
+        ),
     ] {
-        let mut args = vec![
-            "heightfield",
-            "gen",
-            "--kind",
-            "noise",
-            "-o",
-            out.to_str().unwrap(),
-        ];
+        let mut args = vec!["heightfield", "gen", "-o", out.to_str().unwrap()];
+        if !size.contains(&"--kind") {
+            args.extend(["--kind", "noise"]);
+        }
         args.extend_from_slice(size);
         let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr);

@@ -61,6 +61,10 @@ pub enum Kind {
     },
 }
 
+/// The most texel visits `scratches` may take (a few seconds of work):
+/// the scratch count times the texels of each one's bounding box.
+pub const MAX_SCRATCH_VISITS: f64 = 1e9;
+
 fn positive(name: &str, v: f64) -> Result<(), HeightfieldError> {
     if !(v > 0.0) || !v.is_finite() {
         return Err(HeightfieldError::Invalid(format!(
@@ -97,7 +101,7 @@ pub fn generate(
         Kind::Noise { rms_um, corr_um } => {
             non_negative("rms", rms_um)?;
             positive("correlation length", corr_um)?;
-            filtered_noise(width, height, texel_um, seed, rms_um, corr_um, corr_um, 0.0)
+            filtered_noise(width, height, texel_um, seed, rms_um, corr_um, corr_um, 0.0)?
         }
         Kind::Brushed {
             rms_um,
@@ -117,7 +121,7 @@ pub fn generate(
                 along_um,
                 across_um,
                 direction_deg.to_radians(),
-            )
+            )?
         }
         Kind::Scratches {
             count,
@@ -131,6 +135,19 @@ pub fn generate(
             positive("scratch length", length_um)?;
             non_negative("scratch depth", depth_um)?;
             non_negative("base rms", base_rms_um)?;
+            // Each scratch visits the texels of its bounding box (at most
+            // (length + 2 half-widths)^2): refused up front where that
+            // would run for minutes, as 1e9 scratches or one of 1e9 um did.
+            let side = (length_um + 2.0 * width_um) / texel_um + 3.0;
+            let visits = count as f64 * side * side;
+            if visits > MAX_SCRATCH_VISITS {
+                return Err(HeightfieldError::Invalid(format!(
+                    "{count} scratch(es) {length_um} um long, of half-width {width_um} um, on \
+                     {texel_um} um texels would take about {visits:.1e} texel visits, beyond \
+                     the {MAX_SCRATCH_VISITS:.0e} the generator allows; use fewer, shorter or \
+                     narrower scratches (or larger texels)"
+                )));
+            }
             let mut h = if base_rms_um > 0.0 {
                 positive("base correlation length", base_corr_um)?;
                 filtered_noise(
@@ -142,7 +159,7 @@ pub fn generate(
                     base_corr_um,
                     base_corr_um,
                     0.0,
-                )
+                )?
             } else {
                 vec![0.0; width * height]
             };
@@ -190,7 +207,7 @@ fn filtered_noise(
     along: f64,
     across: f64,
     angle: f64,
-) -> Vec<f32> {
+) -> Result<Vec<f32>, HeightfieldError> {
     let mut rng = Pcg32::new(seed, 0x6e6f697365);
     let mut buf: Vec<Complex64> = (0..w * h)
         .map(|_| Complex64::new(gauss(&mut rng), 0.0))
@@ -220,8 +237,30 @@ fn filtered_noise(
     let n = v.len() as f64;
     let mean = v.iter().sum::<f64>() / n;
     let cur = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+    if rms > 0.0 && !(cur > 1e-300 && cur.is_finite()) {
+        // The Gaussian filter underflowed at every frequency the field
+        // holds: no rescaling can give it the requested RMS.
+        return Err(HeightfieldError::Invalid(format!(
+            "a correlation length of {} um is too long for a field of {} x {} um: \
+             the filter leaves it flat, so it cannot have an RMS height of {rms} um; \
+             use at most about the field's size",
+            short(along.max(across)),
+            w as f64 * texel,
+            h as f64 * texel
+        )));
+    }
     let k = if cur > 0.0 { rms / cur } else { 0.0 };
-    v.iter().map(|x| ((x - mean) * k) as f32).collect()
+    Ok(v.iter().map(|x| ((x - mean) * k) as f32).collect())
+}
+
+/// `v` as `{}` prints it, or in exponent form where that would run to
+/// dozens of digits.
+fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// Signed frequency index of bin `i` of `n`.
@@ -336,6 +375,65 @@ mod tests {
         }
         let rho = c / (128.0 * 96.0) / 0.01;
         assert!((rho - (-1.0f64).exp()).abs() < 0.08, "{rho}");
+    }
+
+    #[test]
+    fn a_correlation_length_that_leaves_the_field_flat_is_refused() {
+        // 1e30 um: the filter underflows at every frequency of a 16 um
+        // field, so no rescaling reaches the requested RMS (it used to
+        // write a flat field, RMS 0, without a word).
+        for kind in [
+            Kind::Noise {
+                rms_um: 0.1,
+                corr_um: 1e30,
+            },
+            Kind::Brushed {
+                rms_um: 0.1,
+                along_um: 1e30,
+                across_um: 1e30,
+                direction_deg: 0.0,
+            },
+        ] {
+            let e = generate(&kind, 32, 32, 0.5, 1).unwrap_err().to_string();
+            assert!(e.contains("too long for a field of 16 x 16 um"), "{e}");
+        }
+        // Far longer than the field but not flat: the lowest frequencies
+        // carry it, at the requested RMS; a zero RMS stays a flat field.
+        let long = Kind::Noise {
+            rms_um: 0.1,
+            corr_um: 100.0,
+        };
+        assert!((generate(&long, 32, 32, 0.5, 1).unwrap().rms() - 0.1).abs() < 1e-6);
+        let flat = Kind::Noise {
+            rms_um: 0.0,
+            corr_um: 1e30,
+        };
+        assert_eq!(generate(&flat, 32, 32, 0.5, 1).unwrap().rms(), 0.0);
+    }
+
+    #[test]
+    fn scratches_that_would_take_minutes_are_refused() {
+        let scratches = |count: usize, width_um: f64, length_um: f64| Kind::Scratches {
+            count,
+            depth_um: 0.2,
+            width_um,
+            length_um,
+            base_rms_um: 0.0,
+            base_corr_um: 1.0,
+        };
+        // Each of these ran for minutes before (1e9 scratches; a scratch
+        // of 1e9 um or 1e30 um over a 16 um field).
+        for k in [
+            scratches(1_000_000_000, 1.0, 10.0),
+            scratches(5, 1e9, 10.0),
+            scratches(5, 1.0, 1e30),
+        ] {
+            let e = generate(&k, 32, 32, 0.5, 1).unwrap_err().to_string();
+            assert!(e.contains("texel visits, beyond the 1e9"), "{e}");
+        }
+        // A long scratch wraps around the field, within the limit.
+        let f = generate(&scratches(3, 1.0, 2000.0), 32, 32, 0.5, 1).unwrap();
+        assert!(f.rms() > 0.0);
     }
 
     #[test]
