@@ -717,10 +717,8 @@ impl Gpu {
             return Err(GpuError::Precision(why));
         }
         let film = scene.film;
-        if film.width == 0 || film.height == 0 || film.spp == 0 {
-            return Err(GpuError::Setup(
-                "film width, height and spp must be at least 1".into(),
-            ));
+        if let Some(why) = film.problem() {
+            return Err(GpuError::Setup(why));
         }
         let [origin, forward, right, up] = scene
             .camera

@@ -458,6 +458,14 @@ fn wave(repeat: u32) -> Result<()> {
 fn gpu(a: &BenchArgs) -> Result<()> {
     use isolux_gpu::Precision;
     use isolux_render::{render, RenderOptions};
+    let film = isolux_render::FilmSettings {
+        width: a.width,
+        height: a.height,
+        spp: 16,
+    };
+    if let Some(why) = film.problem() {
+        bail!("{}", crate::render_cmd::by_flag(&why));
+    }
     let mut gpu = isolux_gpu::Gpu::new()?;
     if a.f64 && !gpu.supports_f64() {
         bail!(

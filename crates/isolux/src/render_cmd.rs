@@ -9,6 +9,18 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// The most worker threads `--threads` starts.
+const MAX_THREADS: usize = 1024;
+
+/// A [`isolux_render::FilmSettings::problem`] named by the command-line
+/// flags that set the film instead of the scene file's keys.
+pub(crate) fn by_flag(why: &str) -> String {
+    why.replace("film.width:", "--width:")
+        .replace("film.height:", "--height:")
+        .replace("film.spp:", "--spp:")
+        .replace("film:", "--width x --height:")
+}
+
 /// Tone maps for 8-bit output.
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum TonemapArg {
@@ -35,7 +47,7 @@ pub struct RenderArgs {
     /// Image height in pixels.
     #[arg(long)]
     pub height: Option<u32>,
-    /// Worker threads (default: all cores). The image does not depend on it.
+    /// Worker threads (default: all cores; at most 1024). The image does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
     /// Random seed (same seed, same image).
@@ -140,11 +152,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bail!("{name} must be at least 1");
         }
     }
+    // The flags bypass the scene file's bounds: the same ones, by flag.
+    if let Some(why) = scene.film.problem() {
+        bail!("{}", by_flag(&why));
+    }
     if let Some(why) = scene.camera_in_medium() {
         eprintln!("isolux: warning: {}: {why}", a.scene.display());
     }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),
+        // Each worker reserves a stack; 100,000 of them took minutes to
+        // start before the first pixel.
+        Some(n) if n > MAX_THREADS => {
+            bail!("--threads {n}: at most {MAX_THREADS} worker threads")
+        }
         Some(n) => n,
         None => std::thread::available_parallelism()
             .map(|n| n.get())

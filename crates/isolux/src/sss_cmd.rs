@@ -30,7 +30,8 @@ struct ProfileArgs {
     /// Millimetres per plot unit (the plot's r axis is in mm / scale).
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
-    /// Photons per channel for the random walk.
+    /// Photons per channel for the random walk (at most 1e8: about a
+    /// minute on 2 cores).
     #[arg(long, default_value_t = 200_000)]
     photons: usize,
     /// Output image: .png or .svg.
@@ -82,6 +83,15 @@ fn profile(a: ProfileArgs) -> Result<()> {
     }
     if a.photons == 0 {
         bail!("--photons must be at least 1");
+    }
+    // 2e6 photons take 1.5 s on one core: 1e8 about a minute, the 2^64 - 1
+    // a typo can ask for, forever.
+    const MAX_PHOTONS: usize = 100_000_000;
+    if a.photons > MAX_PHOTONS {
+        bail!(
+            "--photons {}: at most {MAX_PHOTONS} photons per channel (about a minute)",
+            a.photons
+        );
     }
     crate::brdf_cmd::register_font()?;
     // r range: 12 mean free paths of the most translucent channel.

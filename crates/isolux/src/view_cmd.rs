@@ -22,10 +22,10 @@ pub enum ModeArg {
 pub struct ViewArgs {
     /// Scene file (TOML). Its materials must all run on the GPU (docs/gpu.md).
     pub scene: PathBuf,
-    /// Window width in pixels, side panel included.
+    /// Window width in pixels, side panel included (64-16384).
     #[arg(long, default_value_t = 1280)]
     pub width: u32,
-    /// Window height in pixels.
+    /// Window height in pixels (64-16384).
     #[arg(long, default_value_t = 720)]
     pub height: u32,
     /// Samples per pixel of the real-time mode (4-25, on the sub-pixel grid).

@@ -146,6 +146,40 @@ fn usage_errors_are_clear() {
             vec!["render", s, "-o", "x.png", "--threads", "0"],
             "--threads must be at least 1",
         ),
+        // Values that failed to allocate (an abort), overflowed the
+        // stratification grid (a panic), or took minutes to start (found
+        // by scripts/cli-fuzz.py): the scene file's bounds, by flag.
+        (
+            vec!["render", s, "-o", "x.png", "--width", "4294967295"],
+            "--width: must lie in 1..=65536, got 4294967295",
+        ),
+        (
+            vec![
+                "render", s, "-o", "x.png", "--width", "60000", "--height", "60000",
+            ],
+            "--width x --height: 60000 x 60000 is 3600000000 pixels, more than the 268435456",
+        ),
+        (
+            vec!["render", s, "-o", "x.png", "--spp", "4294967295"],
+            "--spp: must lie in 1..=1048576, got 4294967295",
+        ),
+        (
+            vec!["render", s, "-o", "x.png", "--threads", "100000"],
+            "--threads 100000: at most 1024 worker threads",
+        ),
+        (
+            vec![
+                "sss",
+                "profile",
+                "--medium",
+                "marble",
+                "--photons",
+                "18446744073709551615",
+                "-o",
+                "x.png",
+            ],
+            "at most 100000000 photons per channel",
+        ),
         (
             vec!["render", "/missing.toml", "-o", "x.png"],
             "/missing.toml: cannot read scene file",

@@ -200,6 +200,14 @@ fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
             "unknown screenshot format",
         ),
         (&["--max-spp", "0"][..], "--max-spp must be at least 1"),
+        (
+            &["--width", "100000"][..],
+            "--width must lie in 64..=16384 pixels, got 100000",
+        ),
+        (
+            &["--height", "8"][..],
+            "--height must lie in 64..=16384 pixels, got 8",
+        ),
     ] {
         let o = isolux()
             .arg("view")

@@ -71,10 +71,8 @@ pub fn render(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(Image, RenderStats), RenderError> {
     let film = scene.film;
-    if film.width == 0 || film.height == 0 || film.spp == 0 {
-        return Err(RenderError::Setup(
-            "film width, height and spp must be at least 1".into(),
-        ));
+    if let Some(why) = film.problem() {
+        return Err(RenderError::Setup(why));
     }
     let rig = scene
         .camera

@@ -16,6 +16,52 @@ pub struct FilmSettings {
     pub spp: u32,
 }
 
+impl FilmSettings {
+    /// The largest width or height (scene files and `--width`/`--height`).
+    pub const MAX_SIDE: u32 = 65536;
+    /// The most pixels an image may hold: 16384 x 16384, whose float
+    /// framebuffer alone takes 3 GiB (65536 x 65536 would take 48 GiB,
+    /// and fail to allocate rather than render).
+    pub const MAX_PIXELS: u64 = 1 << 28;
+    /// The most samples per pixel (the stratification grid of
+    /// `ceil(sqrt(spp))^2` cells is counted in `u32`).
+    pub const MAX_SPP: u32 = 1 << 20;
+
+    /// Why these settings cannot be rendered, naming the setting as a
+    /// user wrote it (`film.width`, `film.height`, `film.spp`), or `None`.
+    /// The renderers call it before allocating anything; scene files and
+    /// the command line check the same bounds, with the file's position or
+    /// the flag's name.
+    pub fn problem(&self) -> Option<String> {
+        for (name, v) in [("width", self.width), ("height", self.height)] {
+            if !(1..=Self::MAX_SIDE).contains(&v) {
+                return Some(format!(
+                    "film.{name}: must lie in 1..={}, got {v}",
+                    Self::MAX_SIDE
+                ));
+            }
+        }
+        if !(1..=Self::MAX_SPP).contains(&self.spp) {
+            return Some(format!(
+                "film.spp: must lie in 1..={}, got {}",
+                Self::MAX_SPP,
+                self.spp
+            ));
+        }
+        let pixels = self.width as u64 * self.height as u64;
+        if pixels > Self::MAX_PIXELS {
+            return Some(format!(
+                "film: {} x {} is {pixels} pixels, more than the {} (16384 x 16384) \
+                 an image may hold",
+                self.width,
+                self.height,
+                Self::MAX_PIXELS
+            ));
+        }
+        None
+    }
+}
+
 impl Default for FilmSettings {
     fn default() -> Self {
         Self {

@@ -259,14 +259,25 @@ fn camera(t: &Table) -> Result<Camera> {
 fn film(t: &Table) -> Result<FilmSettings> {
     t.allow(&["width", "height", "spp"])?;
     let mut f = FilmSettings::default();
+    let side = FilmSettings::MAX_SIDE as u64;
     if let Some(v) = t.get("width") {
-        f.width = v.uint(1, 65536)? as u32;
+        f.width = v.uint(1, side)? as u32;
     }
     if let Some(v) = t.get("height") {
-        f.height = v.uint(1, 65536)? as u32;
+        f.height = v.uint(1, side)? as u32;
     }
     if let Some(v) = t.get("spp") {
-        f.spp = v.uint(1, 1 << 20)? as u32;
+        f.spp = v.uint(1, FilmSettings::MAX_SPP as u64)? as u32;
+    }
+    // Each side within bounds, the pixel count too (at the height, or the
+    // width where the height is the default).
+    if let Some(why) = f.problem() {
+        let at = t.get("height").or_else(|| t.get("width"));
+        let why = why.trim_start_matches("film: ");
+        return Err(match at {
+            Some(v) => v.error(why),
+            None => t.error(why),
+        });
     }
     Ok(f)
 }

@@ -85,6 +85,12 @@ pub struct Options {
     pub screenshot: Option<PathBuf>,
 }
 
+/// The window's smallest side (room for the panel's controls) and its
+/// largest (the texture size most adapters offer; the window system may
+/// still open it smaller, to fit the screen).
+const MIN_WINDOW: u32 = 64;
+const MAX_WINDOW: u32 = 16384;
+
 /// Opens the viewer and runs until the window closes (or the scripted
 /// frames are drawn).
 pub fn run(opts: Options) -> anyhow::Result<()> {
@@ -96,6 +102,11 @@ pub fn run(opts: Options) -> anyhow::Result<()> {
     }
     if opts.max_spp == 0 {
         bail!("--max-spp must be at least 1");
+    }
+    for (flag, v) in [("--width", opts.width), ("--height", opts.height)] {
+        if !(MIN_WINDOW..=MAX_WINDOW).contains(&v) {
+            bail!("{flag} must lie in {MIN_WINDOW}..={MAX_WINDOW} pixels, got {v}");
+        }
     }
     if let Some(s) = &opts.screenshot {
         if isolux_io::OutputFormat::from_path(s).is_none() {
@@ -630,10 +641,7 @@ impl Running {
     fn new(event_loop: &ActiveEventLoop, opts: &Options) -> anyhow::Result<Self> {
         let attrs = Window::default_attributes()
             .with_title(format!("Isolux - {}", opts.scene.display()))
-            .with_inner_size(winit::dpi::PhysicalSize::new(
-                opts.width.max(64),
-                opts.height.max(64),
-            ));
+            .with_inner_size(winit::dpi::PhysicalSize::new(opts.width, opts.height));
         let window = Arc::new(
             event_loop
                 .create_window(attrs)
