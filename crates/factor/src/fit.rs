@@ -79,8 +79,13 @@ impl FitOptions {
         self.hd_res.unwrap_or((self.res / 4).max(2))
     }
 
+    /// The most Gauss-Newton iterations (each a whole weighted solve; one,
+    /// the default, takes the error most of the way).
+    pub const MAX_REFINE: usize = 100;
+
     /// Checks the ranges: `res` in 4..=512, `theta_max` in (0, 90],
-    /// `smoothness` finite and non-negative.
+    /// `smoothness` finite and non-negative, `refine` at most
+    /// [`Self::MAX_REFINE`]; an error names the flag.
     pub fn validate(&self) -> Result<(), FactorError> {
         let bad = |field: &str, message: String| {
             Err(FactorError::Input {
@@ -102,6 +107,16 @@ impl FitOptions {
             return bad(
                 "--theta-max",
                 format!("must lie in (0, 90] degrees, got {}", self.theta_max_deg),
+            );
+        }
+        if self.refine > Self::MAX_REFINE {
+            return bad(
+                "--refine",
+                format!(
+                    "must be at most {} iterations, got {}",
+                    Self::MAX_REFINE,
+                    self.refine
+                ),
             );
         }
         if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {

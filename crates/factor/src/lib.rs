@@ -90,6 +90,48 @@ pub struct RunOptions {
     pub svd_ranks: usize,
 }
 
+impl RunOptions {
+    /// The most fitting or held-out samples drawn: about 5 GB of memory
+    /// and half a minute of fitting on 2 cores (200,000, the default, take
+    /// 125 MB and a second); 2^32 failed to allocate.
+    pub const MAX_SAMPLES: usize = 10_000_000;
+    /// The largest SVD rank reported (each rank is a row of the report).
+    pub const MAX_SVD_RANK: usize = 32;
+
+    /// Refuses sample counts and ranks beyond the limits above, and
+    /// [`FitOptions::validate`]'s refinement count, naming the flag.
+    pub fn validate(&self) -> Result<(), FactorError> {
+        let bad = |what: &str, message: String| {
+            Err(FactorError::Input {
+                what: what.into(),
+                message,
+            })
+        };
+        for (what, n) in [
+            ("--fit-samples", self.samples),
+            ("--held-out", self.held_out),
+        ] {
+            if n > Self::MAX_SAMPLES {
+                return bad(
+                    what,
+                    format!("must be at most {}, got {n}", Self::MAX_SAMPLES),
+                );
+            }
+        }
+        if self.svd_ranks > Self::MAX_SVD_RANK {
+            return bad(
+                "--svd-rank",
+                format!(
+                    "must be at most {}, got {}",
+                    Self::MAX_SVD_RANK,
+                    self.svd_ranks
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
 impl Default for RunOptions {
     fn default() -> Self {
         Self {
@@ -199,6 +241,7 @@ pub fn factorize(
     opts: &RunOptions,
 ) -> Result<(Factorization, Report), FactorError> {
     opts.fit.validate()?;
+    opts.validate()?;
     let theta = opts.fit.theta_max_deg;
     let (train, held, outside) = match source {
         Source::Samples {
@@ -215,11 +258,18 @@ pub fn factorize(
             (a, b, *outside)
         }
         _ => {
-            if opts.samples < 16 {
-                return Err(FactorError::Input {
-                    what: "--samples".into(),
-                    message: format!("must be at least 16, got {}", opts.samples),
-                });
+            // Too few fitting samples leave the fit undetermined; no
+            // held-out ones would report an error of 0, as if exact.
+            for (what, n) in [
+                ("--fit-samples", opts.samples),
+                ("--held-out", opts.held_out),
+            ] {
+                if n < 16 {
+                    return Err(FactorError::Input {
+                        what: what.into(),
+                        message: format!("must be at least 16, got {n}"),
+                    });
+                }
             }
             (
                 draw(source, opts.samples, theta, opts.seed),

@@ -161,6 +161,32 @@ fn factor_bad_input_is_a_clear_error() {
             vec![m, "--material", "ct", "--theta-max", "95"],
             "--theta-max: must lie in (0, 90]",
         ),
+        // Found by scripts/cli-fuzz.py: 2^32 - 1 samples failed to
+        // allocate (an abort); that many ranks or refinements ran on.
+        (
+            vec![m, "--material", "ct", "--fit-samples", "4294967295"],
+            "--fit-samples: must be at most 10000000, got 4294967295",
+        ),
+        (
+            vec![m, "--material", "ct", "--held-out", "4294967295"],
+            "--held-out: must be at most 10000000",
+        ),
+        (
+            vec![m, "--material", "ct", "--fit-samples", "8"],
+            "--fit-samples: must be at least 16, got 8",
+        ),
+        (
+            vec![m, "--material", "ct", "--held-out", "0"],
+            "--held-out: must be at least 16, got 0",
+        ),
+        (
+            vec![m, "--material", "ct", "--svd-rank", "4294967295"],
+            "--svd-rank: must be at most 32, got 4294967295",
+        ),
+        (
+            vec![m, "--material", "ct", "--refine", "4294967295"],
+            "--refine: must be at most 100 iterations, got 4294967295",
+        ),
         (vec![m, "--material", "nope"], "no material named \"nope\""),
         (
             vec![m, "--material", "glass"],
