@@ -41,3 +41,22 @@ pub const PI: f64 = std::f64::consts::PI;
 pub const INV_PI: f64 = std::f64::consts::FRAC_1_PI;
 /// 1 / (4 pi): the isotropic phase function and uniform sphere pdf.
 pub const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
+
+/// `v` for an error message: as `{}` prints it, or in exponent form where
+/// that would run to dozens of digits (`1e30`, not 31 of them; `1e-30`,
+/// not 30 zeros).
+///
+/// ```
+/// use isolux_core::short_number;
+/// assert_eq!(short_number(0.25), "0.25");
+/// assert_eq!(short_number(1e30), "1e30");
+/// assert_eq!(short_number(-2.5e-9), "-2.5e-9");
+/// assert_eq!(short_number(0.0), "0");
+/// ```
+pub fn short_number(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}

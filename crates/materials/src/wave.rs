@@ -237,12 +237,21 @@ impl Wave {
     pub fn window_too_large(&self, sigma_um: f64) -> Option<String> {
         let n = self.window_kernels(sigma_um);
         (n > MAX_WINDOW_KERNELS).then(|| {
+            let most = sigma_um * (MAX_WINDOW_KERNELS / n).sqrt();
             format!(
-                "{sigma_um} um puts about {n:.1e} Gabor kernels of this heightfield ({} um \
+                "{} um puts about {n:.1e} Gabor kernels of this heightfield ({} um \
                  texels) in each query's window, beyond the {MAX_WINDOW_KERNELS:.0e} a render \
-                 can sum; use at most {:.0} um",
-                self.surface.texel_um,
-                sigma_um * (MAX_WINDOW_KERNELS / n).sqrt(),
+                 can sum; use at most {} um",
+                isolux_core::short_number(sigma_um),
+                isolux_core::short_number(self.surface.texel_um),
+                // Whole um where that says enough, else 3 digits.
+                if most >= 10.0 {
+                    format!("{most:.0}")
+                } else if most >= 1e-3 {
+                    format!("{most:.3}")
+                } else {
+                    format!("{most:.2e}")
+                },
             )
         })
     }

@@ -244,23 +244,13 @@ fn filtered_noise(
             "a correlation length of {} um is too long for a field of {} x {} um: \
              the filter leaves it flat, so it cannot have an RMS height of {rms} um; \
              use at most about the field's size",
-            short(along.max(across)),
+            isolux_core::short_number(along.max(across)),
             w as f64 * texel,
             h as f64 * texel
         )));
     }
     let k = if cur > 0.0 { rms / cur } else { 0.0 };
     Ok(v.iter().map(|x| ((x - mean) * k) as f32).collect())
-}
-
-/// `v` as `{}` prints it, or in exponent form where that would run to
-/// dozens of digits.
-fn short(v: f64) -> String {
-    if v != 0.0 && !(1e-4..1e7).contains(&v.abs()) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
 }
 
 /// Signed frequency index of bin `i` of `n`.

@@ -1,0 +1,151 @@
+#!/usr/bin/env python3
+"""Fuzzing of the command line: awkward values in every numeric flag.
+
+Each round takes one of the CLI's commands with a valid argument list,
+replaces the values of 1-2 of its numeric flags by awkward ones (zero,
+negative, tiny, huge, NaN, infinite, not a number at all), runs it, and
+checks the guide's promises for bad input:
+
+- no panic (exit status 101, or "panicked" on stderr);
+- a failure exits non-zero with a message on stderr and leaves no output
+  file behind;
+- no run outlives the time limit (a value that would take hours must be
+  refused up front, not computed).
+
+Variants that break a promise are printed with their command line, for a
+test to pin. Needs only a release build (`cargo build --release`).
+
+usage: scripts/cli-fuzz.py [--seed N] [--rounds N] [--timeout S]
+           [--only COMMAND] [--isolux PATH]
+"""
+
+import argparse
+import os
+import random
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENES = os.path.join(ROOT, "examples", "scenes")
+HEIGHTFIELDS = os.path.join(ROOT, "examples", "heightfields")
+VALUES = ["0", "-0", "1", "-1", "1e-30", "1e-6", "0.5", "7", "1e4", "1e9",
+          "1e30", "4294967295", "18446744073709551616", "nan", "inf", "-inf",
+          "x", ""]
+
+
+def commands(out):
+    """(name, fixed arguments, {flag: valid value}, output path)."""
+    gallery = os.path.join(SCENES, "gallery.toml")
+    sphere = os.path.join(SCENES, "perturbed-sphere.toml")
+    grating = os.path.join(HEIGHTFIELDS, "grating.exr")
+    return [
+        ("render", ["render", sphere, "-o", out + ".png", "--quiet"],
+         {"--spp": "1", "--width": "16", "--height": "12", "--seed": "3",
+          "--max-depth": "4", "--exposure": "0", "--threads": "2"}, out + ".png"),
+        ("render-realtime", ["render", gallery, "-o", out + ".exr", "--quiet", "--realtime"],
+         {"--spp": "4", "--width": "16", "--height": "12", "--seed": "3",
+          "--exposure": "0"}, out + ".exr"),
+        ("brdf-plot", ["brdf", "plot", gallery, "--material", "ggx", "-o", out + ".svg"],
+         {"--theta-i": "30", "--phi-i": "0"}, out + ".svg"),
+        ("brdf-sphere", ["brdf", "sphere", gallery, "--material", "ward", "-o", out + ".png"],
+         {"--size": "16"}, out + ".png"),
+        ("sss-profile", ["sss", "profile", "--medium", "skin1", "-o", out + ".svg"],
+         {"--scale": "1", "--photons": "2000"}, out + ".svg"),
+        ("factor", ["factor", gallery, "--material", "phong", "--no-preview", "-o", out + "_f"],
+         {"--res": "8", "--hd-res": "0", "--smoothness": "0.001", "--theta-max": "80",
+          "--fit-samples": "4000", "--held-out": "1000", "--svd-rank": "1",
+          "--refine": "1", "--seed": "1"}, out + "_f"),
+        ("heightfield-noise", ["heightfield", "gen", "--kind", "noise", "-o", out + ".exr"],
+         {"--width": "32", "--height": "32", "--texel-um": "0.5", "--rms-um": "0.1",
+          "--corr-um": "2", "--seed": "1"}, out + ".exr"),
+        ("heightfield-brushed", ["heightfield", "gen", "--kind", "brushed", "-o", out + ".exr"],
+         {"--width": "32", "--height": "32", "--texel-um": "0.5", "--rms-um": "0.1",
+          "--along-um": "20", "--across-um": "1", "--direction-deg": "10"}, out + ".exr"),
+        ("heightfield-scratches", ["heightfield", "gen", "--kind", "scratches", "-o", out + ".exr"],
+         {"--width": "32", "--height": "32", "--texel-um": "0.5", "--count": "5",
+          "--depth-um": "0.2", "--width-um": "1", "--length-um": "10",
+          "--rms-um": "0.05", "--corr-um": "1"}, out + ".exr"),
+        ("heightfield-grating", ["heightfield", "gen", "--kind", "grating", "-o", out + ".exr"],
+         {"--width": "32", "--height": "32", "--texel-um": "0.5", "--period-um": "2",
+          "--amplitude-um": "0.1", "--direction-deg": "0"}, out + ".exr"),
+        ("wave-brdf", ["wave", "brdf", "--heightfield", grating, "-o", out + ".exr"],
+         {"--texel-um": "0.25", "--vertical-scale": "1", "--center-um": "10,10",
+          "--sigma-um": "4", "--incident": "0,0.3,1", "--lambda-um": "0.5",
+          "--res": "16"}, out + ".exr"),
+        ("wave-brdf-spectral", ["wave", "brdf", "--heightfield", grating, "-o", out + ".exr",
+                                "--fresnel", "silver"],
+         {"--center-um": "10,10", "--sigma-um": "3", "--incident": "0.2,0,1",
+          "--spectral": "3", "--res": "12"}, out + ".exr"),
+    ]
+
+
+def run(isolux, argv, timeout):
+    try:
+        p = subprocess.run([isolux] + argv, capture_output=True, text=True, timeout=timeout)
+        return p.returncode, p.stderr
+    except subprocess.TimeoutExpired:
+        return None, ""
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--rounds", type=int, default=100)
+    ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--only", help="fuzz only the commands whose name starts with this")
+    ap.add_argument("--isolux", default=os.path.join(ROOT, "target", "release", "isolux"))
+    args = ap.parse_args()
+    if not os.path.exists(args.isolux):
+        sys.exit(f"cli-fuzz: no {args.isolux}; run `cargo build --release` first")
+    rng = random.Random(args.seed)
+    tmp = tempfile.mkdtemp(prefix="isolux-cli-fuzz-")
+    out = os.path.join(tmp, "out")
+    cmds = [c for c in commands(out) if not args.only or c[0].startswith(args.only)]
+    found = 0
+    for round_ in range(args.rounds):
+        name, fixed, flags, output = rng.choice(cmds)
+        values = dict(flags)
+        for flag in rng.sample(sorted(flags), min(len(flags), rng.choice([1, 1, 2]))):
+            v = rng.choice(VALUES)
+            if "," in flags[flag] and rng.random() < 0.7:
+                parts = flags[flag].split(",")
+                parts[rng.randrange(len(parts))] = v
+                v = ",".join(parts)
+            values[flag] = v
+        argv = list(fixed)
+        for flag, v in values.items():
+            argv += [flag + "=" + v]
+        for p in (output,):
+            if os.path.isdir(p):
+                shutil.rmtree(p)
+            elif os.path.exists(p):
+                os.remove(p)
+        code, err = run(args.isolux, argv, args.timeout)
+        line = "isolux " + " ".join(shlex.quote(a) for a in argv)
+        problems = []
+        if code is None:
+            problems.append(f"still running after {args.timeout:.0f} s")
+        elif code == 101 or "panicked" in err:
+            problems.append("panic: " + err.strip().splitlines()[-1] if err.strip() else "panic")
+        elif code != 0:
+            if not err.strip():
+                problems.append(f"exit {code} with nothing on stderr")
+            if os.path.exists(output):
+                problems.append(f"exit {code} left {output} behind")
+        status = "ok" if not problems else "BUG"
+        short = (err.strip().splitlines() or [""])[-1][:110] if code else ""
+        print(f"[{round_:3}] {status} {name}: exit {code} {' '.join(a for a in argv if a.startswith('--') and '=' in a and a.split('=')[0] in values and values[a.split('=')[0]] != flags[a.split('=')[0]])} {short}",
+              flush=True)
+        for p in problems:
+            found += 1
+            print(f"      {p}\n      {line}", flush=True)
+    shutil.rmtree(tmp, ignore_errors=True)
+    print(f"cli-fuzz: {args.rounds} rounds, {found} problems")
+    return 1 if found else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
