@@ -18,6 +18,12 @@ of fireflies), and lights and materials whose values overflow f32 (docs/gpu.md,
 
 usage: scripts/gpu-diff-fuzz.py [--seed N] [--rounds N] [--objects-only]
            [--realtime] [--spp N] [--keep DIR] [--isolux PATH]
+           [--cpu-only] [--timeout S]
+
+`--cpu-only` renders on the CPU alone (no adapter needed) with wilder
+values besides (1e30, NaN, infinities, 2^32 - 1), and flags a panic, a
+non-finite sample or a render past `--timeout` seconds (default 300): a
+scene that runs for hours must be refused up front.
 
 Needs Pillow (`apt-get install python3-pil` or `pip install pillow`) and a
 release build (`cargo build --release`). The variants are written beside
@@ -36,12 +42,15 @@ import sys
 try:
     from PIL import Image
 except ImportError:
-    sys.exit("gpu-diff-fuzz: needs Pillow (apt-get install python3-pil, or pip install pillow)")
+    Image = None  # --cpu-only compares no images
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = os.path.join(ROOT, "examples", "scenes")
 VALUES = ["0", "1e-6", "1e-3", "0.01", "0.3", "0.999", "2.5", "7", "50",
           "3e3", "1e5", "1e7", "-0.5", "-3"]
+# With --cpu-only (no image to compare, so any value goes): also values no
+# physical scene holds, which must still be refused or rendered finite.
+WILD = ["1e30", "-1e30", "1e-30", "4294967295", "65536", "nan", "inf", "-inf"]
 NUMBER = re.compile(r"(?<![\w.])-?\d+(\.\d+)?([eE][-+]?\d+)?(?![\w.])")
 OBJECT = re.compile(r"\[\[object\]\](.*?)(?=\n\[\[(?!object\.)|\Z)", re.S)
 
@@ -59,7 +68,10 @@ def render(isolux, scene, out, gpu, args):
         cmd.append("--gpu")
     if args.realtime:
         cmd.append("--realtime")
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
+    except subprocess.TimeoutExpired:
+        return None, f"still running after {args.timeout:.0f} s"
     err = "\n".join(l for l in r.stderr.splitlines() if "XDG_RUNTIME_DIR" not in l)
     return r.returncode, err
 
@@ -74,7 +86,13 @@ def main():
     p.add_argument("--spp", type=int, default=32)
     p.add_argument("--keep", default="/tmp/gpu-diff-fuzz", help="where flagged scenes go")
     p.add_argument("--isolux", default=os.path.join(ROOT, "target", "release", "isolux"))
+    p.add_argument("--cpu-only", action="store_true",
+                   help="render on the CPU alone, with wilder values; flag crashes and hangs")
+    p.add_argument("--timeout", type=float, default=300.0, help="seconds per render")
     args = p.parse_args()
+    values = VALUES + WILD if args.cpu_only else VALUES
+    if Image is None and not args.cpu_only:
+        sys.exit("gpu-diff-fuzz: needs Pillow (apt-get install python3-pil, or pip install pillow)")
     if args.realtime:
         args.spp = min(max(args.spp, 4), 25)
     if not os.path.exists(args.isolux):
@@ -98,23 +116,27 @@ def main():
             what = []
             for m in sorted(rng.sample(found, min(len(found), rng.randint(1, 3))),
                             key=lambda m: -m.start()):
-                v = rng.choice(VALUES)
+                v = rng.choice(values)
                 line = src.count("\n", 0, m.start()) + 1
                 what.append(f"line {line}: {m.group(0)} -> {v}")
                 src = src[:m.start()] + v + src[m.end():]
             open(variant, "w").write(src)
             name = f"{os.path.basename(scene)} ({'; '.join(what)})"
             rc, ec = render(args.isolux, variant, cpu_png, False, args)
-            rg, eg = render(args.isolux, variant, gpu_png, True, args)
+            rg, eg = (0, "") if args.cpu_only else render(args.isolux, variant, gpu_png, True, args)
             problem = None
-            if "panicked" in ec + eg or rc not in (0, 1) or rg not in (0, 1):
+            if rc is None or rg is None:
+                problem = f"hang (CPU {rc}, GPU {rg}): {ec} {eg}"
+            elif "panicked" in ec + eg or rc not in (0, 1) or rg not in (0, 1):
                 problem = f"crash (CPU {rc}, GPU {rg}): {(ec + eg)[:300]}"
             elif "non-finite" in ec + eg and rc == 0 and rg == 0:
                 problem = f"non-finite samples: {(ec + eg)[:300]}"
             elif rc == 0 and rg == 1 and "render without --gpu" not in eg \
                     and "does not run on the GPU" not in eg:
                 problem = f"the GPU refuses without a reason: {eg[:300]}"
-            elif rc == 0 and rg == 0:
+            elif rc == 1 and not ec.strip():
+                problem = "the CPU fails without a message"
+            elif rc == 0 and rg == 0 and not args.cpu_only:
                 compared += 1
                 a, b = mean(cpu_png), mean(gpu_png)
                 if abs(a - b) > 3 and abs((b + 1) / (a + 1) - 1) > 0.06:

@@ -348,8 +348,34 @@ impl GaborSurface {
 
     /// Number of kernels in the window square of a footprint.
     pub fn window_kernels(&self, fp: &Footprint, set: &Settings) -> usize {
-        let w = self.window(fp, set);
+        let w = self.window(&self.wrapped(fp), set);
         w.wx.len() * w.wy.len()
+    }
+
+    /// `fp` with its centre moved by whole periods into the first one.
+    /// The field repeats, and every kernel's term depends on its offset
+    /// from the centre only, so the sums are the same; but a centre far
+    /// out (1e33 um, from a mapping centred 1e30 units away) has an f64
+    /// spacing wider than the window, whose ends then rounded apart by
+    /// about 3e17 texels: a window that no memory held.
+    fn wrapped(&self, fp: &Footprint) -> Footprint {
+        let period = [
+            self.width as f64 * self.texel_um,
+            self.height as f64 * self.texel_um,
+        ];
+        let c = [0, 1].map(|a| {
+            let c = fp.center_um[a].rem_euclid(period[a]);
+            // rem_euclid may round up to the period itself.
+            if c < period[a] && c.is_finite() {
+                c
+            } else {
+                0.0
+            }
+        });
+        Footprint {
+            center_um: c,
+            sigma_um: fp.sigma_um,
+        }
     }
 
     fn window(&self, fp: &Footprint, set: &Settings) -> Window {
@@ -418,6 +444,7 @@ impl GaborSurface {
         if !(wi.z > 0.0 && wo.z > 0.0 && fp.sigma_um > 0.0) {
             return;
         }
+        let fp = &self.wrapped(fp);
         let c3 = model.c3(wi.z, wo.z);
         let psi = [wi.x + wo.x, wi.y + wo.y];
         let win = self.window(fp, set);
@@ -507,6 +534,7 @@ impl GaborSurface {
         if !(given.z > 0.0) || !(fp.sigma_um > 0.0) {
             return None;
         }
+        let fp = &self.wrapped(fp);
         let win = self.window(fp, set);
         let pick = |w: &mut dyn Iterator<Item = f64>, u: f64| -> usize {
             let v: Vec<f64> = w.collect();
@@ -560,6 +588,7 @@ impl GaborSurface {
         if !(given.z > 0.0 && sampled.z > 0.0 && fp.sigma_um > 0.0) {
             return 0.0;
         }
+        let fp = &self.wrapped(fp);
         let win = self.window(fp, set);
         let c3 = model.c3(given.z, given.z);
         let [sa, sb] = self.lobe_sigmas(fp);

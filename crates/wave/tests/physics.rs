@@ -461,3 +461,67 @@ fn default_brdf_is_reciprocal() {
     eprintln!("worst relative reciprocity error {worst:.2e}");
     assert!(worst < 1e-3, "{worst}");
 }
+
+/// The field repeats, so a footprint moved by whole periods sums the same
+/// kernels at the same offsets: f, sample and pdf agree (to rounding) at a
+/// centre seven periods out and at one 1e33 um out, where f64's spacing
+/// (1e17 um) is wider than any window. That one used to build a window of
+/// about 3e17 texels and exhaust the memory (scripts/gpu-diff-fuzz.py
+/// --cpu-only: a spherical mapping centred 1e30 scene units away).
+#[test]
+fn footprints_whole_periods_apart_agree_and_far_ones_stay_bounded() {
+    let s = GaborSurface::new(noise(5));
+    let (w, h) = (s.width as f64 * s.texel_um, s.height as f64 * s.texel_um);
+    let fp = Footprint {
+        center_um: [3.3, 7.9],
+        sigma_um: 2.0,
+    };
+    let moved = Footprint {
+        center_um: [3.3 + 7.0 * w, 7.9 - 3.0 * h],
+        ..fp
+    };
+    let set = Settings::default();
+    let comb = Comb::visible(4);
+    for k in 0..20 {
+        let wi = dir_from_angle(-60.0 + k as f64 * 6.1);
+        let wo = wo_xy(0.6 * (k as f64 * 0.37).sin(), 0.4 * (k as f64).cos()).unwrap();
+        let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
+        s.eval(&fp, Model::Ghs, wi, wo, &comb, &set, &mut a);
+        s.eval(&moved, Model::Ghs, wi, wo, &comb, &set, &mut b);
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-9 * x.abs().max(1e-6), "{a:?} {b:?}");
+        }
+        let u = [0.1 + 0.04 * k as f64, 0.7];
+        let d = s.sample(&fp, Model::Ghs, wi, 10.0, &set, u, [0.3, 0.6]);
+        let e = s.sample(&moved, Model::Ghs, wi, 10.0, &set, u, [0.3, 0.6]);
+        match (d, e) {
+            (Some(d), Some(e)) => {
+                assert!((d - e).length() < 1e-9, "{d} {e}");
+                let (p, q) = (
+                    s.pdf(&fp, Model::Ghs, wi, d, 10.0, &set),
+                    s.pdf(&moved, Model::Ghs, wi, d, 10.0, &set),
+                );
+                assert!((p - q).abs() <= 1e-9 * p.abs(), "{p} {q}");
+            }
+            (None, None) => {}
+            other => panic!("{other:?}"),
+        }
+    }
+    // 1e33 um out: a window of the usual size, a finite value.
+    let far = Footprint {
+        center_um: [1e33, -1e33],
+        ..fp
+    };
+    assert_eq!(s.window_kernels(&far, &set), s.window_kernels(&fp, &set));
+    let mut v = [0.0; 4];
+    s.eval(
+        &far,
+        Model::Ghs,
+        dir_from_angle(20.0),
+        DVec3::Z,
+        &comb,
+        &set,
+        &mut v,
+    );
+    assert!(v.iter().all(|x| x.is_finite() && *x >= 0.0), "{v:?}");
+}
