@@ -22,7 +22,7 @@ pub enum ModeArg {
 pub struct ViewArgs {
     /// Scene file (TOML). Its materials must all run on the GPU (docs/gpu.md).
     pub scene: PathBuf,
-    /// Window width in pixels, side panel included (64-16384).
+    /// Window width in pixels, side panel included (364-16384).
     #[arg(long, default_value_t = 1280)]
     pub width: u32,
     /// Window height in pixels (64-16384).

@@ -199,10 +199,22 @@ fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
             &["--frames", "2", "--screenshot", "x.bmp"][..],
             "unknown screenshot format",
         ),
-        (&["--max-spp", "0"][..], "--max-spp must be at least 1"),
+        (
+            &["--max-spp", "0"][..],
+            "--max-spp must lie in 1..=1048576, got 0",
+        ),
+        (
+            &["--max-spp", "4294967295"][..],
+            "--max-spp must lie in 1..=1048576, got 4294967295",
+        ),
         (
             &["--width", "100000"][..],
-            "--width must lie in 64..=16384 pixels, got 100000",
+            "--width must lie in 364..=16384 pixels, got 100000",
+        ),
+        // Narrower, the side panel left the image no room.
+        (
+            &["--width", "200"][..],
+            "--width must lie in 364..=16384 pixels, got 200",
         ),
         (
             &["--height", "8"][..],

@@ -85,10 +85,13 @@ pub struct Options {
     pub screenshot: Option<PathBuf>,
 }
 
-/// The window's smallest side (room for the panel's controls) and its
-/// largest (the texture size most adapters offer; the window system may
-/// still open it smaller, to fit the screen).
-const MIN_WINDOW: u32 = 64;
+/// The window's smallest size: the side panel's 300 pixels (at one pixel
+/// per point) and an image at least 64 pixels wide and high (a narrower
+/// window left the image no room, and a scripted screenshot nothing to
+/// save).
+const MIN_WINDOW: (u32, u32) = (364, 64);
+/// The largest side: the texture size most adapters offer (the window
+/// system may still open the window smaller, to fit the screen).
 const MAX_WINDOW: u32 = 16384;
 
 /// Opens the viewer and runs until the window closes (or the scripted
@@ -100,12 +103,19 @@ pub fn run(opts: Options) -> anyhow::Result<()> {
             opts.realtime_spp
         );
     }
-    if opts.max_spp == 0 {
-        bail!("--max-spp must be at least 1");
+    if !(1..=FilmSettings::MAX_SPP).contains(&opts.max_spp) {
+        bail!(
+            "--max-spp must lie in 1..={}, got {}",
+            FilmSettings::MAX_SPP,
+            opts.max_spp
+        );
     }
-    for (flag, v) in [("--width", opts.width), ("--height", opts.height)] {
-        if !(MIN_WINDOW..=MAX_WINDOW).contains(&v) {
-            bail!("{flag} must lie in {MIN_WINDOW}..={MAX_WINDOW} pixels, got {v}");
+    for (flag, v, min) in [
+        ("--width", opts.width, MIN_WINDOW.0),
+        ("--height", opts.height, MIN_WINDOW.1),
+    ] {
+        if !(min..=MAX_WINDOW).contains(&v) {
+            bail!("{flag} must lie in {min}..={MAX_WINDOW} pixels, got {v}");
         }
     }
     if let Some(s) = &opts.screenshot {
@@ -923,10 +933,12 @@ impl Running {
 
     /// Writes the image shown at film resolution.
     fn save(&self, state: &State, path: &Path) -> anyhow::Result<()> {
-        let f = self
-            .frames
-            .as_ref()
-            .ok_or_else(|| anyhow!("nothing rendered yet (the window's image area is empty)"))?;
+        let f = self.frames.as_ref().ok_or_else(|| {
+            match state.status.strip_prefix("cannot render: ") {
+                Some(why) => anyhow!("nothing rendered: {why}"),
+                None => anyhow!("nothing rendered yet (the window's image area is empty)"),
+            }
+        })?;
         let frame = if self.showing_realtime {
             &f.realtime
         } else {
