@@ -79,6 +79,8 @@ def commands(out):
                                 "--fresnel", "silver"],
          {"--center-um": "10,10", "--sigma-um": "3", "--incident": "0.2,0,1",
           "--spectral": "3", "--res": "12"}, out + ".exr"),
+        ("bench-geometry", ["bench", "geometry"],
+         {"--size": "8", "--bumps": "0,4", "--repeat": "1"}, out + ".none"),
     ]
 
 

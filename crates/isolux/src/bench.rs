@@ -30,13 +30,13 @@ pub struct BenchArgs {
     /// Which benchmark.
     #[arg(value_enum)]
     pub suite: Suite,
-    /// Image edge in pixels (rays = size^2; at most 256 for `sss`).
+    /// Image edge in pixels (rays = size^2; 1-16384, at most 256 used for `sss`).
     #[arg(long, default_value_t = 1024)]
     pub size: u32,
-    /// Bump counts to measure, comma separated.
+    /// Bump counts to measure, comma separated (each at most 65536).
     #[arg(long, value_delimiter = ',', default_value = "0,16,64,256")]
     pub bumps: Vec<usize>,
-    /// Repetitions; the fastest is reported.
+    /// Repetitions (1-1000); the fastest is reported.
     #[arg(long, default_value_t = 3)]
     pub repeat: u32,
     /// Scenes for `gpu` (default: examples/scenes/gallery.toml).
@@ -95,7 +95,7 @@ pub fn cast_primary(obj: &Object, size: u32, coherent: bool) -> usize {
 fn best_of(repeat: u32, mut f: impl FnMut() -> usize) -> (f64, usize) {
     let mut best = f64::INFINITY;
     let mut hits = 0;
-    for _ in 0..repeat.max(1) {
+    for _ in 0..repeat {
         let t = Instant::now();
         hits = f();
         best = best.min(t.elapsed().as_secs_f64());
@@ -105,8 +105,16 @@ fn best_of(repeat: u32, mut f: impl FnMut() -> usize) -> (f64, usize) {
 
 /// Runs `isolux bench`.
 pub fn run(a: BenchArgs) -> Result<()> {
-    if a.size == 0 {
-        bail!("--size must be at least 1");
+    // Bounds that keep a typo from running for hours or failing to
+    // allocate (`--bumps 4294967295` asked for 100 GB).
+    if !(1..=16384).contains(&a.size) {
+        bail!("--size must lie in 1..=16384 pixels, got {}", a.size);
+    }
+    if !(1..=1000).contains(&a.repeat) {
+        bail!("--repeat must lie in 1..=1000, got {}", a.repeat);
+    }
+    if let Some(n) = a.bumps.iter().find(|&&n| n > 65536) {
+        bail!("--bumps: at most 65536 bumps per sphere, got {n}");
     }
     match a.suite {
         Suite::Sss => sss(a.size.min(256))?,
@@ -215,7 +223,7 @@ fn factor(repeat: u32) -> Result<()> {
                 ..Default::default()
             };
             let mut best: Option<(f64, isolux_factor::Factorization)> = None;
-            for _ in 0..repeat.max(1) {
+            for _ in 0..repeat {
                 let t = Instant::now();
                 let f = fit(&samples, &opts)?;
                 let total = t.elapsed().as_secs_f64();

@@ -167,6 +167,15 @@ fn usage_errors_are_clear() {
             vec!["render", s, "-o", "x.png", "--threads", "100000"],
             "--threads 100000: at most 1024 worker threads",
         ),
+        // bench: 100 GB asked for, and a panic on zero repeats.
+        (
+            vec!["bench", "geometry", "--bumps", "0,4294967295"],
+            "--bumps: at most 65536 bumps per sphere, got 4294967295",
+        ),
+        (
+            vec!["bench", "factor", "--repeat", "0"],
+            "--repeat must lie in 1..=1000, got 0",
+        ),
         (
             vec![
                 "sss",
