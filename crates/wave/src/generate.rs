@@ -188,6 +188,13 @@ pub fn generate(
             h
         }
     };
+    if data.iter().any(|h| !h.is_finite()) {
+        return Err(HeightfieldError::Invalid(
+            "the heights asked for overflow the field's f32 texels (at most 3.4e38 um): \
+             use a smaller RMS, depth or amplitude"
+                .into(),
+        ));
+    }
     Heightfield::new(width, height, texel_um, data)
 }
 
@@ -421,6 +428,15 @@ mod tests {
             let e = generate(&k, 32, 32, 0.5, 1).unwrap_err().to_string();
             assert!(e.contains("texel visits, beyond the 1e9"), "{e}");
         }
+        // Heights beyond f32 are named as such (they read 'height at
+        // column 0, row 0 is inf').
+        let deep = Kind::Grating {
+            period_um: 4.0,
+            amplitude_um: 1e39,
+            direction_deg: 0.0,
+        };
+        let e = generate(&deep, 8, 8, 0.5, 1).unwrap_err().to_string();
+        assert!(e.contains("overflow the field's f32 texels"), "{e}");
         // A long scratch wraps around the field, within the limit.
         let f = generate(&scratches(3, 1.0, 2000.0), 32, 32, 0.5, 1).unwrap();
         assert!(f.rms() > 0.0);
