@@ -10,7 +10,8 @@ checks the guide's promises for bad input:
 - a failure exits non-zero with a message on stderr and leaves no output
   file behind;
 - no run outlives the time limit (a value that would take hours must be
-  refused up front, not computed).
+  refused up front, not computed);
+- no NaN or infinite value is accepted (no flag means anything by one).
 
 Variants that break a promise are printed with their command line, for a
 test to pin. Needs only a release build (`cargo build --release`).
@@ -132,6 +133,10 @@ def main():
             problems.append(f"still running after {args.timeout:.0f} s")
         elif code == 101 or "panicked" in err:
             problems.append("panic: " + err.strip().splitlines()[-1] if err.strip() else "panic")
+        elif code == 0 and any(v in ("nan", "inf", "-inf") or "nan" in v.split(",")
+                               or "inf" in v.split(",")
+                               for f, v in values.items() if v != flags[f]):
+            problems.append("accepted a non-finite value")
         elif code != 0:
             if not err.strip():
                 problems.append(f"exit {code} with nothing on stderr")

@@ -287,6 +287,12 @@ fn plot(a: PlotArgs) -> Result<()> {
     if !(a.theta_i >= 0.0 && a.theta_i < 90.0) {
         bail!("--theta-i must lie in [0, 90) degrees, got {}", a.theta_i);
     }
+    if !a.phi_i.is_finite() {
+        bail!(
+            "--phi-i must be a finite number of degrees, got {}",
+            a.phi_i
+        );
+    }
     let mats = materials(&a.scene, &a.materials)?;
     let wo = local_dir(a.theta_i, a.phi_i);
     let phi_plane = match a.plane {

@@ -431,6 +431,23 @@ fn brdf_errors_are_clear() {
             ],
             "--theta-i must lie in [0, 90) degrees",
         ),
+        // Found by scripts/cli-fuzz.py: a plot of NaN directions, written.
+        (
+            vec![
+                "brdf",
+                "plot",
+                s,
+                "--material",
+                "gold",
+                "--theta-i",
+                "30",
+                "--phi-i",
+                "nan",
+                "-o",
+                "x.png",
+            ],
+            "--phi-i must be a finite number of degrees, got NaN",
+        ),
         (
             vec!["brdf", "albedo", s, "--material", "gold", "-o", "x.gif"],
             "x.gif: unknown plot format: use a .png or .svg file name",

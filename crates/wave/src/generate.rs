@@ -74,6 +74,15 @@ fn positive(name: &str, v: f64) -> Result<(), HeightfieldError> {
     Ok(())
 }
 
+fn finite(name: &str, v: f64) -> Result<(), HeightfieldError> {
+    if !v.is_finite() {
+        return Err(HeightfieldError::Invalid(format!(
+            "{name} must be a finite number, got {v}"
+        )));
+    }
+    Ok(())
+}
+
 fn non_negative(name: &str, v: f64) -> Result<(), HeightfieldError> {
     if !(v >= 0.0) || !v.is_finite() {
         return Err(HeightfieldError::Invalid(format!(
@@ -111,6 +120,7 @@ pub fn generate(
         } => {
             non_negative("rms", rms_um)?;
             positive("correlation length along", along_um)?;
+            finite("direction", direction_deg)?;
             positive("correlation length across", across_um)?;
             filtered_noise(
                 width,
@@ -174,6 +184,7 @@ pub fn generate(
             direction_deg,
         } => {
             positive("period", period_um)?;
+            finite("direction", direction_deg)?;
             non_negative("amplitude", amplitude_um)?;
             let (s, c) = direction_deg.to_radians().sin_cos();
             let mut h = vec![0.0f32; width * height];
@@ -437,6 +448,19 @@ mod tests {
         };
         let e = generate(&deep, 8, 8, 0.5, 1).unwrap_err().to_string();
         assert!(e.contains("overflow the field's f32 texels"), "{e}");
+        // A direction of NaN degrees (it read as an overflow, or for
+        // brushed noise as a correlation length too long).
+        let nan = Kind::Brushed {
+            rms_um: 0.1,
+            along_um: 2.0,
+            across_um: 1.0,
+            direction_deg: f64::NAN,
+        };
+        let e = generate(&nan, 8, 8, 0.5, 1).unwrap_err().to_string();
+        assert!(
+            e.contains("direction must be a finite number, got NaN"),
+            "{e}"
+        );
         // A long scratch wraps around the field, within the limit.
         let f = generate(&scratches(3, 1.0, 2000.0), 32, 32, 0.5, 1).unwrap();
         assert!(f.rms() > 0.0);
