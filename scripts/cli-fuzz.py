@@ -16,8 +16,13 @@ checks the guide's promises for bad input:
 Variants that break a promise are printed with their command line, for a
 test to pin. Needs only a release build (`cargo build --release`).
 
+With `--files` it corrupts the input files instead (an example
+heightfield read by `wave brdf`, the example sky read by `render`):
+truncated, bytes overwritten in the header or anywhere, runs zeroed; the
+same promises hold, and a render must not warn of non-finite samples.
+
 usage: scripts/cli-fuzz.py [--seed N] [--rounds N] [--timeout S]
-           [--only COMMAND] [--isolux PATH]
+           [--only COMMAND] [--files] [--isolux PATH]
 """
 
 import argparse
@@ -85,6 +90,43 @@ def commands(out):
     ]
 
 
+def corrupted(rng, path):
+    """The bytes of `path`, damaged one of four ways, and the way."""
+    data = bytearray(open(path, "rb").read())
+    how = rng.choice(["truncated", "header", "bytes", "zeroed"])
+    if how == "truncated":
+        data = data[:rng.randrange(len(data))]
+    elif how == "header":
+        for _ in range(rng.randint(1, 3)):
+            data[rng.randrange(min(len(data), 400))] = rng.randrange(256)
+    elif how == "bytes":
+        for _ in range(rng.randint(1, 50)):
+            data[rng.randrange(len(data))] = rng.randrange(256)
+    else:
+        i, n = rng.randrange(len(data)), rng.randint(1, 256)
+        data[i:i + n] = bytes(len(data[i:i + n]))
+    return bytes(data), how
+
+
+def file_cases(tmp):
+    """(name, original, damaged copy, argv, output path)."""
+    out = os.path.join(tmp, "out")
+    field = os.path.join(tmp, "field.exr")
+    sky = os.path.join(tmp, "sky.hdr")
+    scene = os.path.join(tmp, "quadrics.toml")
+    src = open(os.path.join(SCENES, "quadrics.toml")).read()
+    open(scene, "w").write(src.replace('"../env/sky.hdr"', '"' + sky + '"'))
+    wave = ["wave", "brdf", "--heightfield", field, "--center-um", "5,5", "--sigma-um", "2",
+            "--incident", "0,0.3,1", "--lambda-um", "0.5", "--res", "8", "-o", out + ".exr"]
+    render = ["render", scene, "-o", out + ".png", "--width", "16", "--height", "12",
+              "--spp", "2", "--quiet"]
+    return [
+        ("heightfield-brushed", os.path.join(HEIGHTFIELDS, "brushed.exr"), field, wave, out + ".exr"),
+        ("heightfield-grating", os.path.join(HEIGHTFIELDS, "grating.exr"), field, wave, out + ".exr"),
+        ("environment", os.path.join(ROOT, "examples", "env", "sky.hdr"), sky, render, out + ".png"),
+    ]
+
+
 def run(isolux, argv, timeout):
     try:
         p = subprocess.run([isolux] + argv, capture_output=True, text=True, timeout=timeout)
@@ -99,6 +141,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=100)
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--only", help="fuzz only the commands whose name starts with this")
+    ap.add_argument("--files", action="store_true",
+                    help="corrupt the input files (heightfield, environment) instead of flags")
     ap.add_argument("--isolux", default=os.path.join(ROOT, "target", "release", "isolux"))
     args = ap.parse_args()
     if not os.path.exists(args.isolux):
@@ -108,6 +152,39 @@ def main():
     out = os.path.join(tmp, "out")
     cmds = [c for c in commands(out) if not args.only or c[0].startswith(args.only)]
     found = 0
+    if args.files:
+        cases = file_cases(tmp)
+        for round_ in range(args.rounds):
+            name, original, copy, argv, output = rng.choice(cases)
+            data, how = corrupted(rng, original)
+            open(copy, "wb").write(data)
+            if os.path.exists(output):
+                os.remove(output)
+            code, err = run(args.isolux, argv, args.timeout)
+            problems = []
+            if code is None:
+                problems.append(f"still running after {args.timeout:.0f} s")
+            elif code == 101 or code < 0 or "panicked" in err:
+                problems.append("crash: " + (err.strip().splitlines() or [""])[-1])
+            elif code != 0 and not err.strip():
+                problems.append(f"exit {code} with nothing on stderr")
+            elif code != 0 and os.path.exists(output):
+                problems.append(f"exit {code} left {output} behind")
+            elif code == 0 and "non-finite" in err:
+                problems.append("non-finite samples: " + err.strip()[:200])
+            if problems:
+                found += 1
+                keep = os.path.join(os.getcwd(), f"cli-fuzz-{args.seed}-{round_}" + os.path.splitext(copy)[1])
+                open(keep, "wb").write(data)
+                problems.append(f"the damaged file: {keep}")
+            short = (err.strip().splitlines() or [""])[-1][:110] if code else ""
+            print(f"[{round_:3}] {'ok' if not problems else 'BUG'} {name} ({how}): exit {code} {short}",
+                  flush=True)
+            for p in problems:
+                print(f"      {p}", flush=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+        print(f"cli-fuzz: {args.rounds} rounds, {found} problems")
+        return 1 if found else 0
     for round_ in range(args.rounds):
         name, fixed, flags, output = rng.choice(cmds)
         values = dict(flags)

@@ -320,7 +320,15 @@ pub fn read_rgb_image(path: &Path) -> Result<RgbImage, IoError> {
                     source,
                 })?
                 .decode()
-                .map_err(|e| format_err(path, e))?;
+                .map_err(|e| match &e {
+                    // Std's words for it are "failed to fill whole buffer".
+                    image::ImageError::IoError(io)
+                        if io.kind() == std::io::ErrorKind::UnexpectedEof =>
+                    {
+                        format_err(path, "the file ends early (truncated?)")
+                    }
+                    _ => format_err(path, e),
+                })?;
             let rgb = dynimg.to_rgb32f();
             let (w, h) = rgb.dimensions();
             Ok(RgbImage {
@@ -448,5 +456,28 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains(".png or .exr"));
+    }
+
+    #[test]
+    fn a_truncated_hdr_says_so() {
+        // The example sky cut short: it read "failed to fill whole buffer".
+        let sky = std::fs::read(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/env/sky.hdr"
+        ))
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let cut = dir.path().join("cut.hdr");
+        std::fs::write(&cut, &sky[..sky.len() / 2]).unwrap();
+        let e = read_rgb_image(&cut).unwrap_err().to_string();
+        assert!(
+            e.contains("cut.hdr") && e.contains("the file ends early (truncated?)"),
+            "{e}"
+        );
+        assert!(read_rgb_image(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/env/sky.hdr"
+        )))
+        .is_ok());
     }
 }
