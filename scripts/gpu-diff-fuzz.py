@@ -18,7 +18,11 @@ of fireflies), and lights and materials whose values overflow f32 (docs/gpu.md,
 
 usage: scripts/gpu-diff-fuzz.py [--seed N] [--rounds N] [--objects-only]
            [--realtime] [--spp N] [--keep DIR] [--isolux PATH]
-           [--cpu-only] [--timeout S]
+           [--cpu-only [--structure]] [--timeout S]
+
+`--cpu-only --structure` mutates the file's lines instead (deleted,
+duplicated, swapped, an array emptied, a number made a string): the
+parser must answer each with a file:line:field error or render it.
 
 `--cpu-only` renders on the CPU alone (no adapter needed) with wilder
 values besides (1e30, NaN, infinities, 2^32 - 1), and flags a panic, a
@@ -76,6 +80,29 @@ def render(isolux, scene, out, gpu, args):
     return r.returncode, err
 
 
+def restructure(rng, src):
+    """`src` with 1-3 lines deleted, duplicated, swapped, an array
+    emptied or a number made a string; and what was done."""
+    lines = src.split("\n")
+    what = []
+    for _ in range(rng.randint(1, 3)):
+        op = rng.choice(["deleted", "duplicated", "swapped", "array emptied", "string"])
+        i = rng.randrange(len(lines))
+        if op == "deleted":
+            lines.pop(i)
+        elif op == "duplicated":
+            lines.insert(i, lines[i])
+        elif op == "swapped":
+            j = rng.randrange(len(lines))
+            lines[i], lines[j] = lines[j], lines[i]
+        elif op == "array emptied":
+            lines[i] = re.sub(r"\[[^\[\]]*\]", "[]", lines[i], count=1)
+        else:
+            lines[i] = re.sub(r"= *-?[0-9][-0-9.e]*", '= "x"', lines[i], count=1)
+        what.append(f"line {i + 1}: {op}")
+    return "\n".join(lines), what
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seed", type=int, default=1)
@@ -88,8 +115,12 @@ def main():
     p.add_argument("--isolux", default=os.path.join(ROOT, "target", "release", "isolux"))
     p.add_argument("--cpu-only", action="store_true",
                    help="render on the CPU alone, with wilder values; flag crashes and hangs")
+    p.add_argument("--structure", action="store_true",
+                   help="with --cpu-only: delete, duplicate or swap lines instead of numbers")
     p.add_argument("--timeout", type=float, default=300.0, help="seconds per render")
     args = p.parse_args()
+    if args.structure and not args.cpu_only:
+        sys.exit("gpu-diff-fuzz: --structure goes with --cpu-only (most variants are not scenes)")
     values = VALUES + WILD if args.cpu_only else VALUES
     if Image is None and not args.cpu_only:
         sys.exit("gpu-diff-fuzz: needs Pillow (apt-get install python3-pil, or pip install pillow)")
@@ -114,12 +145,15 @@ def main():
             if not found:
                 continue
             what = []
-            for m in sorted(rng.sample(found, min(len(found), rng.randint(1, 3))),
-                            key=lambda m: -m.start()):
-                v = rng.choice(values)
-                line = src.count("\n", 0, m.start()) + 1
-                what.append(f"line {line}: {m.group(0)} -> {v}")
-                src = src[:m.start()] + v + src[m.end():]
+            if args.structure:
+                src, what = restructure(rng, src)
+            else:
+                for m in sorted(rng.sample(found, min(len(found), rng.randint(1, 3))),
+                                key=lambda m: -m.start()):
+                    v = rng.choice(values)
+                    line = src.count("\n", 0, m.start()) + 1
+                    what.append(f"line {line}: {m.group(0)} -> {v}")
+                    src = src[:m.start()] + v + src[m.end():]
             open(variant, "w").write(src)
             name = f"{os.path.basename(scene)} ({'; '.join(what)})"
             rc, ec = render(args.isolux, variant, cpu_png, False, args)

@@ -67,7 +67,21 @@ impl<'s> Doc<'s> {
     pub fn parse(&self) -> Result<Spanned<DeTable<'s>>> {
         DeTable::parse(self.src).map_err(|e| {
             let span = e.span().unwrap_or(0..0);
-            let msg = e.message().trim().to_string();
+            let mut msg = e.message().trim().to_string();
+            // The parser names no key; the span starts at it (`width = 4`,
+            // or a table header `[film]`).
+            if msg == "duplicate key" {
+                let rest = self.src.get(span.start..).unwrap_or("");
+                let key = rest
+                    .split(['=', '\n'])
+                    .next()
+                    .unwrap_or("")
+                    .trim()
+                    .trim_matches(['[', ']']);
+                if !key.is_empty() {
+                    msg = format!("duplicate key `{key}`");
+                }
+            }
             self.error(span, "", format!("TOML syntax error: {msg}"))
         })
     }

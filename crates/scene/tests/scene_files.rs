@@ -352,7 +352,8 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\nmetal = \"Au\"\nior = 1.5\n", "s.toml:1:1: material[0]: conflicting Fresnel keys: give only one of `metal`, `ior`"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
-        ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error"),
+        ("[film]\nspp = 4\nspp = 5\n", "s.toml:3:1: TOML syntax error: duplicate key `spp`"),
+        ("[film]\nspp = 4\n[film]\n", "s.toml:3:2: TOML syntax error: duplicate key `film`"),
     ];
     for (src, want) in cases {
         let got = parse(src)
