@@ -297,3 +297,117 @@ fn every_numeric_flag_at_its_extremes_is_refused_or_done_cleanly() {
     assert!(runs > 250, "{runs}");
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// The byte ranges of the numbers of a TOML text outside strings and
+/// comments.
+fn numbers(src: &str) -> Vec<std::ops::Range<usize>> {
+    let b = src.as_bytes();
+    let mut out = Vec::new();
+    let (mut i, mut in_string, mut in_comment) = (0, false, false);
+    while i < b.len() {
+        let c = b[i];
+        if c == b'\n' {
+            in_comment = false;
+        } else if in_comment {
+        } else if c == b'"' {
+            in_string = !in_string;
+        } else if !in_string && c == b'#' {
+            in_comment = true;
+        } else if !in_string {
+            let starts =
+                c.is_ascii_digit() || (c == b'-' && b.get(i + 1).is_some_and(u8::is_ascii_digit));
+            let after_word =
+                i > 0 && (b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_' || b[i - 1] == b'.');
+            if starts && !after_word {
+                let mut j = i + 1;
+                while j < b.len()
+                    && (b[j].is_ascii_digit()
+                        || b[j] == b'.'
+                        || b[j] == b'e'
+                        || b[j] == b'E'
+                        || ((b[j] == b'-' || b[j] == b'+') && matches!(b[j - 1], b'e' | b'E')))
+                {
+                    j += 1;
+                }
+                if src[i..j].parse::<f64>().is_ok() {
+                    out.push(i..j);
+                }
+                i = j;
+                continue;
+            }
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Every number of five small example scenes (the furnace, the perturbed
+/// sphere, the metals, the translucent marble, the wave grating) at each
+/// extreme, rendered at 8 x 6, 1 spp: each variant renders with finite
+/// samples, or is refused naming the scene file and line; none panics or
+/// hangs, and none accepts NaN or infinity (`scripts/gpu-diff-fuzz.py
+/// --cpu-only` draws such variants at random, over every example).
+#[test]
+fn every_number_of_the_small_examples_at_its_extremes_renders_or_is_refused_by_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = examples().canonicalize().unwrap();
+    let variant = dir.path().join("variant.toml");
+    let image = dir.path().join("v.png");
+    let mut problems = Vec::new();
+    let mut runs = 0;
+    for scene in [
+        "furnace.toml",
+        "perturbed-sphere.toml",
+        "metals.toml",
+        "translucent.toml",
+        "wave-grating.toml",
+    ] {
+        let src = std::fs::read_to_string(ex.join("scenes").join(scene))
+            .unwrap()
+            .replace("\"../", &format!("\"{}/", ex.display()));
+        let spots = numbers(&src);
+        assert!(spots.len() > 20, "{scene}: {} numbers", spots.len());
+        for at in spots {
+            let line = src[..at.start].matches('\n').count() + 1;
+            for v in EXTREMES {
+                let text = format!("{}{v}{}", &src[..at.start], &src[at.end..]);
+                std::fs::write(&variant, text).unwrap();
+                let _ = std::fs::remove_file(&image);
+                let args: Vec<String> = [
+                    "render",
+                    variant.to_str().unwrap(),
+                    "-o",
+                    image.to_str().unwrap(),
+                    "--width",
+                    "8",
+                    "--height",
+                    "6",
+                    "--spp",
+                    "1",
+                    "--quiet",
+                ]
+                .iter()
+                .map(|a| a.to_string())
+                .collect();
+                let (code, err, timed_out) = run(&args, Duration::from_secs(60));
+                runs += 1;
+                let what = format!("{scene}:{line}: {} -> {v}", &src[at.clone()]);
+                if timed_out {
+                    problems.push(format!("{what}: still running after 60 s"));
+                } else if err.contains("panicked") || !matches!(code, Some(0 | 1)) {
+                    problems.push(format!("{what}: crashed ({code:?}): {err}"));
+                } else if code == Some(1) && !err.contains("variant.toml:") {
+                    problems.push(format!("{what}: refused without the file and line: {err}"));
+                } else if code == Some(1) && image.exists() {
+                    problems.push(format!("{what}: failed and left its image"));
+                } else if code == Some(0) && err.contains("non-finite") {
+                    problems.push(format!("{what}: non-finite samples: {err}"));
+                } else if code == Some(0) && (v == "nan" || v == "inf") {
+                    problems.push(format!("{what}: accepted"));
+                }
+            }
+        }
+    }
+    assert!(runs > 1000, "{runs}");
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
