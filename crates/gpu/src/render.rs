@@ -718,7 +718,7 @@ impl Gpu {
         }
         let film = scene.film;
         if let Some(why) = film.problem() {
-            return Err(GpuError::Setup(why));
+            return Err(GpuError::Setup(why.to_string()));
         }
         let [origin, forward, right, up] = scene
             .camera

@@ -471,8 +471,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         height: a.height,
         spp: 16,
     };
-    if let Some(why) = film.problem() {
-        bail!("{}", crate::render_cmd::by_flag(&why));
+    if let Some(p) = film.problem() {
+        bail!("{}", crate::render_cmd::by_flag(&p));
     }
     let mut gpu = isolux_gpu::Gpu::new()?;
     if a.f64 && !gpu.supports_f64() {
@@ -576,7 +576,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 let first = first.unwrap_or(0.0);
                 let mut g = f64::INFINITY;
                 let mut k: Option<f64> = None;
-                for _ in 0..a.repeat.max(1) {
+                for _ in 0..a.repeat {
                     frame.reset(gpu);
                     gpu.wait()?;
                     let t = Instant::now();

@@ -13,12 +13,15 @@ use std::time::Instant;
 const MAX_THREADS: usize = 1024;
 
 /// A [`isolux_render::FilmSettings::problem`] named by the command-line
-/// flags that set the film instead of the scene file's keys.
-pub(crate) fn by_flag(why: &str) -> String {
-    why.replace("film.width:", "--width:")
-        .replace("film.height:", "--height:")
-        .replace("film.spp:", "--spp:")
-        .replace("film:", "--width x --height:")
+/// flag that sets the key at fault instead of the key.
+pub(crate) fn by_flag(p: &isolux_render::FilmProblem) -> String {
+    let flag = match p.key {
+        Some("width") => "--width",
+        Some("height") => "--height",
+        Some("spp") => "--spp",
+        _ => "--width x --height",
+    };
+    format!("{flag}: {}", p.message)
 }
 
 /// Tone maps for 8-bit output.
@@ -153,8 +156,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
     }
     // The flags bypass the scene file's bounds: the same ones, by flag.
-    if let Some(why) = scene.film.problem() {
-        bail!("{}", by_flag(&why));
+    if let Some(p) = scene.film.problem() {
+        bail!("{}", by_flag(&p));
     }
     if let Some(why) = scene.camera_in_medium() {
         eprintln!("isolux: warning: {}: {why}", a.scene.display());

@@ -72,7 +72,7 @@ pub fn render(
 ) -> Result<(Image, RenderStats), RenderError> {
     let film = scene.film;
     if let Some(why) = film.problem() {
-        return Err(RenderError::Setup(why));
+        return Err(RenderError::Setup(why.to_string()));
     }
     let rig = scene
         .camera

@@ -27,38 +27,52 @@ impl FilmSettings {
     /// `ceil(sqrt(spp))^2` cells is counted in `u32`).
     pub const MAX_SPP: u32 = 1 << 20;
 
-    /// Why these settings cannot be rendered, naming the setting as a
-    /// user wrote it (`film.width`, `film.height`, `film.spp`), or `None`.
-    /// The renderers call it before allocating anything; scene files and
-    /// the command line check the same bounds, with the file's position or
-    /// the flag's name.
-    pub fn problem(&self) -> Option<String> {
+    /// Why these settings cannot be rendered, or `None`. The renderers
+    /// call it before allocating anything; scene files report it at the
+    /// key's position, the command line by the flag that sets the key.
+    pub fn problem(&self) -> Option<FilmProblem> {
+        let problem = |key, message| Some(FilmProblem { key, message });
         for (name, v) in [("width", self.width), ("height", self.height)] {
             if !(1..=Self::MAX_SIDE).contains(&v) {
-                return Some(format!(
-                    "film.{name}: must lie in 1..={}, got {v}",
-                    Self::MAX_SIDE
-                ));
+                let message = format!("must lie in 1..={}, got {v}", Self::MAX_SIDE);
+                return problem(Some(name), message);
             }
         }
         if !(1..=Self::MAX_SPP).contains(&self.spp) {
-            return Some(format!(
-                "film.spp: must lie in 1..={}, got {}",
-                Self::MAX_SPP,
-                self.spp
-            ));
+            let message = format!("must lie in 1..={}, got {}", Self::MAX_SPP, self.spp);
+            return problem(Some("spp"), message);
         }
         let pixels = self.width as u64 * self.height as u64;
         if pixels > Self::MAX_PIXELS {
-            return Some(format!(
-                "film: {} x {} is {pixels} pixels, more than the {} (16384 x 16384) \
-                 an image may hold",
+            let message = format!(
+                "{} x {} is {pixels} pixels, more than the {} (16384 x 16384) an image may hold",
                 self.width,
                 self.height,
                 Self::MAX_PIXELS
-            ));
+            );
+            return problem(None, message);
         }
         None
+    }
+}
+
+/// What [`FilmSettings::problem`] found: the key at fault and what is
+/// wrong with it. Displays as `film.KEY: MESSAGE` (`film: MESSAGE` for the
+/// pixel count, which width and height make together).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FilmProblem {
+    /// `"width"`, `"height"` or `"spp"`; `None` for width x height.
+    pub key: Option<&'static str>,
+    /// What is wrong, without the key.
+    pub message: String,
+}
+
+impl std::fmt::Display for FilmProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.key {
+            Some(key) => write!(f, "film.{key}: {}", self.message),
+            None => write!(f, "film: {}", self.message),
+        }
     }
 }
 

@@ -271,12 +271,11 @@ fn film(t: &Table) -> Result<FilmSettings> {
     }
     // Each side within bounds, the pixel count too (at the height, or the
     // width where the height is the default).
-    if let Some(why) = f.problem() {
+    if let Some(p) = f.problem() {
         let at = t.get("height").or_else(|| t.get("width"));
-        let why = why.trim_start_matches("film: ");
         return Err(match at {
-            Some(v) => v.error(why),
-            None => t.error(why),
+            Some(v) => v.error(p.message),
+            None => t.error(p.message),
         });
     }
     Ok(f)
