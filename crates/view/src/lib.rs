@@ -569,6 +569,9 @@ struct Running {
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
     frames: Option<Frames>,
+    /// Why `frames` is `None` when the renderer refused the scene (a
+    /// scripted screenshot names it).
+    refusal: Option<String>,
     /// The frame drawn last is the real-time one.
     showing_realtime: bool,
     frames_drawn: u32,
@@ -707,6 +710,7 @@ impl Running {
             frames_drawn: 0,
             last_present: Instant::now(),
             frame_ms: 0.0,
+            refusal: None,
             screenshots: 0,
         })
     }
@@ -781,8 +785,9 @@ impl Running {
         if film_ok {
             let stale = self.frames.as_ref().is_none_or(|f| f.film != film);
             if stale || outcome.scene {
-                if let Err(e) = self.prepare(state, opts, film) {
-                    state.status = format!("cannot render: {e}");
+                self.refusal = self.prepare(state, opts, film).err().map(|e| e.to_string());
+                if let Some(why) = &self.refusal {
+                    state.status = format!("cannot render: {why}");
                     self.frames = None;
                 }
             } else if outcome.camera {
@@ -933,11 +938,9 @@ impl Running {
 
     /// Writes the image shown at film resolution.
     fn save(&self, state: &State, path: &Path) -> anyhow::Result<()> {
-        let f = self.frames.as_ref().ok_or_else(|| {
-            match state.status.strip_prefix("cannot render: ") {
-                Some(why) => anyhow!("nothing rendered: {why}"),
-                None => anyhow!("nothing rendered yet (the window's image area is empty)"),
-            }
+        let f = self.frames.as_ref().ok_or_else(|| match &self.refusal {
+            Some(why) => anyhow!("nothing rendered: {why}"),
+            None => anyhow!("nothing rendered yet (the window's image area is empty)"),
         })?;
         let frame = if self.showing_realtime {
             &f.realtime
