@@ -87,12 +87,7 @@ impl FitOptions {
     /// `smoothness` finite and non-negative, `refine` at most
     /// [`Self::MAX_REFINE`]; an error names the flag.
     pub fn validate(&self) -> Result<(), FactorError> {
-        let bad = |field: &str, message: String| {
-            Err(FactorError::Input {
-                what: field.to_string(),
-                message,
-            })
-        };
+        let bad = FactorError::input;
         if !isolux_materials::parabolic::RES_RANGE.contains(&self.res) {
             return bad("--res", format!("must lie in 4..=512, got {}", self.res));
         }

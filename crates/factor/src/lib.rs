@@ -72,6 +72,17 @@ pub enum FactorError {
     Io(#[from] isolux_io::IoError),
 }
 
+impl FactorError {
+    /// [`FactorError::Input`] for the flag or file `what`, as an `Err`
+    /// (the options' checks return it as it is).
+    pub(crate) fn input<T>(what: &str, message: String) -> Result<T, Self> {
+        Err(Self::Input {
+            what: what.to_string(),
+            message,
+        })
+    }
+}
+
 /// Settings of a whole run: the fit, the samples, the baseline.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunOptions {
@@ -101,12 +112,7 @@ impl RunOptions {
     /// Refuses sample counts and ranks beyond the limits above, and
     /// [`FitOptions::validate`]'s refinement count, naming the flag.
     pub fn validate(&self) -> Result<(), FactorError> {
-        let bad = |what: &str, message: String| {
-            Err(FactorError::Input {
-                what: what.into(),
-                message,
-            })
-        };
+        let bad = FactorError::input;
         for (what, n) in [
             ("--fit-samples", self.samples),
             ("--held-out", self.held_out),
@@ -265,10 +271,7 @@ pub fn factorize(
                 ("--held-out", opts.held_out),
             ] {
                 if n < 16 {
-                    return Err(FactorError::Input {
-                        what: what.into(),
-                        message: format!("must be at least 16, got {n}"),
-                    });
+                    return FactorError::input(what, format!("must be at least 16, got {n}"));
                 }
             }
             (
