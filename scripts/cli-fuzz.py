@@ -82,7 +82,7 @@ def commands(out):
           "--sigma-um": "4", "--incident": "0,0.3,1", "--lambda-um": "0.5",
           "--res": "16"}, out + ".exr"),
         ("wave-brdf-spectral", ["wave", "brdf", "--heightfield", grating, "-o", out + ".exr",
-                                "--fresnel", "silver"],
+                                "--fresnel", "Ag"],
          {"--center-um": "10,10", "--sigma-um": "3", "--incident": "0.2,0,1",
           "--spectral": "3", "--res": "12"}, out + ".exr"),
         ("bench-geometry", ["bench", "geometry"],
@@ -127,6 +127,29 @@ def file_cases(tmp):
     ]
 
 
+def verdict(code, err, output, changed, timeout):
+    """What the run broke of the promises (module docs): `code` None for
+    a run stopped at `timeout`, negative for one killed by a signal;
+    `changed` the flags set to awkward values."""
+    nonfinite = any(p in ("nan", "inf", "-inf") for v in changed.values() for p in v.split(","))
+    if code is None:
+        return [f"still running after {timeout:.0f} s"]
+    if code == 101 or code < 0 or "panicked" in err:
+        return [f"crash (exit {code}): " + (err.strip().splitlines() or [""])[-1]]
+    if code == 0:
+        if nonfinite:
+            return ["accepted a non-finite value"]
+        if "non-finite" in err:
+            return ["non-finite samples: " + err.strip()[:200]]
+        return []
+    problems = []
+    if not err.strip():
+        problems.append(f"exit {code} with nothing on stderr")
+    if os.path.exists(output):
+        problems.append(f"exit {code} left {output} behind")
+    return problems
+
+
 def run(isolux, argv, timeout):
     try:
         p = subprocess.run([isolux] + argv, capture_output=True, text=True, timeout=timeout)
@@ -152,80 +175,55 @@ def main():
     out = os.path.join(tmp, "out")
     cmds = [c for c in commands(out) if not args.only or c[0].startswith(args.only)]
     found = 0
-    if args.files:
-        cases = file_cases(tmp)
-        for round_ in range(args.rounds):
+    cases = file_cases(tmp) if args.files else None
+    # Each command must succeed as given, or its rounds would test nothing.
+    for name, *rest in cases or cmds:
+        if args.files:
+            original, copy, argv, _ = rest
+            shutil.copy(original, copy)
+        else:
+            fixed, flags, _ = rest
+            argv = list(fixed) + [f"{f}={v}" for f, v in flags.items()]
+        code, err = run(args.isolux, argv, args.timeout)
+        if code != 0:
+            sys.exit(f"cli-fuzz: {name} fails with its valid values (exit {code}): {err.strip()}")
+    for round_ in range(args.rounds):
+        if args.files:
             name, original, copy, argv, output = rng.choice(cases)
             data, how = corrupted(rng, original)
             open(copy, "wb").write(data)
-            if os.path.exists(output):
-                os.remove(output)
-            code, err = run(args.isolux, argv, args.timeout)
-            problems = []
-            if code is None:
-                problems.append(f"still running after {args.timeout:.0f} s")
-            elif code == 101 or code < 0 or "panicked" in err:
-                problems.append("crash: " + (err.strip().splitlines() or [""])[-1])
-            elif code != 0 and not err.strip():
-                problems.append(f"exit {code} with nothing on stderr")
-            elif code != 0 and os.path.exists(output):
-                problems.append(f"exit {code} left {output} behind")
-            elif code == 0 and "non-finite" in err:
-                problems.append("non-finite samples: " + err.strip()[:200])
-            if problems:
-                found += 1
+            label, changed = f"{name} ({how})", {}
+        else:
+            name, fixed, flags, output = rng.choice(cmds)
+            changed = {}
+            for flag in rng.sample(sorted(flags), min(len(flags), rng.choice([1, 1, 2]))):
+                v = rng.choice(VALUES)
+                if "," in flags[flag] and rng.random() < 0.7:
+                    parts = flags[flag].split(",")
+                    parts[rng.randrange(len(parts))] = v
+                    v = ",".join(parts)
+                if v != flags[flag]:
+                    changed[flag] = v
+            argv = list(fixed) + [f"{f}={changed.get(f, v)}" for f, v in flags.items()]
+            label = name + ": " + " ".join(f"{f}={v}" for f, v in changed.items())
+        if os.path.isdir(output):
+            shutil.rmtree(output)
+        elif os.path.exists(output):
+            os.remove(output)
+        code, err = run(args.isolux, argv, args.timeout)
+        problems = verdict(code, err, output, changed, args.timeout)
+        short = (err.strip().splitlines() or [""])[-1][:110] if code else ""
+        print(f"[{round_:3}] {'BUG' if problems else 'ok'} {label} exit {code} {short}", flush=True)
+        if problems:
+            found += 1
+            if args.files:
                 keep = os.path.join(os.getcwd(), f"cli-fuzz-{args.seed}-{round_}" + os.path.splitext(copy)[1])
                 open(keep, "wb").write(data)
                 problems.append(f"the damaged file: {keep}")
-            short = (err.strip().splitlines() or [""])[-1][:110] if code else ""
-            print(f"[{round_:3}] {'ok' if not problems else 'BUG'} {name} ({how}): exit {code} {short}",
-                  flush=True)
-            for p in problems:
-                print(f"      {p}", flush=True)
-        shutil.rmtree(tmp, ignore_errors=True)
-        print(f"cli-fuzz: {args.rounds} rounds, {found} problems")
-        return 1 if found else 0
-    for round_ in range(args.rounds):
-        name, fixed, flags, output = rng.choice(cmds)
-        values = dict(flags)
-        for flag in rng.sample(sorted(flags), min(len(flags), rng.choice([1, 1, 2]))):
-            v = rng.choice(VALUES)
-            if "," in flags[flag] and rng.random() < 0.7:
-                parts = flags[flag].split(",")
-                parts[rng.randrange(len(parts))] = v
-                v = ",".join(parts)
-            values[flag] = v
-        argv = list(fixed)
-        for flag, v in values.items():
-            argv += [flag + "=" + v]
-        for p in (output,):
-            if os.path.isdir(p):
-                shutil.rmtree(p)
-            elif os.path.exists(p):
-                os.remove(p)
-        code, err = run(args.isolux, argv, args.timeout)
-        line = "isolux " + " ".join(shlex.quote(a) for a in argv)
-        problems = []
-        if code is None:
-            problems.append(f"still running after {args.timeout:.0f} s")
-        elif code == 101 or "panicked" in err:
-            problems.append("panic: " + err.strip().splitlines()[-1] if err.strip() else "panic")
-        elif code == 0 and any(v in ("nan", "inf", "-inf") or "nan" in v.split(",")
-                               or "inf" in v.split(",")
-                               for f, v in values.items() if v != flags[f]):
-            problems.append("accepted a non-finite value")
-        elif code != 0:
-            if not err.strip():
-                problems.append(f"exit {code} with nothing on stderr")
-            if os.path.exists(output):
-                problems.append(f"exit {code} left {output} behind")
-        status = "ok" if not problems else "BUG"
-        short = (err.strip().splitlines() or [""])[-1][:110] if code else ""
-        print(f"[{round_:3}] {status} {name}: exit {code} {' '.join(a for a in argv if a.startswith('--') and '=' in a and a.split('=')[0] in values and values[a.split('=')[0]] != flags[a.split('=')[0]])} {short}",
-              flush=True)
+            else:
+                problems.append("isolux " + " ".join(shlex.quote(a) for a in argv))
         for p in problems:
-            found += 1
-            print(f"      {p}\n      {line}", flush=True)
+            print(f"      {p}", flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
     print(f"cli-fuzz: {args.rounds} rounds, {found} problems")
     return 1 if found else 0
