@@ -255,6 +255,11 @@ fn every_numeric_flag_at_its_extremes_is_refused_or_done_cleanly() {
     let mut problems = Vec::new();
     let mut runs = 0;
     for case in cases(dir.path()) {
+        // As given, each command succeeds: else its extremes test nothing.
+        let mut args = case.fixed.clone();
+        args.extend(case.flags.iter().map(|(f, v)| format!("{f}={v}")));
+        let (code, err, _) = run(&args, Duration::from_secs(60));
+        assert_eq!(code, Some(0), "{} with valid values: {err}", case.name);
         for (flag, _) in &case.flags {
             for v in EXTREMES {
                 // The flag at `v` (in one element of a list), the rest valid.
@@ -353,6 +358,22 @@ fn every_number_of_the_small_examples_at_its_extremes_renders_or_is_refused_by_l
     let ex = examples().canonicalize().unwrap();
     let variant = dir.path().join("variant.toml");
     let image = dir.path().join("v.png");
+    let args: Vec<String> = [
+        "render",
+        variant.to_str().unwrap(),
+        "-o",
+        image.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--spp",
+        "1",
+        "--quiet",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect();
     let mut problems = Vec::new();
     let mut runs = 0;
     for scene in [
@@ -365,6 +386,10 @@ fn every_number_of_the_small_examples_at_its_extremes_renders_or_is_refused_by_l
         let src = std::fs::read_to_string(ex.join("scenes").join(scene))
             .unwrap()
             .replace("\"../", &format!("\"{}/", ex.display()));
+        // Unchanged, the scene renders from the temporary directory.
+        std::fs::write(&variant, &src).unwrap();
+        let (code, err, _) = run(&args, Duration::from_secs(60));
+        assert_eq!(code, Some(0), "{scene} as it is: {err}");
         let spots = numbers(&src);
         assert!(spots.len() > 20, "{scene}: {} numbers", spots.len());
         for at in spots {
@@ -373,22 +398,6 @@ fn every_number_of_the_small_examples_at_its_extremes_renders_or_is_refused_by_l
                 let text = format!("{}{v}{}", &src[..at.start], &src[at.end..]);
                 std::fs::write(&variant, text).unwrap();
                 let _ = std::fs::remove_file(&image);
-                let args: Vec<String> = [
-                    "render",
-                    variant.to_str().unwrap(),
-                    "-o",
-                    image.to_str().unwrap(),
-                    "--width",
-                    "8",
-                    "--height",
-                    "6",
-                    "--spp",
-                    "1",
-                    "--quiet",
-                ]
-                .iter()
-                .map(|a| a.to_string())
-                .collect();
                 let (code, err, timed_out) = run(&args, Duration::from_secs(60));
                 runs += 1;
                 let what = format!("{scene}:{line}: {} -> {v}", &src[at.clone()]);
