@@ -720,6 +720,9 @@ impl Gpu {
         if let Some(why) = film.problem() {
             return Err(GpuError::Setup(why.to_string()));
         }
+        if let Some(why) = scene.integrator.problem() {
+            return Err(GpuError::Setup(why));
+        }
         let [origin, forward, right, up] = scene
             .camera
             .rig(film.width, film.height)

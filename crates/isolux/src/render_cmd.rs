@@ -4,7 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use isolux_io::{OutputFormat, Tonemap};
-use isolux_render::{render, RenderOptions};
+use isolux_render::{render, IntegratorSettings, RenderOptions};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -56,7 +56,7 @@ pub struct RenderArgs {
     /// Random seed (same seed, same image).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Maximum number of scattering events per path.
+    /// Maximum number of scattering events per path (at most 1000000).
     #[arg(long)]
     pub max_depth: Option<u32>,
     /// Exposure in stops for PNG output (linear values times 2^EV).
@@ -144,6 +144,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         scene.integrator.seed = v;
     }
     if let Some(v) = a.max_depth {
+        if v > IntegratorSettings::MAX_DEPTH {
+            bail!(
+                "--max-depth must be at most {} scattering events, got {v}",
+                IntegratorSettings::MAX_DEPTH
+            );
+        }
         scene.integrator.max_depth = v;
     }
     for (name, v) in [

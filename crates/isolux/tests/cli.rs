@@ -167,6 +167,12 @@ fn usage_errors_are_clear() {
             vec!["render", s, "-o", "x.png", "--threads", "100000"],
             "--threads 100000: at most 1024 worker threads",
         ),
+        // The GPU's bounce bound, 2 max_depth + ..., wrapped in u32 from
+        // 2^31 on and cut paths short where the CPU followed them.
+        (
+            vec!["render", s, "-o", "x.png", "--max-depth", "4294967295"],
+            "--max-depth must be at most 1000000 scattering events, got 4294967295",
+        ),
         // bench: 100 GB asked for, and a panic on zero repeats.
         (
             vec!["bench", "geometry", "--bumps", "0,4294967295"],

@@ -49,7 +49,7 @@ pub struct RenderStats {
 /// Errors that prevent rendering.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RenderError {
-    /// Invalid camera or film.
+    /// Invalid camera, film or integrator settings.
     #[error("{0}")]
     Setup(String),
 }
@@ -73,6 +73,9 @@ pub fn render(
     let film = scene.film;
     if let Some(why) = film.problem() {
         return Err(RenderError::Setup(why.to_string()));
+    }
+    if let Some(why) = scene.integrator.problem() {
+        return Err(RenderError::Setup(why));
     }
     let rig = scene
         .camera
@@ -201,4 +204,28 @@ pub fn render(
         }
     }
     Ok((image, stats))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::IntegratorSettings;
+
+    /// A library caller is held to the bounds a scene file is: a film or a
+    /// depth past them is refused before anything is allocated or traced.
+    #[test]
+    fn render_refuses_settings_past_their_bounds() {
+        let mut scene = Scene::default();
+        scene.film.width = 4;
+        scene.film.height = 3;
+        scene.film.spp = 1;
+        scene.integrator.max_depth = IntegratorSettings::MAX_DEPTH;
+        assert!(render(&scene, &RenderOptions::default(), &|_, _| {}).is_ok());
+        scene.integrator.max_depth = IntegratorSettings::MAX_DEPTH + 1;
+        let err = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap_err();
+        assert!(err.to_string().contains("max_depth 1000001"), "{err}");
+        scene.integrator.max_depth = 8;
+        scene.film.spp = 0;
+        assert!(render(&scene, &RenderOptions::default(), &|_, _| {}).is_err());
+    }
 }

@@ -95,6 +95,31 @@ pub struct IntegratorSettings {
     pub seed: u64,
 }
 
+impl IntegratorSettings {
+    /// The most scattering events a path may take (`max_depth`'s bound in
+    /// scene files, on the command line and in both renderers).
+    ///
+    /// Russian roulette ends nearly every path long before; the exception
+    /// is light trapped by total internal reflection in glass, where a
+    /// furnace lost 1 path in 196,608 at 4,096 and none at 100,000
+    /// (docs/gpu.md, "Known defect"), so the bound leaves ten times that.
+    /// The GPU counts its loop's bound as `2 max_depth + ...` in `u32`,
+    /// which a depth of 2^31 or more wrapped, silently cutting paths short
+    /// where the CPU followed them.
+    pub const MAX_DEPTH: u32 = 1_000_000;
+
+    /// Why these settings cannot be rendered, if they cannot.
+    pub fn problem(&self) -> Option<String> {
+        (self.max_depth > Self::MAX_DEPTH).then(|| {
+            format!(
+                "max_depth {} is more than {} scattering events",
+                self.max_depth,
+                Self::MAX_DEPTH
+            )
+        })
+    }
+}
+
 impl Default for IntegratorSettings {
     fn default() -> Self {
         Self {

@@ -285,7 +285,7 @@ fn integrator(t: &Table) -> Result<IntegratorSettings> {
     t.allow(&["max_depth", "seed"])?;
     let mut s = IntegratorSettings::default();
     if let Some(v) = t.get("max_depth") {
-        s.max_depth = v.uint(0, 10_000)? as u32;
+        s.max_depth = v.uint(0, IntegratorSettings::MAX_DEPTH as u64)? as u32;
     }
     if let Some(v) = t.get("seed") {
         s.seed = v.uint(0, i64::MAX as u64)?;

@@ -289,6 +289,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[film]\nwidth = 0\n", "s.toml:2:9: film.width: must lie in 1..=65536, got 0"),
         ("[film]\nwidth = 60000\nheight = 60000\n", "s.toml:3:10: film.height: 60000 x 60000 is 3600000000 pixels, more than the 268435456 (16384 x 16384) an image may hold"),
         ("[film]\nspp = 2000000\n", "s.toml:2:7: film.spp: must lie in 1..=1048576, got 2000000"),
+        ("[integrator]\nmax_depth = 1000001\n", "s.toml:2:13: integrator.max_depth: must lie in 0..=1000000, got 1000001"),
         ("[film]\nwidht = 10\n", "s.toml:2:1: film.widht: unknown key (valid keys here: height, spp, width)"),
         ("[film]\nwidth = \"big\"\n", "s.toml:2:9: film.width: expected an integer, found a string"),
         ("[camera]\nfov_y = nan\n", "s.toml:2:9: camera.fov_y: must be a finite number, got NaN"),
