@@ -117,6 +117,8 @@ pub fn draw(source: &Source, n: usize, theta_max_deg: f64, seed: u64) -> Vec<Sam
 /// r, g, b` per line, an optional header line, `#` comments and blank
 /// lines ignored. Directions are normalized; rows whose directions lie
 /// below the horizon or beyond `theta_max_deg` are skipped and counted.
+/// Zero or negative values are missing data; a value that is not finite
+/// or beyond f32 is an error naming the line and field.
 pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> {
     let text = std::fs::read_to_string(path).map_err(|e| FactorError::Input {
         what: path.display().to_string(),
@@ -175,6 +177,27 @@ pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> 
             Ok(v / l)
         };
         let (wo, wi) = (dir(0, "wo")?, dir(3, "wi")?);
+        // Zero and negative values are missing data (the log fit excludes
+        // and counts them); a value that is not finite, or that f32 cannot
+        // hold, is a damaged file. Such rows used to be excluded like
+        // missing data (infinity) or to fail the fit with "the fitted
+        // scale [inf, ...] is out of range" (1e300).
+        for (o, name) in [(6, "r"), (7, "g"), (8, "b")] {
+            let v = nums[o];
+            if !v.is_finite() {
+                return Err(err(format!(
+                    "field {} ({name}) is {v}, not a finite value",
+                    o + 1
+                )));
+            }
+            if v.abs() > f32::MAX as f64 {
+                return Err(err(format!(
+                    "field {} ({name}) is {v:e}, beyond f32 (the factor textures' type, at most {:e})",
+                    o + 1,
+                    f32::MAX
+                )));
+            }
+        }
         if wo.z < cos_max || wi.z < cos_max {
             outside += 1;
             continue;

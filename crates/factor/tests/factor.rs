@@ -498,6 +498,29 @@ fn csv_samples_fit_like_the_material_and_errors_name_the_line() {
         e.contains("s.csv:1") && e.contains("expected 9 fields"),
         "{e}"
     );
+    // Values that are not finite, or beyond f32, are damage, not missing
+    // data: `inf` was excluded silently and 1e300 failed the fit with "the
+    // fitted scale [inf, ...] is out of range".
+    for (value, field, want) in [
+        ("inf", 7, "field 7 (r) is inf, not a finite value"),
+        ("NaN", 8, "field 8 (g) is NaN, not a finite value"),
+        ("-1e300", 9, "field 9 (b) is -1e300, beyond f32"),
+    ] {
+        let mut row = vec!["0", "0", "1", "0", "0", "1", "0.1", "0.1", "0.1"];
+        row[field - 1] = value;
+        std::fs::write(
+            &path,
+            format!("0,0,1,0,0,1,0.1,0.1,0.1\n{}\n", row.join(",")),
+        )
+        .unwrap();
+        let e = isolux_factor::read_csv(&path, 80.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("s.csv:2") && e.contains(want), "{e}");
+    }
+    // Zero and negative values stay missing data.
+    std::fs::write(&path, "0,0,1,0,0,1,0,-0.1,0.1\n").unwrap();
+    assert!(isolux_factor::read_csv(&path, 80.0).is_ok());
 }
 
 #[test]

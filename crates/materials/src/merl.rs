@@ -116,7 +116,16 @@ impl Merl {
                 missing += 1;
                 data.push(-1.0);
             } else {
-                data.push((v * SCALE[k / PLANE]) as f32);
+                // The table is f32: +inf, or a value that overflows it
+                // once scaled, would reach the renderer (and the fit) as
+                // an infinite BRDF rather than as a damaged file.
+                let scaled = v * SCALE[k / PLANE];
+                if scaled > f32::MAX as f64 {
+                    return Err(format!(
+                        "MERL value {k} is {v:e}, beyond f32 once scaled (the table's type)"
+                    ));
+                }
+                data.push(scaled as f32);
             }
         }
         Ok(Self {
@@ -301,5 +310,21 @@ mod tests {
         }
         ok.extend_from_slice(&[0u8; 800]);
         assert!(Merl::from_bytes(&ok).unwrap_err().contains("truncated"));
+        // Values: negative is missing, NaN and infinite are damage.
+        let mut raw = vec![0.5; 3 * PLANE];
+        raw[7] = -1.0;
+        let m = Merl::from_bytes(&Merl::encode(&raw)).unwrap();
+        assert_eq!(m.missing(), 1);
+        raw[7] = f64::NAN;
+        let e = Merl::from_bytes(&Merl::encode(&raw)).unwrap_err();
+        assert_eq!(e, "MERL value 7 is NaN");
+        for v in [f64::INFINITY, 1e300] {
+            raw[7] = v;
+            let e = Merl::from_bytes(&Merl::encode(&raw)).unwrap_err();
+            assert!(
+                e.starts_with("MERL value 7 is ") && e.contains("beyond f32"),
+                "{e}"
+            );
+        }
     }
 }
