@@ -135,7 +135,7 @@ def main():
                     if not os.path.basename(s).startswith("_"))
     variant = os.path.join(SCENES, "_fuzz.toml")
     cpu_png, gpu_png = os.path.join(args.keep, "cpu.png"), os.path.join(args.keep, "gpu.png")
-    flagged = compared = 0
+    flagged = compared = rendered = 0
     try:
         for k in range(args.rounds):
             scene = rng.choice(scenes)
@@ -159,6 +159,7 @@ def main():
             rc, ec = render(args.isolux, variant, cpu_png, False, args)
             rg, eg = (0, "") if args.cpu_only else render(args.isolux, variant, gpu_png, True, args)
             problem = None
+            rendered += rc == 0
             if rc is None or rg is None:
                 problem = f"hang (CPU {rc}, GPU {rg}): {ec} {eg}"
             elif "panicked" in ec + eg or rc not in (0, 1) or rg not in (0, 1):
@@ -185,7 +186,10 @@ def main():
     finally:
         if os.path.exists(variant):
             os.remove(variant)
-    print(f"{compared} variants compared, {flagged} flagged")
+    if args.cpu_only:
+        print(f"{args.rounds} variants, {rendered} rendered (the rest refused), {flagged} flagged")
+    else:
+        print(f"{compared} variants compared, {flagged} flagged")
     sys.exit(1 if flagged else 0)
 
 

@@ -10,7 +10,7 @@
 //! with `p` and `q` positive parabolic-map textures and `r` a small
 //! positive table over the half and difference angles (optional: `--hd-res
 //! 0` gives the paper's plain `p q p`), found by linear least squares on
-//! `ln f` ([`fit`]). Positive by construction (the unknowns are
+//! `ln f` ([`fit()`]). Positive by construction (the unknowns are
 //! logarithms), reciprocal by construction (`p` appears at both ends, `h`,
 //! `theta_h` and `theta_d` are symmetric), and the error it minimizes is
 //! relative. [`svd`] is the baseline, Kautz and
