@@ -233,6 +233,17 @@ pub fn run_heightfield(a: HeightfieldArgs) -> Result<()> {
     };
     let t = Instant::now();
     let h = generate(&kind, g.width, height, g.texel_um, g.seed)?;
+    if let GenKind::Grating = g.kind {
+        if let Some(why) = isolux_wave::generate::grating_seam(
+            g.width,
+            height,
+            g.texel_um,
+            g.period_um,
+            g.direction_deg,
+        ) {
+            eprintln!("isolux: warning: {why}");
+        }
+    }
     h.write_exr(&g.output)?;
     eprintln!(
         "wrote {} ({} x {} texels of {} um, RMS height {:.4} um) in {:.2} s",

@@ -10,7 +10,7 @@
 //! All heights are in um, about a zero mean. Deterministic for a seed.
 
 use crate::heightfield::{Heightfield, HeightfieldError};
-use isolux_core::Pcg32;
+use isolux_core::{short_number, Pcg32};
 use rustfft::num_complex::Complex64;
 use rustfft::FftPlanner;
 
@@ -90,6 +90,32 @@ fn non_negative(name: &str, v: f64) -> Result<(), HeightfieldError> {
         )));
     }
     Ok(())
+}
+
+/// Why a grating does not repeat with the field, if it does not: the field
+/// tiles the surface (every reader wraps it), so a grating that does not
+/// hold a whole number of periods along each side meets itself at a seam,
+/// whose step diffracts light of its own. A warning rather than an error:
+/// a grating at an arbitrary angle rarely fits exactly.
+pub fn grating_seam(
+    width: usize,
+    height: usize,
+    texel_um: f64,
+    period_um: f64,
+    direction_deg: f64,
+) -> Option<String> {
+    let (s, c) = direction_deg.to_radians().sin_cos();
+    let along = [
+        ("x", width as f64 * texel_um * c / period_um),
+        ("y", height as f64 * texel_um * s / period_um),
+    ];
+    let (axis, periods) = along
+        .into_iter()
+        .find(|(_, n)| (n - n.round()).abs() > 1e-6 * n.abs().max(1.0))?;
+    Some(format!(
+        "the field holds {:.3} grating periods along {axis}, not a whole number: it repeats with a seam",
+        periods.abs()
+    ))
 }
 
 /// Generates a `width x height` field of `texel_um` texels.
@@ -187,6 +213,25 @@ pub fn generate(
             finite("direction", direction_deg)?;
             non_negative("amplitude", amplitude_um)?;
             let (s, c) = direction_deg.to_radians().sin_cos();
+            // Sampled at fewer than two texels a period along an axis, the
+            // texels hold another, aliased grating, whose orders fall
+            // elsewhere: a period of 1.5 um on 1 um texels was written as
+            // one of 3 um.
+            let cycles = [
+                c.abs() * texel_um / period_um,
+                s.abs() * texel_um / period_um,
+            ];
+            if cycles.iter().any(|&k| k > 0.5 + 1e-9) {
+                return Err(HeightfieldError::Invalid(format!(
+                    "a grating period of {} um at {} degrees is shorter than two texels \
+                     ({} um) along {}: the texels would hold an aliased grating of another period; \
+                     use smaller texels or a longer period",
+                    short_number(period_um),
+                    short_number(direction_deg),
+                    short_number(2.0 * texel_um),
+                    if cycles[0] > 0.5 + 1e-9 { "x" } else { "y" }
+                )));
+            }
             let mut h = vec![0.0f32; width * height];
             for r in 0..height {
                 for col in 0..width {
@@ -195,6 +240,24 @@ pub fn generate(
                     let ph = 2.0 * std::f64::consts::PI * (x * c + y * s) / period_um;
                     h[r * width + col] = (amplitude_um * ph.sin()) as f32;
                 }
+            }
+            // A field too small for the grating samples too little of a
+            // period to vary (1 x 64 texels across a grating along x, or
+            // 2 x 2 texels of a 4 um period): it came out flat, RMS 0,
+            // where an amplitude was asked for.
+            let mean = h.iter().map(|&v| v as f64).sum::<f64>() / h.len() as f64;
+            let rms =
+                (h.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / h.len() as f64).sqrt();
+            if amplitude_um > 0.0 && rms < 0.01 * amplitude_um / std::f64::consts::SQRT_2 {
+                return Err(HeightfieldError::Invalid(format!(
+                    "a field of {} x {} um is too small for a grating of period {} um at {} degrees: \
+                     its texels come out flat where an amplitude of {} um was asked for",
+                    short_number(width as f64 * texel_um),
+                    short_number(height as f64 * texel_um),
+                    short_number(period_um),
+                    short_number(direction_deg),
+                    short_number(amplitude_um)
+                )));
             }
             h
         }
@@ -533,5 +596,58 @@ mod tests {
             0
         )
         .is_err());
+    }
+
+    /// A grating the texels cannot hold is refused, not written as another
+    /// one: under two texels a period it aliases (a 1.5 um period on 1 um
+    /// texels came out as a 3 um one), and a field too small for it came
+    /// out flat.
+    #[test]
+    fn gratings_the_texels_cannot_hold_are_refused() {
+        let grating = |period_um: f64, direction_deg: f64| Kind::Grating {
+            period_um,
+            amplitude_um: 0.05,
+            direction_deg,
+        };
+        let e = generate(&grating(1.5, 0.0), 64, 8, 1.0, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("shorter than two texels (2 um) along x"), "{e}");
+        let e = generate(&grating(1.9, 90.0), 8, 64, 1.0, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("along y"), "{e}");
+        // At 45 degrees each axis sees the period stretched by sqrt 2.
+        assert!(generate(&grating(1.5, 45.0), 64, 64, 1.0, 0).is_ok());
+        // Exactly two texels a period holds it (at the sampled phase).
+        assert!(generate(&grating(2.0, 0.0), 64, 8, 1.0, 0).is_ok());
+        for (w, h) in [(1, 1), (1, 64), (2, 2)] {
+            let e = generate(&grating(4.0, 0.0), w, h, 1.0, 0)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("too small for a grating"), "{w} x {h}: {e}");
+        }
+        // No amplitude asked for: flat is what was asked.
+        let flat = Kind::Grating {
+            period_um: 4.0,
+            amplitude_um: 0.0,
+            direction_deg: 0.0,
+        };
+        assert!(generate(&flat, 2, 2, 1.0, 0).is_ok());
+    }
+
+    #[test]
+    fn a_grating_that_does_not_tile_is_named() {
+        // 64 um hold 16 periods of 4 um along x, none along y.
+        assert_eq!(grating_seam(64, 8, 1.0, 4.0, 0.0), None);
+        assert_eq!(grating_seam(8, 64, 1.0, 4.0, 90.0), None);
+        let w = grating_seam(64, 8, 1.0, 3.0, 0.0).unwrap();
+        assert!(w.contains("21.333 grating periods along x"), "{w}");
+        let w = grating_seam(64, 64, 1.0, 4.0, 30.0).unwrap();
+        assert!(w.contains("along x"), "{w}");
+        // At 45 degrees each side holds n t cos(45) / P periods: with texels
+        // of sqrt(2) / 2 um, 64 x 0.5 / 4 = 8.
+        let t = std::f64::consts::SQRT_2 / 2.0;
+        assert_eq!(grating_seam(64, 64, t, 4.0, 45.0), None);
     }
 }
