@@ -118,6 +118,30 @@ pub fn grating_seam(
     ))
 }
 
+/// Refuses a length the texels cannot resolve. A correlation length under
+/// a texel gives white noise at the texel scale, whose correlation is a
+/// texel and whose slopes (`rms / corr`, what scatters the light) are off
+/// by `texel / corr`: `--corr-um 0.01` on 1 um texels was written as such
+/// a field without a word, with the requested RMS.
+fn resolved(name: &str, len_um: f64, texels: f64, texel_um: f64) -> Result<(), HeightfieldError> {
+    let min_um = texels * texel_um;
+    if len_um < min_um {
+        return Err(HeightfieldError::Invalid(format!(
+            "{name} of {} um is shorter than {} ({} um): the texels cannot hold it; \
+             use texels of at most {} um",
+            short_number(len_um),
+            if texels == 1.0 {
+                "a texel"
+            } else {
+                "half a texel"
+            },
+            short_number(min_um),
+            short_number(len_um / texels)
+        )));
+    }
+    Ok(())
+}
+
 /// Generates a `width x height` field of `texel_um` texels.
 pub fn generate(
     kind: &Kind,
@@ -136,6 +160,7 @@ pub fn generate(
         Kind::Noise { rms_um, corr_um } => {
             non_negative("rms", rms_um)?;
             positive("correlation length", corr_um)?;
+            resolved("a correlation length", corr_um, 1.0, texel_um)?;
             filtered_noise(width, height, texel_um, seed, rms_um, corr_um, corr_um, 0.0)?
         }
         Kind::Brushed {
@@ -148,6 +173,8 @@ pub fn generate(
             positive("correlation length along", along_um)?;
             finite("direction", direction_deg)?;
             positive("correlation length across", across_um)?;
+            resolved("a correlation length along", along_um, 1.0, texel_um)?;
+            resolved("a correlation length across", across_um, 1.0, texel_um)?;
             filtered_noise(
                 width,
                 height,
@@ -171,6 +198,10 @@ pub fn generate(
             positive("scratch length", length_um)?;
             non_negative("scratch depth", depth_um)?;
             non_negative("base rms", base_rms_um)?;
+            // A groove narrower than a texel misses most texel centres: a
+            // half-width of 0.01 um on 1 um texels left the scratches all
+            // but invisible.
+            resolved("a scratch half-width", width_um, 0.5, texel_um)?;
             // Each scratch visits the texels of its bounding box (at most
             // (length + 2 half-widths)^2): refused up front where that
             // would run for minutes, as 1e9 scratches or one of 1e9 um did.
@@ -186,6 +217,12 @@ pub fn generate(
             }
             let mut h = if base_rms_um > 0.0 {
                 positive("base correlation length", base_corr_um)?;
+                resolved(
+                    "a base correlation length",
+                    base_corr_um,
+                    texel_um,
+                    texel_um,
+                )?;
                 filtered_noise(
                     width,
                     height,
@@ -649,5 +686,54 @@ mod tests {
         // of sqrt(2) / 2 um, 64 x 0.5 / 4 = 8.
         let t = std::f64::consts::SQRT_2 / 2.0;
         assert_eq!(grating_seam(64, 64, t, 4.0, 45.0), None);
+    }
+
+    /// Lengths the texels cannot resolve are refused: a correlation length
+    /// under a texel gave white noise with the requested RMS, and a groove
+    /// under half a texel wide missed the texel centres.
+    #[test]
+    fn lengths_below_the_texels_are_refused() {
+        let noise = |corr_um: f64| Kind::Noise {
+            rms_um: 0.05,
+            corr_um,
+        };
+        let e = generate(&noise(0.01), 16, 16, 1.0, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("a correlation length of 0.01 um is shorter than a texel (1 um)")
+                && e.contains("texels of at most 0.01 um"),
+            "{e}"
+        );
+        assert!(generate(&noise(1.0), 16, 16, 1.0, 0).is_ok());
+        assert!(generate(&noise(0.5), 16, 16, 0.5, 0).is_ok());
+        let brushed = Kind::Brushed {
+            rms_um: 0.05,
+            along_um: 8.0,
+            across_um: 0.4,
+            direction_deg: 0.0,
+        };
+        let e = generate(&brushed, 16, 16, 0.5, 0).unwrap_err().to_string();
+        assert!(e.contains("correlation length across of 0.4 um"), "{e}");
+        let scratches = |width_um: f64, base_corr_um: f64| Kind::Scratches {
+            count: 3,
+            depth_um: 0.1,
+            width_um,
+            length_um: 8.0,
+            base_rms_um: 0.01,
+            base_corr_um,
+        };
+        let e = generate(&scratches(0.01, 2.0), 16, 16, 1.0, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("half-width of 0.01 um is shorter than half a texel (0.5 um)"),
+            "{e}"
+        );
+        let e = generate(&scratches(1.0, 0.2), 16, 16, 1.0, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("base correlation length of 0.2 um"), "{e}");
+        assert!(generate(&scratches(0.5, 1.0), 16, 16, 1.0, 0).is_ok());
     }
 }
