@@ -56,7 +56,7 @@
 //! [[material]]
 //! name = "brushed"
 //! type = "wave"
-//! heightfield = "brushed.exr"
+//! heightfield = "../heightfields/brushed.exr"   # relative to the scene file
 //! model = "ghs"
 //! obliquity = "reciprocal"
 //! metal = "Al"

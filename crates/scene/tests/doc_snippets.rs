@@ -7,7 +7,12 @@
 //! against `examples/scenes/`, as in the examples. A snippet that names a
 //! file the reader supplies (`dir = "/tmp/ct-factors"`, a MERL file) may fail
 //! only on reading that file, which means every key before it was accepted.
+//!
+//! The same holds for the scene snippet and the parameter table that open
+//! each material model's file in `isolux-materials`: the snippet parses, and
+//! the table names exactly the keys the parser accepts for that type.
 
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
@@ -112,4 +117,129 @@ fn blocks_are_found_with_their_indentation_removed() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("reflectanse"), "{e}");
+}
+
+/// The module doc of a Rust file (`//!` lines, the marker removed).
+fn module_doc(src: &str) -> Vec<String> {
+    src.lines()
+        .filter_map(|l| l.strip_prefix("//!"))
+        .map(|l| l.strip_prefix(' ').unwrap_or(l).to_string())
+        .collect()
+}
+
+/// The keys a parameter table names: the backquoted identifiers of each
+/// row's first cell, or of its second where the first is `Fresnel` (whose
+/// keys are listed there).
+fn table_keys(doc: &[String]) -> BTreeSet<String> {
+    let mut keys = BTreeSet::new();
+    for row in doc.iter().filter(|l| l.starts_with("| ")) {
+        let cells: Vec<&str> = row.trim_matches('|').split('|').map(str::trim).collect();
+        if cells[0] == "name" {
+            continue;
+        }
+        let cell = if cells[0] == "Fresnel" {
+            cells[1]
+        } else {
+            cells[0]
+        };
+        for (k, part) in cell.split('`').enumerate() {
+            let ident = !part.is_empty()
+                && part
+                    .chars()
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+            if k % 2 == 1 && ident {
+                keys.insert(part.to_string());
+            }
+        }
+    }
+    keys
+}
+
+/// The keys the parser accepts in the last `[[material]]` of `block`, read
+/// from its error for a key it cannot know.
+fn accepted_keys(block: &str, dir: &Path) -> BTreeSet<String> {
+    let probe = as_scene(&format!("{}\nzzz_not_a_key = 1\n", block.trim_end()));
+    let e = isolux_scene::parse_str(&probe, Path::new("probe"), dir)
+        .unwrap_err()
+        .to_string();
+    let list = e
+        .split("valid keys here: ")
+        .nth(1)
+        .and_then(|rest| rest.split(')').next())
+        .unwrap_or_else(|| panic!("no list of valid keys in: {e}"));
+    list.split(',')
+        .map(|k| k.trim().to_string())
+        .filter(|k| k != "name" && k != "type")
+        .collect()
+}
+
+#[test]
+fn every_material_doc_parses_and_its_table_names_the_accepted_keys() {
+    let src_dir = root().join("crates/materials/src");
+    let scenes = root().join("examples/scenes");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&src_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .collect();
+    files.sort();
+    let mut checked = Vec::new();
+    let mut failures = Vec::new();
+    for file in &files {
+        let name = file.file_name().unwrap().to_string_lossy().to_string();
+        let doc = module_doc(&std::fs::read_to_string(file).unwrap());
+        // A model's file has a parameter table; lib.rs's table lists the
+        // models, microfacet.rs has none.
+        if !doc
+            .iter()
+            .any(|l| l.starts_with("| name | type | default |"))
+        {
+            continue;
+        }
+        let keys = table_keys(&doc);
+        let text = doc.join("\n");
+        let Some(block) = text
+            .split("r#\"")
+            .nth(1)
+            .and_then(|rest| rest.split("\"#").next())
+        else {
+            failures.push(format!("{name}: a parameter table but no scene snippet"));
+            continue;
+        };
+        match isolux_scene::parse_str(&as_scene(block), Path::new("snippet"), &scenes) {
+            Ok(_) => {}
+            Err(e) if e.to_string().contains("cannot read: No such file") => {}
+            Err(e) => failures.push(format!("{name}: its snippet: {e}")),
+        }
+        let accepted = accepted_keys(block, &scenes);
+        let undocumented: Vec<_> = accepted.difference(&keys).collect();
+        let unknown: Vec<_> = keys.difference(&accepted).collect();
+        if !undocumented.is_empty() || !unknown.is_empty() {
+            failures.push(format!(
+                "{name}: accepted but not in the table: {undocumented:?}; in the table but not accepted: {unknown:?}"
+            ));
+        }
+        checked.push(name);
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    // The 18 model files when this test was written.
+    assert!(checked.len() >= 18, "only {checked:?}");
+}
+
+#[test]
+fn table_keys_reads_names_and_fresnel_rows() {
+    let doc: Vec<String> = [
+        "| name | type | default | meaning |",
+        "|---|---|---|---|",
+        "| `roughness_u`, `roughness_v` | numbers > 0 | | `alpha_x` |",
+        "| Fresnel | `metal`, `eta` + `k` | none (`F = 1`) | see [`crate::fresnel`] |",
+        "| `metal` / `ior` | string | none | `\"Au\"` |",
+    ]
+    .map(String::from)
+    .to_vec();
+    let keys: Vec<String> = table_keys(&doc).into_iter().collect();
+    assert_eq!(
+        keys,
+        ["eta", "ior", "k", "metal", "roughness_u", "roughness_v"]
+    );
 }
