@@ -10,7 +10,8 @@
 //!
 //! The same holds for the scene snippet and the parameter table that open
 //! each material model's file in `isolux-materials`: the snippet parses, and
-//! the table names exactly the keys the parser accepts for that type.
+//! the table names exactly the keys the parser accepts for that type; and
+//! for the tables of docs/scene-format.md, one per section of a scene.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -242,4 +243,92 @@ fn table_keys_reads_names_and_fresnel_rows() {
         keys,
         ["eta", "ior", "k", "metal", "roughness_u", "roughness_v"]
     );
+}
+
+/// The keys of the first `| key | type | default | meaning |` table under
+/// the heading `heading` of `doc`.
+fn section_keys(doc: &str, heading: &str) -> BTreeSet<String> {
+    let lines: Vec<String> = doc
+        .lines()
+        .skip_while(|l| l.trim_start_matches('#').trim() != heading)
+        .skip(1)
+        .take_while(|l| !l.starts_with('#'))
+        .map(String::from)
+        .collect();
+    assert!(!lines.is_empty(), "no section {heading}");
+    let table: Vec<String> = lines
+        .into_iter()
+        .skip_while(|l| !l.starts_with("| key |"))
+        .skip(1)
+        .take_while(|l| l.starts_with('|'))
+        .collect();
+    table_keys(&table)
+}
+
+/// The keys the parser accepts in the table that `scene` ends with, from
+/// its error for a key it cannot know.
+fn accepted_in(scene: &str) -> BTreeSet<String> {
+    let probe = format!("{scene}zzz_not_a_key = 1\n");
+    let e = isolux_scene::parse_str(&probe, Path::new("probe"), Path::new("."))
+        .unwrap_err()
+        .to_string();
+    let list = e
+        .split("valid keys here: ")
+        .nth(1)
+        .and_then(|rest| rest.split(')').next())
+        .unwrap_or_else(|| panic!("no list of valid keys in: {e}"));
+    list.split(',').map(|k| k.trim().to_string()).collect()
+}
+
+/// docs/scene-format.md's tables of the scene's sections name exactly the
+/// keys the parser accepts there.
+#[test]
+fn scene_format_tables_name_the_accepted_keys() {
+    let doc = std::fs::read_to_string(root().join("docs/scene-format.md")).unwrap();
+    let camera = "[camera]\nposition = [0.0, 1.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n";
+    let object = "[[material]]\nname = \"m\"\ntype = \"diffuse\"\n\n[[object]]\nmaterial = \"m\"\n\
+                  base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.0 }\n";
+    let sections: [(&str, Vec<String>); 8] = [
+        ("`[camera]`", vec![camera.to_string()]),
+        ("`[film]`", vec![format!("{camera}[film]\n")]),
+        ("`[integrator]`", vec![format!("{camera}[integrator]\n")]),
+        (
+            "`[[light]]`",
+            vec![format!(
+                "{camera}[[light]]\ntype = \"point\"\nposition = [0.0, 1.0, 0.0]\nintensity = [1.0, 1.0, 1.0]\n"
+            )],
+        ),
+        // The union over both types: `file` and `scale` belong to maps.
+        (
+            "`[environment]`",
+            vec![
+                format!("{camera}[environment]\ntype = \"constant\"\nradiance = [1.0, 1.0, 1.0]\n"),
+                format!("{camera}[environment]\ntype = \"map\"\n"),
+            ],
+        ),
+        ("`[[object]]`", vec![format!("{camera}{object}")]),
+        (
+            "`[[object.perturbation]]`",
+            vec![format!(
+                "{camera}{object}[[object.perturbation]]\nfactor = 1.0\n"
+            )],
+        ),
+        (
+            "Transform tables",
+            vec![format!("{camera}{object}[object.transform]\n")],
+        ),
+    ];
+    let mut failures = Vec::new();
+    for (heading, probes) in sections {
+        let documented = section_keys(&doc, heading);
+        let accepted: BTreeSet<String> = probes.iter().flat_map(|p| accepted_in(p)).collect();
+        if documented != accepted {
+            failures.push(format!(
+                "{heading}: accepted but not in the table: {:?}; in the table but not accepted: {:?}",
+                accepted.difference(&documented).collect::<Vec<_>>(),
+                documented.difference(&accepted).collect::<Vec<_>>()
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
