@@ -344,7 +344,7 @@ fn brdf(b: BrdfArgs) -> Result<()> {
         },
         ..Settings::default()
     };
-    if let Some(why) = m.window_too_large(b.sigma_um) {
+    if let Some(why) = m.coherence_problem(b.sigma_um) {
         bail!("--sigma-um {why}");
     }
     m.query.center_um = [b.center_um[0], b.center_um[1]];

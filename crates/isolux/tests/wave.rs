@@ -279,6 +279,12 @@ fn wave_brdf_bad_input_is_a_clear_error_and_writes_nothing() {
             with("--sigma-um", "1e5"),
             "--sigma-um 100000 um puts about 3.6e11 Gabor kernels",
         ),
+        (
+            // Too few kernels: the BRDF's albedo fell to 0 at a tenth of a
+            // texel and rendered black.
+            with("--sigma-um", "0.01"),
+            "--sigma-um 0.01 um is less than two texels",
+        ),
         (with("--texel-um", "0"), "texel-um must be positive"),
         (vec!["--incident", "0,0,1"], "exactly one of --lambda-um"),
         (with("--fresnel", "Unobtainium"), "unknown Fresnel"),

@@ -860,7 +860,7 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
     );
     if let Some(v) = t.get("coherence_um") {
         m.coherence_um = v.positive()?;
-        if let Some(why) = m.window_too_large(m.coherence_um) {
+        if let Some(why) = m.coherence_problem(m.coherence_um) {
             return Err(v.error(format!("coherence_um = {why}")));
         }
     }

@@ -350,6 +350,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\ncoherence_um = 0\n", "s.toml:5:16: material[0].coherence_um: must be positive, got 0"),
         // A window no render could sum (the fuzzer's 1e5 hung the CPU).
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\ncoherence_um = 1e4\n", "s.toml:5:16: material[0].coherence_um: coherence_um = 10000 um puts about 5.8e10 Gabor kernels of this heightfield (0.25 um texels) in each query's window, beyond the 1e8 a render can sum; use at most 417 um"),
+        ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\ncoherence_um = 0.1\n", "s.toml:5:16: material[0].coherence_um: coherence_um = 0.1 um is less than two texels of this heightfield (0.25 um): too few Gabor kernels for the model, whose BRDF then loses its energy; use at least 0.5 um"),
         ("[[material]]\nname = \"w\"\ntype = \"wave\"\nheightfield = \"../../examples/heightfields/grating.exr\"\nmetal = \"Au\"\nior = 1.5\n", "s.toml:1:1: material[0]: conflicting Fresnel keys: give only one of `metal`, `ior`"),
         ("[scene]\n", "s.toml:1:2: scene: unknown key (valid keys here: camera, environment, film, integrator, light, material, object)"),
         ("[film\nwidth = 3\n", "s.toml:1:6: TOML syntax error"),
