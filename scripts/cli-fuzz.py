@@ -61,7 +61,7 @@ def commands(out):
         ("sss-profile", ["sss", "profile", "--medium", "skin1", "-o", out + ".svg"],
          {"--scale": "1", "--photons": "2000"}, out + ".svg"),
         ("factor", ["factor", gallery, "--material", "phong", "--no-preview", "-o", out + "_f"],
-         {"--res": "8", "--hd-res": "0", "--smoothness": "0.001", "--theta-max": "80",
+         {"--res": "8", "--hd-res": "0", "--smoothness": "0.001", "--dynamic-range": "1e-4", "--theta-max": "80",
           "--fit-samples": "4000", "--held-out": "1000", "--svd-rank": "1",
           "--refine": "1", "--seed": "1"}, out + "_f"),
         ("heightfield-noise", ["heightfield", "gen", "--kind", "noise", "-o", out + ".exr"],

@@ -53,10 +53,32 @@ pub struct FitOptions {
     /// The largest `res` solved by a dense Cholesky factorization (default
     /// [`DENSE_MAX_RES`]); above it, conjugate gradients.
     pub dense_max_res: usize,
+    /// The floor of the fit, relative to each channel's largest sample
+    /// value ([`DEFAULT_DYNAMIC_RANGE`]): smaller values, zeros included,
+    /// are fitted as the floor.
+    pub dynamic_range: f64,
 }
 
 /// The default `--smoothness`.
 pub const DEFAULT_SMOOTHNESS: f64 = 1e-3;
+
+/// The default `--dynamic-range`: values below 1e-4 of a channel's
+/// largest are fitted (and measured) as that floor.
+///
+/// A log fit of the raw values broke on the peaked materials that have no
+/// diffuse term: a Beckmann lobe of roughness 0.3 falls to 1e-156 at 80
+/// degrees off its peak and an exponent-100 Phong lobe to exactly 0, so
+/// the logarithms spanned hundreds of units (or the zeros were dropped,
+/// leaving texels to the smoothness term alone), and the factors' products
+/// reached 1e43 between the samples: `cook_torrance` with its default
+/// reflectance 0, `phong`, `ward` and `beckmann` reported errors of
+/// 1e100 or infinity, or failed. A floor 80 dB under the peak is far
+/// below anything visible beside the peak and keeps the logarithms within
+/// 9.2 units of it.
+pub const DEFAULT_DYNAMIC_RANGE: f64 = 1e-4;
+
+/// The accepted `--dynamic-range`: from 1e-8 (18.4 log units) to 0.1.
+pub const DYNAMIC_RANGE_LIMITS: std::ops::RangeInclusive<f64> = 1e-8..=0.1;
 
 impl Default for FitOptions {
     fn default() -> Self {
@@ -67,6 +89,7 @@ impl Default for FitOptions {
             refine: 1,
             hd_res: None,
             dense_max_res: DENSE_MAX_RES,
+            dynamic_range: DEFAULT_DYNAMIC_RANGE,
         }
     }
 }
@@ -120,6 +143,15 @@ impl FitOptions {
                 format!("must be finite and non-negative, got {}", self.smoothness),
             );
         }
+        if !DYNAMIC_RANGE_LIMITS.contains(&self.dynamic_range) {
+            return bad(
+                "--dynamic-range",
+                format!(
+                    "must lie in [1e-8, 0.1], got {}",
+                    isolux_core::short_number(self.dynamic_range)
+                ),
+            );
+        }
         Ok(())
     }
 }
@@ -142,6 +174,10 @@ pub struct Factorization {
     pub r: Vec<Rgb>,
     /// Per-channel scale.
     pub scale: Rgb,
+    /// Per channel, the floor the fit raised smaller values to
+    /// ([`FitOptions::dynamic_range`] times the largest sample value);
+    /// errors are measured against it too ([`crate::evaluate`]).
+    pub floor: Rgb,
     /// Bookkeeping.
     pub stats: FitStats,
 }
@@ -153,9 +189,12 @@ pub struct FitStats {
     pub samples: usize,
     /// Per channel: samples used in the log fit.
     pub used: [usize; 3],
-    /// Per channel: samples excluded (missing, non-positive or
-    /// non-finite value).
+    /// Per channel: samples excluded (missing: a negative or non-finite
+    /// value).
     pub excluded: [usize; 3],
+    /// Per channel: samples used at the floor (their value, zero included,
+    /// was below it).
+    pub floored: [usize; 3],
     /// Cholesky factorizations computed (1 when all channels share their
     /// samples; 0 above [`DENSE_MAX_RES`], where conjugate gradients solve).
     pub factorizations: usize,
@@ -236,11 +275,13 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
             row
         })
         .collect();
-    // Usable samples per channel, and channel groups sharing them.
+    // Usable samples per channel, and channel groups sharing them. A
+    // negative value is missing data (MERL's convention); zero is a value,
+    // fitted at the floor.
     let usable = |s: &Sample, c: usize| {
         s.f.is_some_and(|f| {
             let v = f.to_array()[c];
-            v > 0.0 && v.is_finite()
+            v >= 0.0 && v.is_finite()
         })
     };
     let masks: Vec<Vec<bool>> = (0..3)
@@ -256,12 +297,34 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         stats.excluded[c] = samples.len() - stats.used[c];
         if stats.used[c] < 16 {
             return Err(FactorError::Fit(format!(
-                "channel {} has {} usable samples of {} (values must be positive and finite): too few to fit",
+                "channel {} has {} usable samples of {} (values must be non-negative and finite): too few to fit",
                 ["R", "G", "B"][c],
                 stats.used[c],
                 samples.len()
             )));
         }
+    }
+    // Each channel's floor: the dynamic range times its largest value.
+    let mut floor = [0.0; 3];
+    for c in 0..3 {
+        let top = samples
+            .iter()
+            .zip(&masks[c])
+            .filter(|(_, m)| **m)
+            .map(|(s, _)| s.f.expect("usable").to_array()[c])
+            .fold(0.0, f64::max);
+        if !(top > 0.0) {
+            return Err(FactorError::Fit(format!(
+                "channel {} is zero at every usable sample: a logarithm cannot fit it",
+                ["R", "G", "B"][c]
+            )));
+        }
+        floor[c] = opts.dynamic_range * top;
+        stats.floored[c] = samples
+            .iter()
+            .zip(&masks[c])
+            .filter(|(s, m)| **m && s.f.expect("usable").to_array()[c] < floor[c])
+            .count();
     }
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for c in 0..3 {
@@ -297,7 +360,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
         cg: warm.is_some().then(|| CgColumns::new(&rows, n)),
     };
     solver.assemble_s = t0.elapsed().as_secs_f64() - stats.coarse_s;
-    let ln_f = |s: &Sample, c: usize| s.f.expect("usable").to_array()[c].ln();
+    let ln_f = |s: &Sample, c: usize| s.f.expect("usable").to_array()[c].max(floor[c]).ln();
     for g in &groups {
         let mask = &masks[g[0]];
         let weights: Vec<f64> = mask.iter().map(|m| if *m { 1.0 } else { 0.0 }).collect();
@@ -407,6 +470,7 @@ pub fn fit(samples: &[Sample], opts: &FitOptions) -> Result<Factorization, Facto
             })
             .collect(),
         scale,
+        floor: Rgb::new(floor[0], floor[1], floor[2]),
         stats,
     })
 }

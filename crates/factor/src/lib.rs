@@ -172,6 +172,8 @@ pub struct Report {
     pub hd_res: usize,
     /// The smoothness weight used.
     pub smoothness: f64,
+    /// The dynamic range of the fit's floor ([`FitOptions::dynamic_range`]).
+    pub dynamic_range: f64,
     /// Held-out samples.
     pub held_out: usize,
     /// Errors of the homomorphic factors.
@@ -284,7 +286,7 @@ pub fn factorize(
     let fact = fit(&train, &opts.fit)?;
     let material = fact.material()?;
     use isolux_materials::BxdfModel;
-    let factored = evaluate(&held, |wo, wi| material.f(wo, wi));
+    let factored = evaluate(&held, fact.floor, |wo, wi| material.f(wo, wi));
     let nd = opts.fit.hd_res();
     let storage = 2 * opts.fit.res * opts.fit.res + nd * nd;
     let (baselines, baseline_note) = if opts.svd_ranks == 0 {
@@ -306,7 +308,7 @@ pub fn factorize(
                 .map(|s| Baseline {
                     rank: s.rank(),
                     storage_texels: s.storage_texels(),
-                    metrics: evaluate(&held, |wo, wi| s.eval(wo, wi)),
+                    metrics: evaluate(&held, fact.floor, |wo, wi| s.eval(wo, wi)),
                 })
                 .collect(),
             (!source.is_evaluable()).then(|| {
@@ -319,6 +321,7 @@ pub fn factorize(
         res: opts.fit.res,
         hd_res: nd,
         smoothness: opts.fit.smoothness,
+        dynamic_range: opts.fit.dynamic_range,
         held_out: held.len(),
         factored,
         storage_texels: storage,

@@ -7,8 +7,10 @@ use rayon::prelude::*;
 /// Errors of an approximation over held-out samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Metrics {
-    /// `sqrt(mean(((f_hat - f) / f)^2))` over samples and channels with
-    /// `f > 0`.
+    /// `sqrt(mean(((f_hat - f) / max(f, floor))^2))` over samples and
+    /// channels with a value (`f >= 0`, finite): relative above the fit's
+    /// floor, relative to the floor below it (where a relative error
+    /// against `f = 1e-150` would measure nothing anyone sees).
     pub relative_rms: f64,
     /// `sqrt(mean(((f_hat - f) cos(theta_i))^2))` over the same terms (1/sr).
     pub cosine_abs_rms: f64,
@@ -16,8 +18,15 @@ pub struct Metrics {
     pub terms: usize,
 }
 
-/// Measures `approx` against the held-out samples.
-pub fn evaluate(held: &[Sample], approx: impl Fn(DVec3, DVec3) -> Rgb + Sync) -> Metrics {
+/// Measures `approx` against the held-out samples, relative errors
+/// against `max(f, floor)` per channel (the fit's floor,
+/// [`crate::Factorization::floor`]; zero for plain relative errors).
+pub fn evaluate(
+    held: &[Sample],
+    floor: Rgb,
+    approx: impl Fn(DVec3, DVec3) -> Rgb + Sync,
+) -> Metrics {
+    let floor = floor.to_array();
     let (rel, abs, n) = held
         .par_iter()
         .map(|s| {
@@ -28,8 +37,9 @@ pub fn evaluate(held: &[Sample], approx: impl Fn(DVec3, DVec3) -> Rgb + Sync) ->
             let f = f.to_array();
             let (mut rel, mut abs, mut n) = (0.0, 0.0, 0);
             for c in 0..3 {
-                if f[c] > 0.0 && f[c].is_finite() {
-                    rel += ((g[c] - f[c]) / f[c]).powi(2);
+                let base = f[c].max(floor[c]);
+                if f[c] >= 0.0 && f[c].is_finite() && base > 0.0 {
+                    rel += ((g[c] - f[c]) / base).powi(2);
                     abs += ((g[c] - f[c]) * s.wi.z).powi(2);
                     n += 1;
                 }

@@ -60,6 +60,13 @@ pub fn factors_toml(f: &Factorization, report: &Report) -> String {
     let _ = writeln!(s, "samples = {}", f.stats.samples);
     let _ = writeln!(s, "used = {:?}", f.stats.used);
     let _ = writeln!(s, "excluded = {:?}", f.stats.excluded);
+    let _ = writeln!(s, "dynamic_range = {:e}", report.dynamic_range);
+    let _ = writeln!(
+        s,
+        "floor = [{:e}, {:e}, {:e}]",
+        f.floor.r, f.floor.g, f.floor.b
+    );
+    let _ = writeln!(s, "floored = {:?}", f.stats.floored);
     let _ = writeln!(s, "held_out = {}", report.held_out);
     let _ = writeln!(s, "unknowns = {}", f.stats.unknowns);
     let _ = writeln!(s, "cholesky_factorizations = {}", f.stats.factorizations);

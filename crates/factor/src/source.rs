@@ -117,8 +117,9 @@ pub fn draw(source: &Source, n: usize, theta_max_deg: f64, seed: u64) -> Vec<Sam
 /// r, g, b` per line, an optional header line, `#` comments and blank
 /// lines ignored. Directions are normalized; rows whose directions lie
 /// below the horizon or beyond `theta_max_deg` are skipped and counted.
-/// Zero or negative values are missing data; a value that is not finite
-/// or beyond f32 is an error naming the line and field.
+/// Negative values are missing data, zero is a value (the fit takes it at
+/// its floor); a value that is not finite or beyond f32 is an error naming
+/// the line and field.
 pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> {
     let text = std::fs::read_to_string(path).map_err(|e| FactorError::Input {
         what: path.display().to_string(),
@@ -177,8 +178,8 @@ pub fn read_csv(path: &Path, theta_max_deg: f64) -> Result<Source, FactorError> 
             Ok(v / l)
         };
         let (wo, wi) = (dir(0, "wo")?, dir(3, "wi")?);
-        // Zero and negative values are missing data (the log fit excludes
-        // and counts them); a value that is not finite, or that f32 cannot
+        // Negative values are missing data (the fit excludes and counts
+        // them), zero is fitted at the floor; a value that is not finite, or that f32 cannot
         // hold, is a damaged file. Such rows used to be excluded like
         // missing data (infinity) or to fail the fit with "the fitted
         // scale [inf, ...] is out of range" (1e300).

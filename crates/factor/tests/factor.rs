@@ -212,8 +212,8 @@ fn conjugate_gradients_reach_the_dense_solution() {
     assert!(cg.stats.coarse_s > 0.0);
     let (md, mc) = (dense.material().unwrap(), cg.material().unwrap());
     let (ed, ec) = (
-        evaluate(&held, |a, b| md.f(a, b)).relative_rms,
-        evaluate(&held, |a, b| mc.f(a, b)).relative_rms,
+        evaluate(&held, dense.floor, |a, b| md.f(a, b)).relative_rms,
+        evaluate(&held, cg.floor, |a, b| mc.f(a, b)).relative_rms,
     );
     assert!((ed - ec).abs() <= 0.05 * ed, "dense {ed} vs CG {ec}");
     // The product at held-out pairs (the per-map split has a free scale).
@@ -269,7 +269,7 @@ fn svd_baseline_recovers_a_separable_brdf() {
     };
     let fits = Separable::fit(&src, 32, 80.0, 1).unwrap();
     let held = draw(&src, 5_000, 80.0, 3);
-    let e = evaluate(&held, |wo, wi| fits[0].eval(wo, wi));
+    let e = evaluate(&held, Rgb::BLACK, |wo, wi| fits[0].eval(wo, wi));
     assert!(
         e.relative_rms < 0.01,
         "separable source: {}",
@@ -416,33 +416,38 @@ fn missing_merl_entries_are_left_out_not_zeros() {
 }
 
 #[test]
-fn non_positive_values_are_excluded_and_counted() {
-    // Scattered samples of a constant BRDF with some zero and negative
-    // values in one channel: those are left out of that channel's fit only.
+fn negative_values_are_excluded_and_zeros_floored() {
+    // Scattered samples of a constant BRDF with some negative values in
+    // one channel (missing data): those are left out of that channel's fit
+    // only, which stays exact.
     let mut rng = Pcg32::new(7, 7);
-    let samples: Vec<Sample> = (0..4_000)
-        .map(|k| {
-            let wo = isolux_factor::source::uniform_cap(rng.next_2d(), 0.2);
-            let wi = isolux_factor::source::uniform_cap(rng.next_2d(), 0.2);
-            let g = match k % 10 {
-                0 => 0.0,
-                1 => -0.5,
-                _ => 0.2,
-            };
-            Sample {
-                wo,
-                wi,
-                f: Some(Rgb::new(0.1, g, 0.3)),
-            }
-        })
-        .collect();
+    let samples = |zero_every: Option<usize>, rng: &mut Pcg32| -> Vec<Sample> {
+        (0..4_000)
+            .map(|k| {
+                let wo = isolux_factor::source::uniform_cap(rng.next_2d(), 0.2);
+                let wi = isolux_factor::source::uniform_cap(rng.next_2d(), 0.2);
+                let g = match (k % 10, zero_every) {
+                    (0 | 1, None) => -0.5,
+                    (1, Some(_)) => -0.5,
+                    (k, Some(z)) if k % z == 0 => 0.0,
+                    _ => 0.2,
+                };
+                Sample {
+                    wo,
+                    wi,
+                    f: Some(Rgb::new(0.1, g, 0.3)),
+                }
+            })
+            .collect()
+    };
     let opts = FitOptions {
         res: 8,
         refine: 0,
         ..Default::default()
     };
-    let fact = fit(&samples, &opts).unwrap();
+    let fact = fit(&samples(None, &mut rng), &opts).unwrap();
     assert_eq!(fact.stats.excluded, [0, 800, 0]);
+    assert_eq!(fact.stats.floored, [0, 0, 0]);
     assert_eq!(
         fact.stats.factorizations, 2,
         "R and B share one factorization"
@@ -453,6 +458,64 @@ fn non_positive_values_are_excluded_and_counted() {
         (f.g - 0.2).abs() < 1e-6 && (f.r - 0.1).abs() < 1e-6,
         "{f:?}"
     );
+    // Zeros are values, fitted at the floor (1e-4 of the channel's
+    // largest): counted, and pulling the log fit down, never dropped.
+    let fact = fit(&samples(Some(10), &mut rng), &opts).unwrap();
+    assert_eq!(fact.stats.excluded, [0, 400, 0]);
+    assert_eq!(fact.stats.floored, [0, 400, 0]);
+    assert!((fact.floor.g - 0.2e-4).abs() < 1e-12, "{:?}", fact.floor);
+    let f = fact
+        .material()
+        .unwrap()
+        .f(DVec3::Z, DVec3::new(0.6, 0.0, 0.8));
+    assert!(f.g > 0.0 && f.g < 0.2 && (f.r - 0.1).abs() < 1e-6, "{f:?}");
+}
+
+/// The lobes without a diffuse term fall by hundreds of orders of magnitude
+/// (Beckmann 0.2 at 80 degrees: 1e-156) or to exactly 0 (Phong): fitting
+/// their raw logarithms, or dropping their zeros, gave factors whose
+/// products reached 1e43 between the samples, and errors of 1e100 or
+/// infinity. Fitted above the floor, each is finite, and the factors beat
+/// the rank-1 SVD baseline in the cosine-weighted absolute error (measured
+/// at 20,000 samples, 2026-12-03: Cook-Torrance 0.0037 against 0.0081,
+/// Beckmann 0.041 against 0.060, Phong 0.21 against 0.26).
+#[test]
+fn peaked_lobes_without_a_diffuse_term_factor_finitely() {
+    let materials = [
+        ("cook_torrance, no diffuse", cook_torrance(0.3, 0.0)),
+        (
+            "beckmann 0.2",
+            Material::Beckmann(isolux_materials::Beckmann::new(0.2, 0.2, Fresnel::One)),
+        ),
+        (
+            "phong 100",
+            Material::Phong(isolux_materials::Phong::new(
+                100.0,
+                Rgb::splat(0.5),
+                Rgb::BLACK,
+            )),
+        ),
+    ];
+    for (name, material) in materials {
+        let src = Source::Material {
+            label: name.into(),
+            material: Box::new(material),
+        };
+        let opts = RunOptions {
+            samples: 20_000,
+            held_out: 4_000,
+            svd_ranks: 1,
+            ..Default::default()
+        };
+        let (fact, report) = factorize(&src, &opts).unwrap();
+        assert!(fact.stats.floored[0] > 0, "{name}: nothing below the floor");
+        let (f, s) = (report.factored, report.baselines[0].metrics);
+        assert!(
+            f.relative_rms.is_finite() && f.relative_rms < 2.0,
+            "{name}: {report}"
+        );
+        assert!(f.cosine_abs_rms < s.cosine_abs_rms, "{name}: {report}");
+    }
 }
 
 #[test]
@@ -518,7 +581,7 @@ fn csv_samples_fit_like_the_material_and_errors_name_the_line() {
             .to_string();
         assert!(e.contains("s.csv:2") && e.contains(want), "{e}");
     }
-    // Zero and negative values stay missing data.
+    // Zero and negative values are data and missing data.
     std::fs::write(&path, "0,0,1,0,0,1,0,-0.1,0.1\n").unwrap();
     assert!(isolux_factor::read_csv(&path, 80.0).is_ok());
 }

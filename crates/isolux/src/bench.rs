@@ -239,7 +239,7 @@ fn factor(repeat: u32) -> Result<()> {
                 format!("Cholesky x {}", s.factorizations)
             };
             let m = f.material()?;
-            let err = evaluate(&held, |wo, wi| {
+            let err = evaluate(&held, f.floor, |wo, wi| {
                 use isolux_materials::BxdfModel;
                 m.f(wo, wi)
             })

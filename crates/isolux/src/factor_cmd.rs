@@ -38,6 +38,10 @@ pub struct FactorArgs {
     /// Weight of the Laplacian smoothness term.
     #[arg(long, default_value_t = isolux_factor::fit::DEFAULT_SMOOTHNESS)]
     smoothness: f64,
+    /// Floor of the fit relative to each channel's largest value (1e-8 to
+    /// 0.1): smaller values, zeros included, are fitted and measured as it.
+    #[arg(long = "dynamic-range", default_value_t = isolux_factor::fit::DEFAULT_DYNAMIC_RANGE)]
+    dynamic_range: f64,
     /// Largest polar angle of wo and wi in the fit, degrees (at most 90).
     #[arg(long = "theta-max", default_value_t = 80.0)]
     theta_max: f64,
@@ -73,6 +77,7 @@ pub fn run(a: FactorArgs) -> Result<()> {
     opts.fit.refine = a.refine;
     opts.fit.hd_res = a.hd_res;
     opts.fit.theta_max_deg = a.theta_max;
+    opts.fit.dynamic_range = a.dynamic_range;
     opts.samples = a.fit_samples;
     opts.held_out = a.held_out;
     opts.svd_ranks = a.svd_rank;
@@ -166,8 +171,15 @@ pub fn run(a: FactorArgs) -> Result<()> {
     let ex = s.excluded;
     if ex.iter().any(|e| *e > 0) {
         eprintln!(
-            "isolux: excluded from the log fit (missing, non-positive or non-finite): R {} G {} B {} of {}",
+            "isolux: excluded from the log fit (missing: negative or non-finite): R {} G {} B {} of {}",
             ex[0], ex[1], ex[2], s.samples
+        );
+    }
+    let fl = s.floored;
+    if fl.iter().any(|e| *e > 0) {
+        eprintln!(
+            "isolux: fitted at the floor ({:e} of each channel's largest value): R {} G {} B {} of {}",
+            opts.fit.dynamic_range, fl[0], fl[1], fl[2], s.samples
         );
     }
     print!("{report}");

@@ -106,6 +106,7 @@ fn cases(dir: &Path) -> Vec<Case> {
                 ("--res", "4"),
                 ("--hd-res", "0"),
                 ("--smoothness", "0.001"),
+                ("--dynamic-range", "1e-4"),
                 ("--theta-max", "80"),
                 ("--fit-samples", "500"),
                 ("--held-out", "100"),
