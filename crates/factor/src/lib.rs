@@ -243,6 +243,15 @@ impl fmt::Display for Report {
     }
 }
 
+/// Three significant digits, in exponent form outside 1e-3..1e4.
+fn short(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-3..1e4).contains(&v.abs()) {
+        format!("{v:.2e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
 /// Runs the whole pipeline: samples, fit, held-out errors, baseline.
 pub fn factorize(
     source: &Source,
@@ -287,6 +296,20 @@ pub fn factorize(
     let material = fact.material()?;
     use isolux_materials::BxdfModel;
     let factored = evaluate(&held, fact.floor, |wo, wi| material.f(wo, wi));
+    // A fit whose error exceeds the BRDF itself is not an approximation of
+    // it: with `--smoothness 0` the texels no sample reaches are left free,
+    // and their products reached 1e12 (cosine-weighted error 7e12 on a
+    // Cook-Torrance lobe of RMS 0.1), a result that used to be written.
+    if !(factored.cosine_abs_rms <= factored.reference_rms) {
+        return Err(FactorError::Fit(format!(
+            "the factors miss the BRDF: their cosine-weighted error on the held-out samples, \
+             {}, exceeds the BRDF's own RMS, {} (zero would approximate it better); \
+             adjust --smoothness (now {}), or fit more samples",
+            short(factored.cosine_abs_rms),
+            short(factored.reference_rms),
+            isolux_core::short_number(opts.fit.smoothness)
+        )));
+    }
     let nd = opts.fit.hd_res();
     let storage = 2 * opts.fit.res * opts.fit.res + nd * nd;
     let (baselines, baseline_note) = if opts.svd_ranks == 0 {
