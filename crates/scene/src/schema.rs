@@ -383,8 +383,12 @@ fn material(
             let m = match t.get("m") {
                 Some(v) => {
                     let m = v.f64()?;
-                    if !(m > 0.0 && m <= 1.0) {
-                        return Err(v.error(format!("m must lie in (0, 1], got {m}")));
+                    let least = isolux_materials::gaussian::MIN_M;
+                    if !(m >= least && m <= 1.0) {
+                        return Err(v.error(format!(
+                            "m must lie in [{least:e}, 1] radians, got {m} (a narrower highlight \
+                             is a mirror: use `conductor`, or `ggx` with a small roughness)"
+                        )));
                     }
                     m
                 }

@@ -333,7 +333,10 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[material]]\nname = \"g\"\ntype = \"dielectric\"\n[[material]]\nname = \"x\"\ntype = \"mix\"\ncomponents = [{ material = \"g\", weight = 0.5 }]\n", "s.toml:7:28: material[1].components[0].material: \"g\" is a delta (dielectric) material"),
         ("[[material]]\nname = \"c\"\ntype = \"cook_torrance\"\ndistribution = \"gaussian\"\nmasking = \"smith\"\n", "s.toml:5:11: material[0].masking: smith masking needs distribution"),
         ("[[material]]\nname = \"c\"\ntype = \"cook_torrance\"\ndistribution = \"phong\"\n", "s.toml:4:16: material[0].distribution: unknown value \"phong\" (valid: beckmann, ggx, gaussian)"),
-        ("[[material]]\nname = \"c\"\ntype = \"gaussian\"\nm = 1.5\n", "s.toml:4:5: material[0].m: m must lie in (0, 1], got 1.5"),
+        ("[[material]]\nname = \"c\"\ntype = \"gaussian\"\nm = 1.5\n", "s.toml:4:5: material[0].m: m must lie in [1e-3, 1] radians, got 1.5"),
+        // Narrower than the sampling table's bins; at 1e-4 the old
+        // normalization made it 62,000 times too bright.
+        ("[[material]]\nname = \"c\"\ntype = \"gaussian\"\nm = 1e-4\n", "s.toml:4:5: material[0].m: m must lie in [1e-3, 1] radians, got 0.0001 (a narrower highlight is a mirror: use `conductor`, or `ggx` with a small roughness)"),
         ("[[material]]\nname = \"w\"\ntype = \"ward\"\nalpha_u = -0.1\n", "s.toml:4:11: material[0].alpha_u: alpha_u must lie in (0, 10], got -0.1"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface_brdf\"\nmedium = \"jelly\"\n", "s.toml:4:10: material[0].medium: unknown medium \"jelly\" (valid: apple, chicken1, chicken2, cream, ketchup, marble, potato, skimmilk, skin1, skin2, spectralon, wholemilk)"),
         ("[[material]]\nname = \"s\"\ntype = \"subsurface_brdf\"\nsigma_s = [1, 1, 1]\nsigma_a = [0.1, -0.1, 0.1]\n", "s.toml:5:11: material[0].sigma_a: sigma_a must be non-negative"),
