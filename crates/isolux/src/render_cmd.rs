@@ -165,6 +165,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(p) = scene.film.problem() {
         bail!("{}", by_flag(&p));
     }
+    for why in scene.rough_wave_materials() {
+        eprintln!("isolux: warning: {}: {why}", a.scene.display());
+    }
     if let Some(why) = scene.camera_in_medium() {
         eprintln!("isolux: warning: {}: {why}", a.scene.display());
     }

@@ -344,6 +344,9 @@ fn brdf(b: BrdfArgs) -> Result<()> {
         },
         ..Settings::default()
     };
+    if let Some(why) = m.roughness_warning() {
+        eprintln!("isolux: warning: {}: {why}", b.heightfield.display());
+    }
     if let Some(why) = m.coherence_problem(b.sigma_um) {
         bail!("--sigma-um {why}");
     }

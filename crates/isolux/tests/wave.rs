@@ -490,3 +490,53 @@ fn render_gpu_draws_wave_optics() {
     assert!(v.iter().all(|c| c.is_finite() && *c >= 0.0));
     assert!(v.iter().any(|&c| c > 0.0), "a black image");
 }
+
+/// A heightfield too rough for the single-scattering model (RMS slope
+/// about 1, where the albedo falls to a third) is rendered with a warning
+/// naming its slope; a smooth one gets none.
+#[test]
+fn a_rough_heightfield_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    for (rms, warned) in [("1", true), ("0.05", false)] {
+        let field = dir.path().join(format!("n{rms}.exr"));
+        let o = run(&[
+            "heightfield",
+            "gen",
+            "--kind",
+            "noise",
+            "--width",
+            "64",
+            "--texel-um",
+            "0.25",
+            "--rms-um",
+            rms,
+            "--corr-um",
+            "2",
+            "-o",
+            field.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = dir.path().join("b.exr");
+        let o = run(&[
+            "wave",
+            "brdf",
+            "--heightfield",
+            field.to_str().unwrap(),
+            "--center-um",
+            "4,4",
+            "--sigma-um",
+            "2",
+            "--incident",
+            "0,0,1",
+            "--lambda-um",
+            "0.5",
+            "--res",
+            "8",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert_eq!(err.contains("RMS slope"), warned, "rms {rms}: {err}");
+    }
+}

@@ -75,6 +75,13 @@ use isolux_core::{DVec3, Rgb};
 use isolux_wave::{Comb, Footprint, GaborSurface, Model, Settings};
 use std::sync::Arc;
 
+/// The RMS slope above which [`Wave::roughness_warning`] warns. The model
+/// scatters once, so light that a rough field sends beyond the horizon is
+/// lost: a noise field's directional albedo (normal incidence, `F = 1`)
+/// is 0.994 at RMS slope 0.05, 0.856 at 0.3, 0.327 at 1 and 0.027 at 3
+/// (docs/wave-optics.md, "Limits").
+pub const ROUGH_SLOPE: f64 = 0.3;
+
 /// The most hero wavelengths per query (`wavelengths`).
 pub const MAX_WAVELENGTHS: usize = 16;
 
@@ -252,6 +259,20 @@ impl Wave {
                 } else {
                     format!("{most:.2e}")
                 },
+            )
+        })
+    }
+
+    /// A warning when the heightfield is too rough for the model (RMS slope
+    /// above [`ROUGH_SLOPE`]): it then loses energy rather than failing.
+    pub fn roughness_warning(&self) -> Option<String> {
+        let s = self.surface.rms_slope();
+        (s > ROUGH_SLOPE).then(|| {
+            format!(
+                "its heightfield's RMS slope is {s:.2}, above the {ROUGH_SLOPE} the \
+                 single-scattering wave model holds: the light it sends beyond the horizon \
+                 is lost (a directional albedo of about 0.33 at slope 1; docs/wave-optics.md, \
+                 Limits); a microfacet model (ggx, beckmann) describes such a surface"
             )
         })
     }

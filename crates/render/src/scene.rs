@@ -153,6 +153,31 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Warnings for `wave` materials (a mix's leaves included) whose
+    /// heightfield is too rough for the single-scattering model
+    /// ([`isolux_materials::wave::ROUGH_SLOPE`]), each naming the material.
+    pub fn rough_wave_materials(&self) -> Vec<String> {
+        fn find(m: &Material) -> Option<String> {
+            match m {
+                Material::Wave(w) => w.roughness_warning(),
+                Material::Mix(mix) => mix.components.iter().find_map(|(c, _)| find(c)),
+                _ => None,
+            }
+        }
+        self.materials
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| {
+                find(m).map(|why| {
+                    format!(
+                        "material \"{}\": {why}",
+                        self.material_names.get(i).map_or("?", |n| n.as_str())
+                    )
+                })
+            })
+            .collect()
+    }
+
     /// A warning when the camera lies inside an object whose material is a
     /// random-walk medium (`subsurface` in `random_walk` mode): paths
     /// start outside every medium (`integrator.rs`), so the medium around

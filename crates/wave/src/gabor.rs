@@ -322,6 +322,17 @@ impl GaborSurface {
         (self.h[i], self.gx[i], self.gy[i])
     }
 
+    /// The RMS of the slope `|grad h|` over the field (dimensionless).
+    pub fn rms_slope(&self) -> f64 {
+        let sum: f64 = self
+            .gx
+            .iter()
+            .zip(&self.gy)
+            .map(|(&x, &y)| (x as f64).powi(2) + (y as f64).powi(2))
+            .sum();
+        (sum / self.gx.len().max(1) as f64).sqrt()
+    }
+
     /// Heights (um) and slopes `x`, `y` of every kernel, row-major (the
     /// GPU's copy is made from these).
     pub fn kernels(&self) -> (&[f32], &[f32], &[f32]) {
