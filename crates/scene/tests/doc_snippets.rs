@@ -20,6 +20,17 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The files of `dir` with extension `ext`, sorted.
+fn files_ending(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == ext))
+        .collect();
+    files.sort();
+    files
+}
+
 /// The ` ```toml ` blocks of a Markdown file: (first line number, text), each
 /// line stripped of the block's common indentation (a block in a list).
 fn toml_blocks(text: &str) -> Vec<(usize, String)> {
@@ -75,13 +86,7 @@ fn as_scene(block: &str) -> String {
 #[test]
 fn every_toml_block_of_the_docs_parses() {
     let mut files = vec![root().join("README.md")];
-    let mut docs: Vec<PathBuf> = std::fs::read_dir(root().join("docs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "md"))
-        .collect();
-    docs.sort();
-    files.extend(docs);
+    files.extend(files_ending(&root().join("docs"), "md"));
     let scenes = root().join("examples/scenes");
     let mut checked = 0;
     let mut failures = Vec::new();
@@ -156,11 +161,13 @@ fn table_keys(doc: &[String]) -> BTreeSet<String> {
     keys
 }
 
-/// The keys the parser accepts in the last `[[material]]` of `block`, read
-/// from its error for a key it cannot know.
-fn accepted_keys(block: &str, dir: &Path) -> BTreeSet<String> {
-    let probe = as_scene(&format!("{}\nzzz_not_a_key = 1\n", block.trim_end()));
-    let e = isolux_scene::parse_str(&probe, Path::new("probe"), dir)
+/// The key the probes add, which no table accepts.
+const NOT_A_KEY: &str = "zzz_not_a_key = 1\n";
+
+/// The keys the parser accepts in the table where `probe` puts
+/// [`NOT_A_KEY`], read from its error for that key.
+fn valid_keys(probe: &str, dir: &Path) -> BTreeSet<String> {
+    let e = isolux_scene::parse_str(probe, Path::new("probe"), dir)
         .unwrap_err()
         .to_string();
     let list = e
@@ -168,22 +175,23 @@ fn accepted_keys(block: &str, dir: &Path) -> BTreeSet<String> {
         .nth(1)
         .and_then(|rest| rest.split(')').next())
         .unwrap_or_else(|| panic!("no list of valid keys in: {e}"));
-    list.split(',')
-        .map(|k| k.trim().to_string())
-        .filter(|k| k != "name" && k != "type")
-        .collect()
+    list.split(',').map(|k| k.trim().to_string()).collect()
+}
+
+/// The keys the parser accepts in the last `[[material]]` of `block`,
+/// `name` and `type` aside.
+fn accepted_keys(block: &str, dir: &Path) -> BTreeSet<String> {
+    let probe = as_scene(&format!("{}\n{NOT_A_KEY}", block.trim_end()));
+    let mut keys = valid_keys(&probe, dir);
+    keys.retain(|k| k != "name" && k != "type");
+    keys
 }
 
 #[test]
 fn every_material_doc_parses_and_its_table_names_the_accepted_keys() {
     let src_dir = root().join("crates/materials/src");
     let scenes = root().join("examples/scenes");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&src_dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
-        .collect();
-    files.sort();
+    let files = files_ending(&src_dir, "rs");
     let mut checked = Vec::new();
     let mut failures = Vec::new();
     for file in &files {
@@ -265,19 +273,9 @@ fn section_keys(doc: &str, heading: &str) -> BTreeSet<String> {
     table_keys(&table)
 }
 
-/// The keys the parser accepts in the table that `scene` ends with, from
-/// its error for a key it cannot know.
+/// The keys the parser accepts in the table that `scene` ends with.
 fn accepted_in(scene: &str) -> BTreeSet<String> {
-    let probe = format!("{scene}zzz_not_a_key = 1\n");
-    let e = isolux_scene::parse_str(&probe, Path::new("probe"), Path::new("."))
-        .unwrap_err()
-        .to_string();
-    let list = e
-        .split("valid keys here: ")
-        .nth(1)
-        .and_then(|rest| rest.split(')').next())
-        .unwrap_or_else(|| panic!("no list of valid keys in: {e}"));
-    list.split(',').map(|k| k.trim().to_string()).collect()
+    valid_keys(&format!("{scene}{NOT_A_KEY}"), Path::new("."))
 }
 
 /// docs/scene-format.md's tables of the scene's sections name exactly the
