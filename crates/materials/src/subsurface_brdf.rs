@@ -242,6 +242,7 @@ impl BxdfModel for SubsurfaceBrdf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::validate::albedo_quadrature;
 
     /// The single-scattering albedo of [`lobe_albedos`] against a plain
     /// midpoint quadrature of the BRDF over the outer hemisphere.
@@ -256,19 +257,7 @@ mod tests {
             (0.9, 1.3, 0.5),
         ] {
             let wi = DVec3::new((1.0 - cos_i * cos_i).sqrt(), 0.0, cos_i);
-            let (nt, np) = (600, 1200);
-            let mut sum = 0.0;
-            for it in 0..nt {
-                // In cos theta, so that dw cos = d(cos^2 / 2) dphi.
-                let mu = (it as f64 + 0.5) / nt as f64;
-                let st = (1.0 - mu * mu).sqrt();
-                for ip in 0..np {
-                    let phi = 2.0 * std::f64::consts::PI * (ip as f64 + 0.5) / np as f64;
-                    let wo = DVec3::new(st * phi.cos(), st * phi.sin(), mu);
-                    sum += single_scattering(wo, wi, 1.0, g, eta) * mu;
-                }
-            }
-            let direct = sum * (1.0 / nt as f64) * (2.0 * std::f64::consts::PI / np as f64);
+            let direct = albedo_quadrature(|wo| single_scattering(wo, wi, 1.0, g, eta), 600);
             let (multiple, single) = lobe_albedos(g, eta, cos_i);
             assert!(
                 (single / direct - 1.0).abs() < 2e-3,
@@ -285,19 +274,8 @@ mod tests {
     /// (independent of [`lobe_albedos`]).
     fn albedo_direct(m: &SubsurfaceBrdf, cos_i: f64) -> [f64; 3] {
         let wi = DVec3::new((1.0 - cos_i * cos_i).sqrt(), 0.0, cos_i);
-        let (nt, np) = (300, 600);
-        let mut sum = Rgb::BLACK;
-        for it in 0..nt {
-            let mu = (it as f64 + 0.5) / nt as f64;
-            let st = (1.0 - mu * mu).sqrt();
-            for ip in 0..np {
-                let phi = 2.0 * std::f64::consts::PI * (ip as f64 + 0.5) / np as f64;
-                let wo = DVec3::new(st * phi.cos(), st * phi.sin(), mu);
-                sum += m.f(wo, wi) * mu;
-            }
-        }
-        let w = (1.0 / nt as f64) * (2.0 * std::f64::consts::PI / np as f64);
-        (sum * w).to_array().map(|v| v + dielectric(cos_i, m.eta))
+        let mirror = dielectric(cos_i, m.eta);
+        [0, 1, 2].map(|c| albedo_quadrature(|wo| m.f(wo, wi).to_array()[c], 300) + mirror)
     }
 
     /// A white furnace for every named medium and for the parameters that
