@@ -278,24 +278,6 @@ pub fn generate(
                     h[r * width + col] = (amplitude_um * ph.sin()) as f32;
                 }
             }
-            // A field too small for the grating samples too little of a
-            // period to vary (1 x 64 texels across a grating along x, or
-            // 2 x 2 texels of a 4 um period): it came out flat, RMS 0,
-            // where an amplitude was asked for.
-            let mean = h.iter().map(|&v| v as f64).sum::<f64>() / h.len() as f64;
-            let rms =
-                (h.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / h.len() as f64).sqrt();
-            if amplitude_um > 0.0 && rms < 0.01 * amplitude_um / std::f64::consts::SQRT_2 {
-                return Err(HeightfieldError::Invalid(format!(
-                    "a field of {} x {} um is too small for a grating of period {} um at {} degrees: \
-                     its texels come out flat where an amplitude of {} um was asked for",
-                    short_number(width as f64 * texel_um),
-                    short_number(height as f64 * texel_um),
-                    short_number(period_um),
-                    short_number(direction_deg),
-                    short_number(amplitude_um)
-                )));
-            }
             h
         }
     };
@@ -306,7 +288,30 @@ pub fn generate(
                 .into(),
         ));
     }
-    Heightfield::new(width, height, texel_um, data)
+    let field = Heightfield::new(width, height, texel_um, data)?;
+    // A field too small for its grating samples too little of a period to
+    // vary (1 x 64 texels across a grating along x, or 2 x 2 texels of a
+    // 4 um period): it came out flat, RMS 0, where an amplitude was asked
+    // for.
+    if let Kind::Grating {
+        period_um,
+        amplitude_um,
+        direction_deg,
+    } = *kind
+    {
+        if amplitude_um > 0.0 && field.rms() < 0.01 * amplitude_um / std::f64::consts::SQRT_2 {
+            return Err(HeightfieldError::Invalid(format!(
+                "a field of {} x {} um is too small for a grating of period {} um at {} degrees: \
+                 its texels come out flat where an amplitude of {} um was asked for",
+                short_number(width as f64 * texel_um),
+                short_number(height as f64 * texel_um),
+                short_number(period_um),
+                short_number(direction_deg),
+                short_number(amplitude_um)
+            )));
+        }
+    }
+    Ok(field)
 }
 
 fn gauss(rng: &mut Pcg32) -> f64 {
