@@ -622,7 +622,9 @@ impl GpuMaterials {
     /// theta_d)` table (0: none), then `ln r` per texel (3 floats each,
     /// row-major, rows `theta_h`). A `subsurface` material keeps its mode
     /// in `tag.w` (0 dipole, 1 random walk), its per-channel dipoles at
-    /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b) and the radial
+    /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b, then the
+    /// energy scale of both scattering terms per channel,
+    /// `Subsurface::scattering_scale`) and the radial
     /// sampling tables of the channels at `idx[1..4]` (each `[n, cdf,
     /// pdf]`), all in scene units. A `wave` material keeps `model |
     /// obliquity << 1` in `tag.w` and its Fresnel kind in `tag.y` (ONE,
@@ -868,6 +870,8 @@ impl GpuMaterials {
                     self.data
                         .extend([d.sigma_tr, d.z_r, d.z_v, d.albedo_reduced].map(|v| v as f32));
                 }
+                self.data
+                    .extend(m.scattering_scale().to_array().map(|v| v as f32));
                 for c in 0..3 {
                     g.idx[1 + c] = self.table(m.radial_table(c));
                 }
@@ -1150,13 +1154,19 @@ mod tests {
         let g = GpuMaterials::new(&[half]).unwrap();
         assert_eq!(g.materials[1].tag[0], tag::DIELECTRIC);
         assert_eq!(g.materials[1].a[0], 1.3);
+        let Material::Subsurface(medium) = &milk else {
+            unreachable!()
+        };
+        let scale = medium.scattering_scale();
         let g = GpuMaterials::new(&[milk]).unwrap();
         let m = g.materials[0];
         assert_eq!((m.tag[0], m.tag[3]), (tag::SUBSURFACE, 0));
-        // Dipoles, then three tables of 4096 bins ([n, cdf, pdf]).
-        assert_eq!(m.idx, [0, 12, 12 + 8194, 12 + 2 * 8194]);
-        assert_eq!(g.data[12], 4096.0);
-        assert_eq!(g.data.len(), 12 + 3 * 8194);
+        // Dipoles, the energy scale, then three tables of 4096 bins ([n,
+        // cdf, pdf]).
+        assert_eq!(m.idx, [0, 15, 15 + 8194, 15 + 2 * 8194]);
+        assert_eq!(g.data[12..15], scale.to_array().map(|v| v as f32));
+        assert_eq!(g.data[15], 4096.0);
+        assert_eq!(g.data.len(), 15 + 3 * 8194);
     }
 
     #[test]

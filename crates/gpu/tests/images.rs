@@ -300,6 +300,69 @@ base = { type = "sphere", center = [0.3, -0.2, 0.0], radius = 0.8 }
     assert!(s[0].0 > s[1].0 && s[1].0 > s[2].0, "{s:?}");
 }
 
+/// A non-absorbing dipole medium with its single-scattering term, under a
+/// white sky, optically thick (16 reduced mean free paths in radius).
+/// Jensen's published sum `S^(1) + S_d` rendered 1.054 on the CPU; both
+/// terms are now scaled per channel to keep energy
+/// (`Subsurface::scattering_scale`, carried to the GPU after the
+/// dipoles). The GPU must render it within energy, and as the CPU does
+/// (measured on the CPU: 0.918).
+#[test]
+fn dipole_medium_with_single_scattering_keeps_energy_on_the_gpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let src = r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov_y = 30.0
+[film]
+width = 64
+height = 48
+spp = 16
+[integrator]
+max_depth = 32
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "medium"
+type = "subsurface"
+sigma_s_reduced = [20.0, 20.0, 20.0]
+sigma_a = [0.0, 0.0, 0.0]
+mode = "dipole"
+[[object]]
+material = "medium"
+base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.8 }
+"#;
+    let scene = isolux_scene::parse_str(src, Path::new("dipole.toml"), Path::new(".")).unwrap();
+    // The mean over the sphere's pixels (those that differ from the white
+    // background) and its standard error.
+    let stats = |img: &Image| {
+        let px: Vec<f64> = img
+            .rgb
+            .iter()
+            .filter(|p| p.iter().any(|v| (v - 1.0).abs() > 1e-6))
+            .map(|p| p.iter().map(|&v| v as f64).sum::<f64>() / 3.0)
+            .collect();
+        let n = px.len() as f64;
+        assert!(n > 300.0, "too few sphere pixels: {n}");
+        let m = px.iter().sum::<f64>() / n;
+        let v = px.iter().map(|p| (p - m).powi(2)).sum::<f64>() / n;
+        (m, (v / n).sqrt())
+    };
+    let (g, gse) = stats(&gpu_image(&gpu, &scene));
+    let (c, cse) = stats(&cpu_image(&scene));
+    eprintln!("dipole + single scattering, no absorption: GPU {g} +- {gse}, CPU {c} +- {cse}");
+    assert!(g > 0.85 && g < 1.0 + 4.0 * gse + 1e-3, "GPU {g} +- {gse}");
+    let se = (gse * gse + cse * cse).sqrt();
+    assert!(
+        (g - c).abs() < 4.0 * se + 5e-3,
+        "GPU {g} against CPU {c} +- {se}"
+    );
+}
+
 /// The random walk at many samples (`--ignored`: minutes on Mesa 22.3's
 /// lavapipe, CI's driver, whose loop miscompile loses some of these long
 /// paths, docs/gpu.md): the image means of `SEEDS` renders on each side

@@ -525,7 +525,7 @@ fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
     // paths): the dipole's total reflectance is 1, so under a white sky
     // the sphere renders 1 less the profile's power-law tail that lies
     // beyond the object: int_{r > 1.6} R_d 2 pi r dr ~ (z_r + z_v)/3.2 = 8%
-    // (measured: 0.927).
+    // (measured: 0.929).
     let white = |single: bool| {
         medium_scene(
             &format!("type = \"subsurface\"\nsigma_s_reduced = [20.0, 20.0, 20.0]\nsigma_a = [0.0, 0.0, 0.0]\nmode = \"dipole\"\nsingle_scattering = {single}"),
@@ -541,17 +541,26 @@ fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
             mean[c]
         );
     }
-    // Jensen's S^(1) + S_d double-counts low orders: measured 1.054. The
-    // bound guards the size of that known excess.
-    let (mean1, _) = channel_means(&white(true));
-    eprintln!("dipole + single scattering, no absorption: {mean1:?}");
-    assert!(mean1[0] > mean[0] && mean1[0] < 1.08, "{mean1:?}");
+    // Jensen's S^(1) + S_d double-counts low orders: published, it
+    // rendered 1.054. Both terms are now scaled per channel to keep the
+    // half-space's directional albedo within 1 at every angle
+    // (subsurface::energy), so the sphere renders within energy: measured
+    // 0.918, against 0.929 for the dipole alone.
+    let (mean1, se1) = channel_means(&white(true));
+    eprintln!("dipole + single scattering, no absorption: {mean1:?} +- {se1:?}");
+    for c in 0..3 {
+        assert!(
+            mean1[c] > 0.85 && mean1[c] < 1.0 + 4.0 * se1[c] + 1e-3,
+            "channel {c}: {}",
+            mean1[c]
+        );
+    }
     // Dipole (diffusion term alone: its known error is the diffusion
     // approximation's) against the exact random walk where the dipole's
     // assumptions hold: a half-space (a plane, the medium below, bounds far away) under
     // the white sky, reduced albedo 0.99 / 0.9 / 0.7 per channel; the
     // centre region seen from above.
-    let half_space = |mode: &str, spp: u32| {
+    let half_space_with = |mode: &str, spp: u32, sigma_a: &str, single: bool| {
         let src = format!(
             r#"
 [camera]
@@ -572,9 +581,9 @@ radiance = [1.0, 1.0, 1.0]
 name = "m"
 type = "subsurface"
 sigma_s_reduced = [20.0, 20.0, 20.0]
-sigma_a = [0.202, 2.222, 8.571]
+sigma_a = {sigma_a}
 mode = "{mode}"
-single_scattering = false
+single_scattering = {single}
 [[object]]
 material = "m"
 base = {{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }}
@@ -583,6 +592,8 @@ bounds = {{ min = [-40.0, -40.0, -40.0], max = [40.0, 1.0, 40.0] }}
         );
         render_with(&scene(&src), 2)
     };
+    let half_space =
+        |mode: &str, spp: u32| half_space_with(mode, spp, "[0.202, 2.222, 8.571]", false);
     let means = |img: &Image| -> [f64; 3] {
         let n = img.rgb.len() as f64;
         [0, 1, 2].map(|c| img.rgb.iter().map(|p| p[c] as f64).sum::<f64>() / n)
@@ -599,6 +610,17 @@ bounds = {{ min = [-40.0, -40.0, -40.0], max = [40.0, 1.0, 40.0] }}
         eprintln!("channel {c}: dipole / walk - 1 = {:+.1}%", rel * 100.0);
         assert!(md[c] <= 1.0 && mw[c] <= 1.0);
         assert!(rel > bounds[c].0 && rel < bounds[c].1, "channel {c}: {rel}");
+    }
+    // The white furnace of the published sum in its own geometry: a
+    // non-absorbing half-space under the white sky reflects everything
+    // (the random walk's 1), so with single scattering on it must not
+    // exceed 1. The published S^(1) + S_d rendered 1.108 here; scaled,
+    // measured 0.953 (the dipole alone: 0.987, its profile beyond r_max
+    // ignored).
+    let white_plane = means(&half_space_with("dipole", 16, "[0.0, 0.0, 0.0]", true));
+    eprintln!("non-absorbing half-space, dipole + single scattering: {white_plane:?}");
+    for (c, v) in white_plane.iter().enumerate() {
+        assert!(*v > 0.9 && *v <= 1.005, "channel {c}: {v}");
     }
 }
 

@@ -23,8 +23,9 @@
 //! medium at `ior = 1` 1.46). So [`SubsurfaceBrdf::new`] computes each
 //! channel's directional albedo at 16 incidence angles ([`lobe_albedos`])
 //! and, where it exceeds 1, scales both scattering terms down to leave it
-//! 0.5% below; the other ten named media are the published model
-//! unchanged. Reciprocal.
+//! 0.5% below ([`crate::subsurface::energy`], which lists the factors);
+//! of the named media `spectralon`, `cream` and `wholemilk` change, the
+//! other nine are the published model unchanged. Reciprocal.
 //! A fast preview of the `subsurface` material: it ignores the blur of
 //! light across the surface. Sampling: the mirror with probability
 //! `F(cos_o)`, otherwise cosine-weighted.
@@ -54,7 +55,9 @@
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::fresnel::dielectric;
-use crate::subsurface::phase::{hg, sample_hg_cos, single_scattering};
+pub use crate::subsurface::energy::lobe_albedos;
+use crate::subsurface::energy::{energy_scale, DiffuseExit};
+use crate::subsurface::phase::single_scattering;
 use crate::subsurface::Dipole;
 use isolux_core::{sampling, DVec3, Rgb, INV_PI};
 
@@ -71,74 +74,13 @@ pub struct SubsurfaceBrdf {
     pub eta: f64,
 }
 
-/// Incidence angles (evenly in `cos`) at which [`SubsurfaceBrdf::new`]
-/// checks the directional albedo.
-const ENERGY_ANGLES: usize = 16;
-
-/// What the energy check leaves below 1 where it scales the medium's
-/// terms down (the largest albedo may fall between its angles).
-const ENERGY_MARGIN: f64 = 0.005;
-
-/// The directional albedos, at incidence `cos_i`, of the two scattering
-/// terms per unit of their weights: `(multiple, single)`, so that the
-/// albedo of everything but the mirror is `r_d multiple + a single`.
-///
-/// The multiple-scattering term's is closed: `T(cos_i) (1 - F_dr,ext)`.
-/// The single-scattering term's is integrated over the scattered
-/// propagation direction inside, in coordinates about the refracted
-/// incident direction that follow Henyey-Greenstein's inverse CDF for
-/// `g <= 0` (a grid of 256 x 96, so that a sharp backward peak costs no
-/// more than a flat one), each direction carried out through the boundary
-/// (`cos_o dw_o = eta^2 cos_o' dw_o'`). Against a direct quadrature over
-/// the outer hemisphere it agrees within 0.2% for g from -0.9 to 0.9.
-pub fn lobe_albedos(g: f64, eta: f64, cos_i: f64) -> (f64, f64) {
-    let t_in = 1.0 - dielectric(cos_i, eta);
-    let multiple = t_in * (1.0 - crate::fresnel::diffuse_external(eta));
-    let wi = DVec3::new((1.0 - cos_i * cos_i).max(0.0).sqrt(), 0.0, cos_i);
-    let Some((ti, _)) = crate::dielectric::refract(wi, eta) else {
-        return (multiple, 0.0);
-    };
-    let ti = ti.normalize();
-    let t1 = if ti.x.abs() < 0.9 {
-        ti.cross(DVec3::X).normalize()
-    } else {
-        ti.cross(DVec3::Y).normalize()
-    };
-    let t2 = ti.cross(t1);
-    let (nu, nphi) = (256, 96);
-    // The grid follows the phase function where its peak is backward, the
-    // way out; a forward peak points into the medium, where the grid would
-    // waste itself (1.6% off at g = 0.9), so there it is even in cos.
-    let g_grid = g.min(0.0);
-    let mut single = 0.0;
-    for iu in 0..nu {
-        let c = sample_hg_cos(g_grid, (iu as f64 + 0.5) / nu as f64).clamp(-1.0, 1.0);
-        let p = hg(c, g_grid);
-        if !(p > 0.0) {
-            continue;
-        }
-        let s = (1.0 - c * c).max(0.0).sqrt();
-        for ip in 0..nphi {
-            let phi = 2.0 * std::f64::consts::PI * (ip as f64 + 0.5) / nphi as f64;
-            let d = c * ti + s * (phi.cos() * t1 + phi.sin() * t2);
-            let xy2 = eta * eta * (d.x * d.x + d.y * d.y);
-            if d.z <= 0.0 || xy2 >= 1.0 {
-                continue;
-            }
-            let wo = DVec3::new(eta * d.x, eta * d.y, (1.0 - xy2).sqrt());
-            single += single_scattering(wo, wi, 1.0, g, eta) * eta * eta * d.z / p;
-        }
-    }
-    (multiple, single / (nu * nphi) as f64)
-}
-
 impl SubsurfaceBrdf {
     /// From reduced scattering and absorption per channel (1/mm).
     ///
     /// Jensen's sum of the dipole and single scattering counts the lowest
     /// scattering orders twice, so where absorption vanishes it reflects
     /// more than it receives: the named medium `spectralon` reflected
-    /// 1.083 of the light at 60 degrees, `cream` 1.004, a non-absorbing
+    /// 1.083 of the light at 60 degrees, `cream` 1.043, a non-absorbing
     /// medium at `ior = 1` 1.46, and at `g = -0.99` about 1.7. Each
     /// channel whose directional albedo (the mirror's `F` included)
     /// exceeds 1 at any of 16 incidence angles (down to 89.8 degrees) has
@@ -160,33 +102,10 @@ impl SubsurfaceBrdf {
             g,
             eta,
         };
-        let scale = m.energy_scale();
+        let scale = energy_scale(m.r_d, m.single_albedo, g, eta, DiffuseExit::Jensen);
         m.r_d *= scale;
         m.single_albedo *= scale;
         m
-    }
-
-    /// Per channel, the factor that keeps the directional albedo at or
-    /// below 1 at every incidence angle checked (1 where it already is).
-    fn energy_scale(&self) -> Rgb {
-        let (r_d, a) = (self.r_d.to_array(), self.single_albedo.to_array());
-        let mut scale = [1.0f64; 3];
-        for k in 0..ENERGY_ANGLES {
-            // Denser toward grazing, where the single-scattering term's
-            // 1 / (cos_i' + cos_o') grows (at ior 1 the albedo rises to
-            // its largest there): cos_i from 1 down to 1 / 256.
-            let x = 1.0 - k as f64 / ENERGY_ANGLES as f64;
-            let cos_i = x * x;
-            let room = 1.0 - dielectric(cos_i, self.eta);
-            let (multiple, single) = lobe_albedos(self.g, self.eta, cos_i);
-            for c in 0..3 {
-                let albedo = r_d[c] * multiple + a[c] * single;
-                if albedo > room {
-                    scale[c] = scale[c].min(room * (1.0 - ENERGY_MARGIN) / albedo);
-                }
-            }
-        }
-        Rgb::new(scale[0], scale[1], scale[2])
     }
 
     fn p_mirror(&self, wo: DVec3) -> f64 {
@@ -243,31 +162,6 @@ impl BxdfModel for SubsurfaceBrdf {
 mod tests {
     use super::*;
     use crate::validate::albedo_quadrature;
-
-    /// The single-scattering albedo of [`lobe_albedos`] against a plain
-    /// midpoint quadrature of the BRDF over the outer hemisphere.
-    #[test]
-    fn lobe_albedos_match_a_direct_quadrature() {
-        for (g, eta, cos_i) in [
-            (0.0f64, 1.3f64, 1.0f64),
-            (0.5, 1.3, 0.6),
-            (-0.5, 1.3, 0.3),
-            (0.0, 1.0, 0.2),
-            (-0.9, 1.3, 0.7),
-            (0.9, 1.3, 0.5),
-        ] {
-            let wi = DVec3::new((1.0 - cos_i * cos_i).sqrt(), 0.0, cos_i);
-            let direct = albedo_quadrature(|wo| single_scattering(wo, wi, 1.0, g, eta), 600);
-            let (multiple, single) = lobe_albedos(g, eta, cos_i);
-            assert!(
-                (single / direct - 1.0).abs() < 2e-3,
-                "g {g}, eta {eta}, cos_i {cos_i}: {single} against {direct}"
-            );
-            let t = 1.0 - dielectric(cos_i, eta);
-            let want = t * (1.0 - crate::fresnel::diffuse_external(eta));
-            assert!((multiple - want).abs() < 1e-12);
-        }
-    }
 
     /// The directional albedo of `m`, the mirror's `F` included, by a
     /// direct midpoint quadrature of `f` over the outer hemisphere

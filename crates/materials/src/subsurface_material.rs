@@ -31,9 +31,13 @@
 //!   (light sampling and a cosine-sampled sky direction, with MIS).
 //!   Jensen's sum `S^(1) + S_d` counts the lowest orders twice (the
 //!   diffusion term already approximates them): a non-absorbing sphere
-//!   under a white sky renders 1.054 with it and 0.927 without (the latter
-//!   below 1 by the profile lost beyond the object). `single_scattering =
-//!   false` drops the term for strictly energy-bounded renders.
+//!   under a white sky rendered 1.054 with it and 0.929 without (the
+//!   latter below 1 by the profile lost beyond the object). So with the
+//!   single-scattering term on, both terms of each channel are scaled by
+//!   [`Subsurface::scattering_scale`] (1 for absorbing media; see
+//!   [`crate::subsurface::energy`]): the sphere renders 0.918.
+//!   `single_scattering = false` drops the term and keeps the published
+//!   dipole alone.
 //!
 //! Coefficients are per millimetre; `scale` gives millimetres per scene
 //! unit, so `sigma` in 1/unit is `sigma_mm * scale`.
@@ -66,6 +70,7 @@
 //! ```
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
+use crate::subsurface::energy::{energy_scale, DiffuseExit};
 use crate::subsurface::Dipole;
 use crate::Dielectric;
 use isolux_core::{DVec3, Distribution1D, Rgb, INV_PI, PI};
@@ -102,6 +107,11 @@ pub struct Subsurface {
     pub sw_norm: f64,
     /// Add Jensen's single-scattering term in dipole mode.
     pub single_scattering: bool,
+    /// Per channel, the factor on both scattering terms that keeps the
+    /// dipole plus single scattering within energy on a half-space
+    /// ([`crate::subsurface::energy::energy_scale`]); used through
+    /// [`Subsurface::scattering_scale`].
+    energy_scale: Rgb,
     /// Per-channel tables of `R_d(r) 2 pi r` in `x = sqrt(r / r_max)`.
     radial: Arc<[Distribution1D; 3]>,
     r_max: f64,
@@ -147,6 +157,18 @@ impl Subsurface {
                 .collect();
             Distribution1D::new(&w)
         };
+        let single_albedo = {
+            let st = sigma_s + sigma_a;
+            let a = |s: f64, t: f64| if t > 0.0 { s / t } else { 0.0 };
+            Rgb::new(a(sigma_s.r, st.r), a(sigma_s.g, st.g), a(sigma_s.b, st.b))
+        };
+        let energy_scale = energy_scale(
+            Rgb::new(dipoles[0].total(), dipoles[1].total(), dipoles[2].total()),
+            single_albedo,
+            g,
+            eta,
+            DiffuseExit::Normalized,
+        );
         Self {
             boundary: Dielectric { ior: eta },
             sigma_s,
@@ -157,11 +179,28 @@ impl Subsurface {
             dipoles,
             sw_norm: 1.0 - crate::fresnel::diffuse_external(eta),
             single_scattering: true,
+            energy_scale,
             r_max,
         }
     }
 
-    /// `R_d(r)` per channel (per scene unit area).
+    /// Per channel, the factor on the dipole profile and on the
+    /// single-scattering term that keeps the dipole mode within energy:
+    /// Jensen's sum `S^(1) + S_d` counts the lowest scattering orders
+    /// twice, so with little absorption it reflects more than it
+    /// receives. 1 where the published model is within energy, without
+    /// the single-scattering term (the dipole alone reflects `T R_d <= 1 -
+    /// F`) and in random-walk mode.
+    pub fn scattering_scale(&self) -> Rgb {
+        if self.mode == SubsurfaceMode::Dipole && self.single_scattering {
+            self.energy_scale
+        } else {
+            Rgb::splat(1.0)
+        }
+    }
+
+    /// `R_d(r)` per channel (per scene unit area), as published (the
+    /// renderer multiplies it by [`Subsurface::scattering_scale`]).
     pub fn profile(&self, r: f64) -> Rgb {
         Rgb::new(
             self.dipoles[0].r_d(r),
@@ -240,5 +279,35 @@ impl BxdfModel for Subsurface {
                 0.0
             },
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The energy scale applies only where it is needed: to the dipole
+    /// mode with its single-scattering term.
+    #[test]
+    fn the_energy_scale_applies_to_the_dipole_with_single_scattering() {
+        let white = |mode| Subsurface::new(Rgb::splat(20.0), Rgb::BLACK, 0.0, 1.3, mode);
+        let mut m = white(SubsurfaceMode::Dipole);
+        let s = m.scattering_scale();
+        assert!(s.r < 0.9 && s.r == s.g && s.g == s.b, "{s:?}");
+        m.single_scattering = false;
+        assert_eq!(m.scattering_scale(), Rgb::splat(1.0));
+        assert_eq!(
+            white(SubsurfaceMode::RandomWalk).scattering_scale(),
+            Rgb::splat(1.0)
+        );
+        // Strong absorption: the published model is within energy.
+        let ketchup = Subsurface::new(
+            Rgb::splat(1.0),
+            Rgb::splat(1.0),
+            0.0,
+            1.3,
+            SubsurfaceMode::Dipole,
+        );
+        assert_eq!(ketchup.scattering_scale(), Rgb::splat(1.0));
     }
 }

@@ -478,8 +478,16 @@ fn sss_albedo(m: Material) -> vec3<f32> {
     return select(vec3<f32>(0.0), m.b.rgb / st, st > vec3<f32>(0.0));
 }
 
+// The energy scale of both scattering terms per channel
+// (Subsurface::scattering_scale), after the three dipoles.
+fn sss_scale(m: Material) -> vec3<f32> {
+    let at = m.idx.x + 12u;
+    return vec3<f32>(material_data[at], material_data[at + 1u], material_data[at + 2u]);
+}
+
 // R_d(r) per channel (dipoles at material_data[idx.x]: sigma_tr, z_r,
-// z_v, alpha' per channel), as subsurface::Dipole::r_d.
+// z_v, alpha' per channel), as subsurface::Dipole::r_d, times the energy
+// scale.
 fn sss_profile(m: Material, r: f32) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     for (var c = 0u; c < 3u; c++) {
@@ -493,7 +501,7 @@ fn sss_profile(m: Material, r: f32) -> vec3<f32> {
         }
         out[c] = material_data[at + 3u] / (4.0 * PI) * sum;
     }
-    return out;
+    return out * sss_scale(m);
 }
 
 // Density of the radial sampler of channel c at radius r.
@@ -531,7 +539,7 @@ fn sss_single_lobe(m: Material) -> Material {
     var lobe = m;
     lobe.tag.x = MAT_SSS_SINGLE_LOBE;
     lobe.a = vec4<f32>(0.0, 0.0, 0.0, m.a.x);
-    lobe.b = vec4<f32>(sss_albedo(m), m.a.y);
+    lobe.b = vec4<f32>(sss_albedo(m) * sss_scale(m), m.a.y);
     return lobe;
 }
 

@@ -5,6 +5,7 @@
 //!   and exact), the dipole profile `R_d(r)` and its closed-form total;
 //! - [`phase`]: the Henyey-Greenstein phase function and the
 //!   single-scattering term;
+//! - [`energy`]: the energy bound of the dipole plus single scattering;
 //! - [`media`]: Jensen et al. 2001's measured media;
 //! - [`random_walk`]: the brute-force half-space reference.
 //!
@@ -14,6 +15,7 @@
 //! `subsurface_brdf`.
 
 pub mod diffusion;
+pub mod energy;
 pub mod media;
 pub mod phase;
 pub mod random_walk;
