@@ -25,8 +25,9 @@ pub mod layout;
 mod render;
 
 pub use render::{
-    f32_shortfall, rebase_point, replace_unsupported, thin_object_warning, unsupported_material,
-    worst_scale_ratio, GpuFrame, ScaleRatio, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
+    f32_ill_conditioned, f32_shortfall, rebase_point, replace_unsupported, thin_object_warning,
+    unsupported_material, worst_scale_ratio, GpuFrame, ScaleRatio, F32_VALUE_LIMIT,
+    MAX_SCALE_RATIO,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
@@ -693,6 +694,30 @@ impl Gpu {
     /// The precision the intersection computes in.
     pub fn precision(&self) -> Precision {
         self.precision
+    }
+
+    /// Chooses the intersection's precision for `scene`: f32, unless an
+    /// object is too ill-conditioned for it ([`f32_ill_conditioned`]),
+    /// then f64. `Ok(Some(note))` says why f64 was chosen; an adapter
+    /// without `SHADER_F64` is then an error naming the object and the
+    /// adapter (rendering such a scene in f32 loses its surfaces).
+    pub fn precision_for(
+        &mut self,
+        scene: &isolux_render::Scene,
+    ) -> Result<Option<String>, GpuError> {
+        let Some(why) = f32_ill_conditioned(scene) else {
+            self.set_precision(Precision::F32)?;
+            return Ok(None);
+        };
+        if !self.f64_supported {
+            return Err(GpuError::Setup(format!(
+                "{why}, and the adapter {} does not offer f64 in shaders (SHADER_F64): render \
+                 without --gpu (the CPU works in f64)",
+                self.adapter
+            )));
+        }
+        self.set_precision(Precision::F64)?;
+        Ok(Some(format!("{why}: intersecting in f64")))
     }
 
     /// Sets the precision of the intersection in every kernel (compiled

@@ -329,6 +329,76 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
     None
 }
 
+/// Above this ratio of a perturbation's largest `|f| Q^3` inside its
+/// object ([`bump_peak`]) to the base quadric's largest `|F|` on the
+/// object's box, the f32 intersection cannot be trusted: along a ray the
+/// kernel expands `F'` into a degree-6 polynomial whose terms are then
+/// that many times the values near the surface, which cancel there. A
+/// base sphere of radius 0.45 under one bump (measured 2026-12-03 on
+/// lavapipe, 400 rays from inside and outside, against the CPU's f64):
+///
+/// | radius, factor | ratio | rays off by over 1e-5 of the box | worst, relative to the box |
+/// |---|---:|---:|---:|
+/// | 0.2, 3000 (the gallery's) | 0.32 | 0 | 6e-7 |
+/// | 20, 0.01 | 530 | 0 | 1e-7 |
+/// | 7, 2.5 | 1.9e3 | 0 | 1.5e-7 |
+/// | 2, 3000 | 1.4e4 | 0 | 6.4e-6 |
+/// | 20, 2.5 | 1.3e5 | 7 | 2.5e-5 |
+/// | 5, 3000 | 5.9e5 | 126 | 0.62 (missed) |
+/// | 50, 3000 | 6.2e9 | 200 | 0.52 (missed) |
+///
+/// The f64 intersection hits every one of them as the CPU does.
+pub const F32_CONDITION_LIMIT: f64 = 1.0e4;
+
+/// The worst-conditioned bump of `scene` for the f32 intersection, if its
+/// ratio exceeds [`F32_CONDITION_LIMIT`]: a message naming the object and
+/// the perturbation, the ratio and both magnitudes. Such a scene
+/// intersects correctly in f64 ([`crate::Gpu::set_precision`]); the
+/// renderer switches to it where the adapter offers it
+/// ([`crate::Gpu::precision_for`]). (Found by `scripts/gpu-diff-fuzz.py`:
+/// the gallery with a bump's support grown from radius 0.2 to 50, a
+/// copper shell around the camera whose hits the GPU placed up to 0.2
+/// units short or missed, and rendered twice as bright as the CPU.)
+pub fn f32_ill_conditioned(scene: &Scene) -> Option<String> {
+    let mut worst: Option<(usize, usize, f64, f64, f64)> = None;
+    for (i, o) in scene.geometry.objects().iter().enumerate() {
+        let b = o.bbox();
+        if !b.is_finite() || b.is_empty() {
+            continue;
+        }
+        // |F| at the box's corners and centre, in the object's frame.
+        let base = (0..9)
+            .map(|k| {
+                let p = if k == 8 {
+                    b.center()
+                } else {
+                    glam::DVec3::new(
+                        if k & 1 == 0 { b.min.x } else { b.max.x },
+                        if k & 2 == 0 { b.min.y } else { b.max.y },
+                        if k & 4 == 0 { b.min.z } else { b.max.z },
+                    )
+                };
+                o.base().eval(p - o.origin()).abs()
+            })
+            .fold(0.0f64, f64::max);
+        for (k, q) in o.perturbations().iter().enumerate() {
+            let peak = bump_peak(o, q);
+            let ratio = peak / base.max(f64::MIN_POSITIVE);
+            if ratio > F32_CONDITION_LIMIT && worst.is_none_or(|w| ratio > w.2) {
+                worst = Some((i, k, ratio, peak, base));
+            }
+        }
+    }
+    worst.map(|(i, k, ratio, peak, base)| {
+        format!(
+            "object[{i}]: perturbation {k} adds f Q^3 up to {peak:.3e} inside the object, \
+             {ratio:.2e} times its base quadric's largest |F| there ({base:.3e}); the f32 \
+             intersection loses such surfaces beyond {F32_CONDITION_LIMIT:e} times \
+             (docs/gpu.md, \"Precision\")"
+        )
+    })
+}
+
 /// About the largest `|f| Q^3` that perturbation `q` adds inside object
 /// `o`'s box: `Q` at the point of the box nearest its support's centre
 /// (exact for a sphere, whose `Q` falls off with the distance from its

@@ -902,7 +902,8 @@ fn scenes_far_from_the_origin_render_as_at_the_origin() {
 
 /// Every example scene runs with `--gpu`: none is refused for f32's
 /// resolution (their largest object ratios, from the GPU's origin, are
-/// printed; docs/gpu.md "Precision" quotes them).
+/// printed; docs/gpu.md "Precision" quotes them), and none needs the f64
+/// intersection for its conditioning (`f32_ill_conditioned`).
 #[test]
 fn every_example_scene_fits_the_gpus_f32() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
@@ -918,6 +919,12 @@ fn every_example_scene_fits_the_gpus_f32() {
             assert!(
                 isolux_gpu::f32_shortfall(&scene).is_none(),
                 "{}: {ratio}",
+                p.display()
+            );
+            assert_eq!(
+                isolux_gpu::f32_ill_conditioned(&scene),
+                None,
+                "{}",
                 p.display()
             );
         }

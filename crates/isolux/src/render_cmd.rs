@@ -234,6 +234,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(why) = isolux_gpu::thin_object_warning(&scene) {
             eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
         }
+        if let Some(note) = gpu
+            .precision_for(&scene)
+            .with_context(|| format!("--gpu: {}", a.scene.display()))?
+        {
+            eprintln!("isolux: note: --gpu: {}: {note}", a.scene.display());
+        }
         start = Instant::now();
         if a.realtime {
             gpu.render_realtime_with_aov(&scene, a.aov)

@@ -592,7 +592,7 @@ impl ApplicationHandler for App {
         if self.running.is_some() {
             return;
         }
-        match Running::new(event_loop, &self.opts) {
+        match Running::new(event_loop, &self.opts, &self.state.scene) {
             Ok(r) => self.running = Some(r),
             Err(e) => {
                 self.error = Some(e);
@@ -651,7 +651,11 @@ impl ApplicationHandler for App {
 }
 
 impl Running {
-    fn new(event_loop: &ActiveEventLoop, opts: &Options) -> anyhow::Result<Self> {
+    fn new(
+        event_loop: &ActiveEventLoop,
+        opts: &Options,
+        scene: &isolux_render::Scene,
+    ) -> anyhow::Result<Self> {
         let attrs = Window::default_attributes()
             .with_title(format!("Isolux - {}", opts.scene.display()))
             .with_inner_size(winit::dpi::PhysicalSize::new(opts.width, opts.height));
@@ -670,7 +674,15 @@ impl Running {
             compatible_surface: Some(&surface),
         }))
         .map_err(|_| anyhow!(isolux_gpu::GpuError::NoAdapter))?;
-        let gpu = Gpu::with_adapter(&adapter)?;
+        let mut gpu = Gpu::with_adapter(&adapter)?;
+        // Objects too ill-conditioned for the f32 intersection are
+        // intersected in f64, or refused where the adapter has none.
+        if let Some(note) = gpu
+            .precision_for(scene)
+            .with_context(|| opts.scene.display().to_string())?
+        {
+            eprintln!("isolux: note: {}: {note}", opts.scene.display());
+        }
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
