@@ -921,6 +921,8 @@ fn every_example_scene_fits_the_gpus_f32() {
                 "{}: {ratio}",
                 p.display()
             );
+            let bump = isolux_gpu::worst_bump_condition(&scene).map_or(0.0, |w| w.ratio);
+            eprintln!("{}: largest bump condition {bump:.3e}", p.display());
             assert_eq!(
                 isolux_gpu::f32_ill_conditioned(&scene),
                 None,
