@@ -624,7 +624,9 @@ impl GpuMaterials {
     /// in `tag.w` (0 dipole, 1 random walk), its per-channel dipoles at
     /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b, then the
     /// energy scale of both scattering terms per channel,
-    /// `Subsurface::scattering_scale`) and the radial
+    /// `Subsurface::scattering_scale`, then the real-time mode's local
+    /// BRDF, `Subsurface::local_brdf`: `R_d` and the single-scattering
+    /// albedo per channel) and the radial
     /// sampling tables of the channels at `idx[1..4]` (each `[n, cdf,
     /// pdf]`), all in scene units. A `wave` material keeps `model |
     /// obliquity << 1` in `tag.w` and its Fresnel kind in `tag.y` (ONE,
@@ -872,6 +874,10 @@ impl GpuMaterials {
                 }
                 self.data
                     .extend(m.scattering_scale().to_array().map(|v| v as f32));
+                let local = m.local_brdf();
+                self.data.extend(local.r_d.to_array().map(|v| v as f32));
+                self.data
+                    .extend(local.single_albedo.to_array().map(|v| v as f32));
                 for c in 0..3 {
                     g.idx[1 + c] = self.table(m.radial_table(c));
                 }
@@ -1158,15 +1164,21 @@ mod tests {
             unreachable!()
         };
         let scale = medium.scattering_scale();
+        let local = medium.local_brdf();
         let g = GpuMaterials::new(&[milk]).unwrap();
         let m = g.materials[0];
         assert_eq!((m.tag[0], m.tag[3]), (tag::SUBSURFACE, 0));
-        // Dipoles, the energy scale, then three tables of 4096 bins ([n,
-        // cdf, pdf]).
-        assert_eq!(m.idx, [0, 15, 15 + 8194, 15 + 2 * 8194]);
+        // Dipoles, the energy scale, the local BRDF, then three tables of
+        // 4096 bins ([n, cdf, pdf]).
+        assert_eq!(m.idx, [0, 21, 21 + 8194, 21 + 2 * 8194]);
         assert_eq!(g.data[12..15], scale.to_array().map(|v| v as f32));
-        assert_eq!(g.data[15], 4096.0);
-        assert_eq!(g.data.len(), 15 + 3 * 8194);
+        assert_eq!(g.data[15..18], local.r_d.to_array().map(|v| v as f32));
+        assert_eq!(
+            g.data[18..21],
+            local.single_albedo.to_array().map(|v| v as f32)
+        );
+        assert_eq!(g.data[21], 4096.0);
+        assert_eq!(g.data.len(), 21 + 3 * 8194);
     }
 
     #[test]

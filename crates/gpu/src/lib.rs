@@ -366,21 +366,26 @@ impl Features {
 
     /// The part of `self` that an entry point of the render module
     /// reaches: `main` and `trace` (the path tracers) all of it;
-    /// `realtime` all but the subsurface integrator's internal lobes (it
-    /// draws a medium black and never builds them; a `subsurface` leaf of
-    /// a mix, which only the library API builds, is still its smooth
-    /// boundary there); `aov_main` no material code (first hits and
+    /// `realtime` all but the subsurface integrator's internal lobes,
+    /// which it never builds, and with `subsurface` the code of
+    /// `subsurface_brdf`, the local approximation it shades a medium with
+    /// (`sss_local_brdf`; a `subsurface` leaf of a mix, which only the
+    /// library API builds, is still its smooth boundary there);
+    /// `aov_main` no material code (first hits and
     /// albedos). Every entry keeps the candidate list. Kernels that differ
     /// only in code their entry never reaches are one kernel, compiled
     /// once.
     fn reached_by(self, entry: &str) -> Features {
-        use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
+        use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE, SUBSURFACE, SUBSURFACE_BRDF};
         match entry {
             "main" | "trace" | "trace_last" => self,
-            "realtime" => Features {
-                models: self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE)),
-                ..self
-            },
+            "realtime" => {
+                let mut models = self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE));
+                if self.has(SUBSURFACE) {
+                    models |= bit(SUBSURFACE_BRDF);
+                }
+                Features { models, ..self }
+            }
             _ => Features { models: 0, ..self },
         }
     }
@@ -1254,7 +1259,12 @@ mod tests {
             assert_eq!(f.reached_by("trace_last"), *f);
             let rt = f.reached_by("realtime");
             let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
-            assert_eq!(rt.models, f.models & !lobes, "{f}");
+            let local = if f.has(tag::SUBSURFACE) {
+                1 << tag::SUBSURFACE_BRDF
+            } else {
+                0
+            };
+            assert_eq!(rt.models, (f.models & !lobes) | local, "{f}");
             assert_eq!(rt.list, f.list);
             let aov = f.reached_by("aov_main");
             assert_eq!((aov.models, aov.list), (0, f.list));
@@ -1316,6 +1326,10 @@ mod tests {
             "subsurface, candidate list, many lights, tile lists"
         );
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
+        // The real-time mode shades a medium with its local BRDF.
+        let rt = sss.reached_by("realtime");
+        assert!(rt.has(tag::SUBSURFACE_BRDF) && !rt.has(tag::SSS_SINGLE_LOBE));
+        assert!(!sss.reached_by("main").has(tag::SUBSURFACE_BRDF));
         let many = Features {
             models: Features::ALL.models & !(1 << tag::SUBSURFACE),
             ..Features::ALL

@@ -132,3 +132,24 @@ fn realtime_wave_scenes_match_the_cpu_within_noise() {
         assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
     }
 }
+
+/// Translucent media in the real-time mode (the viewer's while moving):
+/// both examples' `subsurface` materials (dipole and random walk) shaded
+/// with their local BRDF (`sss_local_brdf`, the CPU's
+/// `Subsurface::local_brdf`) agree with the CPU's real-time mode within
+/// noise. Before 2026-12-03 the GPU drew them black.
+#[test]
+fn realtime_media_match_the_cpu_within_noise() {
+    let Some(gpu) = common::open("GPU real-time tests") else {
+        return;
+    };
+    for name in ["translucent.toml", "translucent-random-walk.toml"] {
+        let mut scene = common::example(name);
+        scene.film.width = 96;
+        scene.film.height = 54;
+        scene.film.spp = 16;
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
+        assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    }
+}

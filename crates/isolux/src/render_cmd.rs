@@ -123,13 +123,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
             ),
             _ => scene.film.spp = scene.film.spp.clamp(MIN_SPP, MAX_SPP),
         }
-        if let Some((name, type_name)) = isolux_render::realtime::unsupported_realtime(&scene) {
-            bail!(
-                "--realtime: material \"{name}\" (type {type_name}) has no real-time model \
-                 (its light enters elsewhere on the surface): use type subsurface_brdf for \
-                 previews, or render without --realtime"
-            );
-        }
     }
     if let Some(v) = a.spp {
         scene.film.spp = v;

@@ -72,7 +72,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::subsurface::energy::{energy_scale, DiffuseExit};
 use crate::subsurface::Dipole;
-use crate::Dielectric;
+use crate::{Dielectric, SubsurfaceBrdf};
 use isolux_core::{DVec3, Distribution1D, Rgb, INV_PI, PI};
 use std::sync::Arc;
 
@@ -86,6 +86,21 @@ pub enum SubsurfaceMode {
     Dipole,
     /// Volumetric random walk inside the object.
     RandomWalk,
+}
+
+/// What [`Subsurface::new`] derives from the medium's coefficients.
+#[derive(Debug)]
+struct Derived {
+    /// Per-channel tables of `R_d(r) 2 pi r` in `x = sqrt(r / r_max)`.
+    radial: [Distribution1D; 3],
+    /// Per channel, the factor on both scattering terms that keeps the
+    /// dipole plus single scattering within energy on a half-space
+    /// ([`crate::subsurface::energy::energy_scale`]); used through
+    /// [`Subsurface::scattering_scale`].
+    energy_scale: Rgb,
+    /// The local approximation of the same medium (the seed's eq. 19),
+    /// single scattering included: see [`Subsurface::local_brdf`].
+    local: SubsurfaceBrdf,
 }
 
 /// A translucent medium behind a smooth boundary.
@@ -107,13 +122,10 @@ pub struct Subsurface {
     pub sw_norm: f64,
     /// Add Jensen's single-scattering term in dipole mode.
     pub single_scattering: bool,
-    /// Per channel, the factor on both scattering terms that keeps the
-    /// dipole plus single scattering within energy on a half-space
-    /// ([`crate::subsurface::energy::energy_scale`]); used through
-    /// [`Subsurface::scattering_scale`].
-    energy_scale: Rgb,
-    /// Per-channel tables of `R_d(r) 2 pi r` in `x = sqrt(r / r_max)`.
-    radial: Arc<[Distribution1D; 3]>,
+    /// What the constructor derives from the coefficients: the radial
+    /// sampling tables, the energy scale and the local BRDF (shared, and
+    /// behind a pointer to keep [`crate::Material`] small).
+    derived: Arc<Derived>,
     r_max: f64,
 }
 
@@ -175,11 +187,14 @@ impl Subsurface {
             sigma_a,
             g,
             mode,
-            radial: Arc::new([table(&dipoles[0]), table(&dipoles[1]), table(&dipoles[2])]),
+            derived: Arc::new(Derived {
+                radial: [table(&dipoles[0]), table(&dipoles[1]), table(&dipoles[2])],
+                energy_scale,
+                local: SubsurfaceBrdf::new(red, sigma_a, g, eta),
+            }),
             dipoles,
             sw_norm: 1.0 - crate::fresnel::diffuse_external(eta),
             single_scattering: true,
-            energy_scale,
             r_max,
         }
     }
@@ -193,9 +208,32 @@ impl Subsurface {
     /// F`) and in random-walk mode.
     pub fn scattering_scale(&self) -> Rgb {
         if self.mode == SubsurfaceMode::Dipole && self.single_scattering {
-            self.energy_scale
+            self.derived.energy_scale
         } else {
             Rgb::splat(1.0)
+        }
+    }
+
+    /// The local approximation of this medium, [`SubsurfaceBrdf`] (the
+    /// seed's eq. 19: light leaves where it entered, the blur across the
+    /// surface ignored), which the real-time mode renders it with: the
+    /// seed's own real-time model of translucency. Without the
+    /// single-scattering term (`single_scattering = false`) it is the
+    /// dipole's term alone, as published. Scale-free: the dipole's total
+    /// reflectance depends on the reduced albedo and `eta` only.
+    pub fn local_brdf(&self) -> SubsurfaceBrdf {
+        if self.single_scattering {
+            return self.derived.local;
+        }
+        let red = self.sigma_s * (1.0 - self.g);
+        let total = |k: usize| {
+            let (s, a) = (red.to_array()[k], self.sigma_a.to_array()[k]);
+            Dipole::new(s, a, self.boundary.ior).total()
+        };
+        SubsurfaceBrdf {
+            r_d: Rgb::new(total(0), total(1), total(2)),
+            single_albedo: Rgb::BLACK,
+            ..self.derived.local
         }
     }
 
@@ -221,19 +259,19 @@ impl Subsurface {
             return 0.0;
         }
         let x = (r / self.r_max).sqrt();
-        self.radial[c].pdf(x) / (2.0 * self.r_max * x)
+        self.derived.radial[c].pdf(x) / (2.0 * self.r_max * x)
     }
 
     /// Samples a radius for channel `c` from its tabulated profile.
     pub fn sample_radius(&self, c: usize, u: f64) -> f64 {
-        let (x, _, _) = self.radial[c].sample(u);
+        let (x, _, _) = self.derived.radial[c].sample(u);
         self.r_max * x * x
     }
 
     /// The radial sampling table of channel `c` (`R_d(r) 2 pi r dr/dx` in
     /// `x = sqrt(r / r_max)`), for back ends that sample it themselves.
     pub fn radial_table(&self, c: usize) -> &Distribution1D {
-        &self.radial[c]
+        &self.derived.radial[c]
     }
 
     /// Radius beyond which the profile is ignored.
@@ -309,5 +347,29 @@ mod tests {
             SubsurfaceMode::Dipole,
         );
         assert_eq!(ketchup.scattering_scale(), Rgb::splat(1.0));
+    }
+
+    /// The real-time mode's local BRDF is `subsurface_brdf` of the same
+    /// medium (scale-free), and without single scattering the dipole's
+    /// term alone, unscaled.
+    #[test]
+    fn the_local_brdf_is_the_media_subsurface_brdf() {
+        let (s, a) = (Rgb::new(2.19, 2.62, 3.0), Rgb::new(0.0021, 0.0041, 0.0071));
+        let mut m = Subsurface::new(s * 10.0, a * 10.0, 0.0, 1.5, SubsurfaceMode::Dipole);
+        let b = SubsurfaceBrdf::new(s, a, 0.0, 1.5);
+        let l = m.local_brdf();
+        for c in 0..3 {
+            let rel = |x: f64, y: f64| (x / y - 1.0).abs();
+            assert!(
+                rel(l.r_d.to_array()[c], b.r_d.to_array()[c]) < 1e-12,
+                "{l:?} {b:?}"
+            );
+            assert!(rel(l.single_albedo.to_array()[c], b.single_albedo.to_array()[c]) < 1e-12);
+        }
+        assert_eq!((l.g, l.eta), (0.0, 1.5));
+        m.single_scattering = false;
+        let l = m.local_brdf();
+        assert_eq!(l.single_albedo, Rgb::BLACK);
+        assert_eq!(l.r_d.r, Dipole::new(21.9, 0.021, 1.5).total());
     }
 }

@@ -33,9 +33,12 @@
 //!   nothing stood in its way, as in the seed's separation of point lights
 //!   from "environment and other light". Transmitted samples (glass) read
 //!   the environment straight along the refracted direction.
-//! - Subsurface materials have no real-time model here (their light comes
-//!   from elsewhere on the surface): [`unsupported_realtime`] names them;
-//!   `subsurface_brdf` is their fast preview.
+//! - Subsurface materials (`subsurface`, either mode) are shaded with
+//!   their local approximation, `Subsurface::local_brdf` (the seed's eq.
+//!   19, the BRDF of `subsurface_brdf` for the same medium): light leaves
+//!   where it entered, so the blur of light across the surface and light
+//!   through thin parts are left out. That is the seed's own real-time
+//!   model of translucency.
 
 use crate::environment::{dir_to_uv, EnvMap};
 use crate::integrator::FirstHit;
@@ -203,19 +206,6 @@ impl RealtimeEnv {
     }
 }
 
-/// The first material used by an object of `scene` that has no real-time
-/// model: `(name, type)` (subsurface scattering).
-pub fn unsupported_realtime(scene: &Scene) -> Option<(String, String)> {
-    scene.object_material.iter().find_map(|&m| {
-        scene.materials[m].medium().is_some().then(|| {
-            (
-                scene.material_names.get(m).cloned().unwrap_or_default(),
-                scene.materials[m].type_name().to_string(),
-            )
-        })
-    })
-}
-
 /// Radiance along a camera `ray` in the real-time mode, with `n` samples
 /// per pixel (see the module documentation), and the first hit. With
 /// `primary`, the ray lies in the beam it was culled for
@@ -248,9 +238,16 @@ pub fn realtime_radiance(
         normal: hit.n,
         depth: hit.t,
     });
-    if material.medium().is_some() {
-        return (Rgb::BLACK, first);
-    }
+    // A translucent medium is shaded with its local approximation (the
+    // seed's eq. 19), its light leaving where it entered.
+    let local;
+    let material = match material.medium() {
+        Some(m) => {
+            local = isolux_materials::Material::SubsurfaceBrdf(m.local_brdf());
+            &local
+        }
+        None => material,
+    };
     let wo = -ray.dir;
     let bsdf = match material.tangent() {
         Some(t) => Bsdf::with_tangent(material, hit.n, t, wo),

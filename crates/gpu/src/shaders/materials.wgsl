@@ -21,7 +21,9 @@
 //   SUBSURFACE   a.x ior (its boundary: the DIELECTRIC's lobes), a.y g,
 //                a.z r_max, a.w 1 - F_dr,ext; b.rgb sigma_s, b.w single
 //                scattering on; c.rgb sigma_a; tag.w 1 for random walk;
-//                idx.x dipoles, idx.yzw radial tables (render.wgsl)
+//                idx.x dipoles, then the energy scale, then the local
+//                BRDF's R_d and single-scattering albedo (sss_local_brdf);
+//                idx.yzw radial tables (render.wgsl)
 //   WAVE         wave.wgsl (placed per shading point by place_material)
 
 // i mod n in [0, n) for any i and n > 0, from unsigned remainders alone:
@@ -898,6 +900,19 @@ fn plastic_p_coat(m: Material, wo: vec3<f32>) -> f32 {
 fn hg_phase(cos_t: f32, g: f32) -> f32 {
     let denom = 1.0 + g * g - 2.0 * g * cos_t;
     return 0.25 * INV_PI * (1.0 - g * g) / (denom * sqrt(max(denom, 0.0)));
+}
+
+// The local approximation of a SUBSURFACE medium m, as a SUBSURFACE_BRDF
+// (Subsurface::local_brdf): what the real-time mode shades it with. Its
+// R_d and single-scattering albedo follow the dipoles (12 floats) and the
+// energy scale (3) in the material data.
+fn sss_local_brdf(m: Material) -> Material {
+    var b = m;
+    let at = m.idx.x + 15u;
+    b.tag = vec4<u32>(MAT_SUBSURFACE_BRDF, 0u, 0u, 0u);
+    b.a = vec4<f32>(material_data[at], material_data[at + 1u], material_data[at + 2u], m.a.x);
+    b.b = vec4<f32>(material_data[at + 3u], material_data[at + 4u], material_data[at + 5u], m.a.y);
+    return b;
 }
 
 // R_d T(wi) T(wo) / pi plus single scattering (Hanrahan-Krueger), as

@@ -79,11 +79,6 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
         return env_eval(d);
     }
     let mi = objects[hit_object].range.z;
-    // No real-time model for a medium (its light comes from elsewhere on
-    // the surface), black as on the CPU; subsurface_brdf previews it.
-    if (materials[mi].tag.x == MAT_SUBSURFACE) {
-        return vec3<f32>(0.0);
-    }
     let p = o + h.x * d;
     let ng = h.yzw;
     // The point lights' shadow rays before the material is loaded
@@ -94,6 +89,11 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     var m = materials[mi];
     if (has_wave(m)) {
         m = place_material(m, p, pixel_footprint(h.x), rand());
+    }
+    // A translucent medium is shaded with its local approximation (the
+    // seed's eq. 19), as on the CPU (realtime.rs).
+    if (has_model(MAT_SUBSURFACE) && m.tag.x == MAT_SUBSURFACE) {
+        m = sss_local_brdf(m);
     }
     let wo = -d;
     let flags = material_flags(m);
