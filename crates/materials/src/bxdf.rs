@@ -75,8 +75,9 @@ pub struct BsdfSample {
 impl BsdfSample {
     /// A reflected direction scored by the model's whole `f` and `pdf`
     /// (the usual ending of a mixture's `sample`, whichever lobe drew
-    /// `wi`): `None` when `wi` lies below the horizon, `flags` is the lobe
-    /// that drew it (`REFLECTION` is added).
+    /// `wi`): `None` when `wi` lies below the horizon or where the pdf is
+    /// zero (or not finite), which no Monte Carlo weight survives; `flags`
+    /// is the lobe that drew it (`REFLECTION` is added).
     pub fn reflected<M: BxdfModel + ?Sized>(
         model: &M,
         wo: DVec3,
@@ -86,10 +87,14 @@ impl BsdfSample {
         if wi.z <= 0.0 {
             return None;
         }
+        let pdf = model.pdf(wo, wi);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
         Some(Self {
             wi,
             f: model.f(wo, wi),
-            pdf: model.pdf(wo, wi),
+            pdf,
             flags: BxdfFlags::REFLECTION | flags,
             eta: 1.0,
         })
