@@ -96,6 +96,12 @@ pub struct RenderArgs {
     /// (see `--wavefront`).
     #[arg(long, requires = "gpu", conflicts_with_all = ["realtime", "wavefront"])]
     pub megakernel: bool,
+    /// With `--gpu`: intersect in f64 whatever the scene (adapters with
+    /// SHADER_F64; an error elsewhere). By default the GPU intersects in
+    /// f32, and in f64 only where a bump dwarfs its base quadric, which
+    /// f32 cannot resolve (docs/gpu.md, "Precision").
+    #[arg(long, requires = "gpu")]
+    pub f64: bool,
 }
 
 /// Runs `isolux render`.
@@ -227,7 +233,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(why) = isolux_gpu::thin_object_warning(&scene) {
             eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
         }
-        if let Some(note) = gpu
+        if a.f64 {
+            gpu.set_precision(isolux_gpu::Precision::F64)
+                .context("--f64")?;
+        } else if let Some(note) = gpu
             .precision_for(&scene)
             .with_context(|| format!("--gpu: {}", a.scene.display()))?
         {

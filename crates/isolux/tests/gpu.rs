@@ -25,7 +25,8 @@ fn render_gpu_writes_an_image_of_the_furnace() {
 }
 
 /// The furnace through `render --gpu` (with `--wavefront`, as a
-/// wavefront): 1 in every pixel.
+/// wavefront; with `--f64` as well, the intersection in f64): 1 in every
+/// pixel.
 fn render_furnace(wavefront: bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.exr");
@@ -43,7 +44,9 @@ fn render_furnace(wavefront: bool) {
         out.to_str().unwrap(),
     ];
     if wavefront {
-        args.push("--wavefront");
+        // The wavefront with the f64 intersection, the megakernel with
+        // the default f32.
+        args.extend(["--wavefront", "--f64"]);
     }
     let o = run(&args);
     let err = String::from_utf8_lossy(&o.stderr);
@@ -61,7 +64,7 @@ fn render_furnace(wavefront: bool) {
 
 /// `--wavefront` and `--megakernel` choose the GPU's path tracer:
 /// refused without `--gpu`, with `--realtime` and together, before any
-/// work.
+/// work; `--f64` (the GPU's intersection in f64) without `--gpu` too.
 #[test]
 fn wavefront_needs_the_gpu_path_tracer() {
     for (flag, extra) in [
@@ -70,6 +73,7 @@ fn wavefront_needs_the_gpu_path_tracer() {
         ("--wavefront", &["--gpu", "--realtime"][..]),
         ("--megakernel", &["--gpu", "--realtime"][..]),
         ("--wavefront", &["--gpu", "--megakernel"][..]),
+        ("--f64", &[][..]),
     ] {
         let mut args = vec!["render", FURNACE, flag, "-o", "never.png"];
         args.extend_from_slice(extra);
