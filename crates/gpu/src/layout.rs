@@ -623,8 +623,8 @@ impl GpuMaterials {
     /// row-major, rows `theta_h`). A `subsurface` material keeps its mode
     /// in `tag.w` (0 dipole, 1 random walk), its per-channel dipoles at
     /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b, then the
-    /// energy scale of both scattering terms per channel,
-    /// `Subsurface::scattering_scale`, then the real-time mode's local
+    /// scale of the single-scattering term per channel,
+    /// `Subsurface::single_scattering_scale`, then the real-time mode's local
     /// BRDF, `Subsurface::local_brdf`: `R_d` and the single-scattering
     /// albedo per channel) and the radial
     /// sampling tables of the channels at `idx[1..4]` (each `[n, cdf,
@@ -873,7 +873,7 @@ impl GpuMaterials {
                         .extend([d.sigma_tr, d.z_r, d.z_v, d.albedo_reduced].map(|v| v as f32));
                 }
                 self.data
-                    .extend(m.scattering_scale().to_array().map(|v| v as f32));
+                    .extend(m.single_scattering_scale().to_array().map(|v| v as f32));
                 let local = m.local_brdf();
                 self.data.extend(local.r_d.to_array().map(|v| v as f32));
                 self.data
@@ -1163,12 +1163,12 @@ mod tests {
         let Material::Subsurface(medium) = &milk else {
             unreachable!()
         };
-        let scale = medium.scattering_scale();
+        let scale = medium.single_scattering_scale();
         let local = medium.local_brdf();
         let g = GpuMaterials::new(&[milk]).unwrap();
         let m = g.materials[0];
         assert_eq!((m.tag[0], m.tag[3]), (tag::SUBSURFACE, 0));
-        // Dipoles, the energy scale, the local BRDF, then three tables of
+        // Dipoles, the single-scattering scale, the local BRDF, then three tables of
         // 4096 bins ([n, cdf, pdf]).
         assert_eq!(m.idx, [0, 21, 21 + 8194, 21 + 2 * 8194]);
         assert_eq!(g.data[12..15], scale.to_array().map(|v| v as f32));

@@ -330,10 +330,11 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
 }
 
 /// Above this ratio of a perturbation's largest `|f| Q^3` inside its
-/// object ([`bump_peak`]) to the base quadric's largest `|F|` on the
-/// object's box, the f32 intersection cannot be trusted: along a ray the
-/// kernel expands `F'` into a degree-6 polynomial whose terms are then
-/// that many times the values near the surface, which cancel there. The
+/// object to the base quadric's largest `|F|` on the object's box (see
+/// [`worst_bump_condition`]), the f32 intersection cannot be trusted:
+/// along a ray the kernel expands `F'` into a degree-6 polynomial whose
+/// terms are then that many times the values near the surface, which
+/// cancel there. The
 /// ratio predicts the failure only to within a factor of ten or so across
 /// shapes; measured 2026-12-03 on lavapipe against the CPU's f64, a base
 /// sphere of radius 0.45 under one bump, 400 rays from inside and outside
@@ -397,7 +398,7 @@ pub struct BumpCondition {
     pub perturbation: usize,
     /// `peak / base`.
     pub ratio: f64,
-    /// About the largest `|f| Q^3` inside the object ([`bump_peak`]).
+    /// About the largest `|f| Q^3` inside the object.
     pub peak: f64,
     /// About the base quadric's largest `|F|` on the object's box.
     pub base: f64,

@@ -302,11 +302,11 @@ base = { type = "sphere", center = [0.3, -0.2, 0.0], radius = 0.8 }
 
 /// A non-absorbing dipole medium with its single-scattering term, under a
 /// white sky, optically thick (16 reduced mean free paths in radius).
-/// Jensen's published sum `S^(1) + S_d` rendered 1.054 on the CPU; both
-/// terms are now scaled per channel to keep energy
-/// (`Subsurface::scattering_scale`, carried to the GPU after the
-/// dipoles). The GPU must render it within energy, and as the CPU does
-/// (measured on the CPU: 0.918).
+/// Jensen's published sum `S^(1) + S_d` rendered 1.054 on the CPU; the
+/// single-scattering term is now scaled per channel to keep energy
+/// (`Subsurface::single_scattering_scale`, carried to the GPU after the
+/// dipoles; 0 without absorption). The GPU must render it within energy,
+/// and as the CPU does (measured on the CPU: 0.918).
 #[test]
 fn dipole_medium_with_single_scattering_keeps_energy_on_the_gpu() {
     let Some(gpu) = common::open("GPU image tests") else {

@@ -542,10 +542,11 @@ fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
         );
     }
     // Jensen's S^(1) + S_d double-counts low orders: published, it
-    // rendered 1.054. Both terms are now scaled per channel to keep the
-    // half-space's directional albedo within 1 at every angle
-    // (subsurface::energy), so the sphere renders within energy: measured
-    // 0.918, against 0.929 for the dipole alone.
+    // rendered 1.054. The single-scattering term is now scaled per channel
+    // to keep the half-space's directional albedo within 1 at every angle
+    // (subsurface::energy); without absorption that leaves none of it, so
+    // the sphere renders as the dipole alone: measured 0.927 (0.929
+    // without the term, a different random stream).
     let (mean1, se1) = channel_means(&white(true));
     eprintln!("dipole + single scattering, no absorption: {mean1:?} +- {se1:?}");
     for c in 0..3 {
@@ -614,9 +615,10 @@ bounds = {{ min = [-40.0, -40.0, -40.0], max = [40.0, 1.0, 40.0] }}
     // The white furnace of the published sum in its own geometry: a
     // non-absorbing half-space under the white sky reflects everything
     // (the random walk's 1), so with single scattering on it must not
-    // exceed 1. The published S^(1) + S_d rendered 1.108 here; scaled,
-    // measured 0.953 (the dipole alone: 0.987, its profile beyond r_max
-    // ignored).
+    // exceed 1. The published S^(1) + S_d rendered 1.108 here; with both
+    // terms scaled (this code's first fix), 0.953; with the single
+    // scattering alone scaled, 0.981 (the dipole alone: 0.987, its
+    // profile beyond r_max ignored).
     let white_plane = means(&half_space_with("dipole", 16, "[0.0, 0.0, 0.0]", true));
     eprintln!("non-absorbing half-space, dipole + single scattering: {white_plane:?}");
     for (c, v) in white_plane.iter().enumerate() {

@@ -22,8 +22,9 @@
 //! degrees, `cream` 1.043 in red at normal incidence, a non-absorbing
 //! medium at `ior = 1` 1.46). So [`SubsurfaceBrdf::new`] computes each
 //! channel's directional albedo at 16 incidence angles ([`lobe_albedos`])
-//! and, where it exceeds 1, scales both scattering terms down to leave it
-//! 0.5% below ([`crate::subsurface::energy`], which lists the factors);
+//! and, where it exceeds 1, scales the single-scattering term down to
+//! leave it 0.5% below, keeping the dipole's term as published
+//! ([`crate::subsurface::energy`], which says why and lists the factors);
 //! of the named media `spectralon`, `cream` and `wholemilk` change, the
 //! other nine are the published model unchanged. Reciprocal.
 //! A fast preview of the `subsurface` material: it ignores the blur of
@@ -56,7 +57,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::fresnel::dielectric;
 pub use crate::subsurface::energy::lobe_albedos;
-use crate::subsurface::energy::{energy_scale, DiffuseExit};
+use crate::subsurface::energy::{single_scattering_scale, DiffuseExit};
 use crate::subsurface::phase::single_scattering;
 use crate::subsurface::Dipole;
 use isolux_core::{sampling, DVec3, Rgb, INV_PI};
@@ -84,8 +85,8 @@ impl SubsurfaceBrdf {
     /// medium at `ior = 1` 1.46, and at `g = -0.99` about 1.7. Each
     /// channel whose directional albedo (the mirror's `F` included)
     /// exceeds 1 at any of 16 incidence angles (down to 89.8 degrees) has
-    /// both scattering terms scaled down to leave it 0.5% below 1 there;
-    /// every other channel is the published model as it is.
+    /// its single-scattering term scaled down to leave it 0.5% below 1
+    /// there; every other channel is the published model as it is.
     pub fn new(sigma_s_reduced: Rgb, sigma_a: Rgb, g: f64, eta: f64) -> Self {
         let ch = |s: f64, a: f64| {
             let d = Dipole::new(s, a, eta);
@@ -102,9 +103,8 @@ impl SubsurfaceBrdf {
             g,
             eta,
         };
-        let scale = energy_scale(m.r_d, m.single_albedo, g, eta, DiffuseExit::Jensen);
-        m.r_d *= scale;
-        m.single_albedo *= scale;
+        m.single_albedo *=
+            single_scattering_scale(m.r_d, m.single_albedo, g, eta, DiffuseExit::Jensen);
         m
     }
 
@@ -213,6 +213,13 @@ mod tests {
                 );
             }
         }
+        // The dipole's term is never scaled: spectralon's R_d is the
+        // closed form, its single scattering reduced (0.352 of it).
+        let spectralon = &cases.iter().find(|(n, _)| n == "spectralon").unwrap().1;
+        let sp = crate::subsurface::Medium::by_name("spectralon").unwrap();
+        let d = Dipole::new(sp.sigma_s_reduced[0], sp.sigma_a[0], sp.eta);
+        assert_eq!(spectralon.r_d.r, d.total());
+        assert!(spectralon.single_albedo.r > 0.3 && spectralon.single_albedo.r < 0.4);
         // Absorbing media are the published model: marble's R_d is the
         // dipole's closed form.
         let marble = crate::subsurface::Medium::by_name("marble").unwrap();

@@ -32,12 +32,12 @@
 //!   Jensen's sum `S^(1) + S_d` counts the lowest orders twice (the
 //!   diffusion term already approximates them): a non-absorbing sphere
 //!   under a white sky rendered 1.054 with it and 0.929 without (the
-//!   latter below 1 by the profile lost beyond the object). So with the
-//!   single-scattering term on, both terms of each channel are scaled by
-//!   [`Subsurface::scattering_scale`] (1 for absorbing media; see
-//!   [`crate::subsurface::energy`]): the sphere renders 0.918.
-//!   `single_scattering = false` drops the term and keeps the published
-//!   dipole alone.
+//!   latter below 1 by the profile lost beyond the object). So the
+//!   single-scattering term of each channel is scaled by
+//!   [`Subsurface::single_scattering_scale`] (1 for absorbing media, 0
+//!   without absorption; see [`crate::subsurface::energy`]): the sphere
+//!   renders as the dipole alone, 0.929. `single_scattering = false` drops
+//!   the term.
 //!
 //! Coefficients are per millimetre; `scale` gives millimetres per scene
 //! unit, so `sigma` in 1/unit is `sigma_mm * scale`.
@@ -70,7 +70,7 @@
 //! ```
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::subsurface::energy::{energy_scale, DiffuseExit};
+use crate::subsurface::energy::{single_scattering_scale, DiffuseExit};
 use crate::subsurface::Dipole;
 use crate::{Dielectric, SubsurfaceBrdf};
 use isolux_core::{DVec3, Distribution1D, Rgb, INV_PI, PI};
@@ -93,11 +93,11 @@ pub enum SubsurfaceMode {
 struct Derived {
     /// Per-channel tables of `R_d(r) 2 pi r` in `x = sqrt(r / r_max)`.
     radial: [Distribution1D; 3],
-    /// Per channel, the factor on both scattering terms that keeps the
-    /// dipole plus single scattering within energy on a half-space
-    /// ([`crate::subsurface::energy::energy_scale`]); used through
-    /// [`Subsurface::scattering_scale`].
-    energy_scale: Rgb,
+    /// Per channel, the factor on the single-scattering term that keeps
+    /// the dipole plus single scattering within energy on a half-space
+    /// ([`crate::subsurface::energy::single_scattering_scale`]); used
+    /// through [`Subsurface::single_scattering_scale`].
+    single_scale: Rgb,
     /// The local approximation of the same medium (the seed's eq. 19),
     /// single scattering included: see [`Subsurface::local_brdf`].
     local: SubsurfaceBrdf,
@@ -174,7 +174,7 @@ impl Subsurface {
             let a = |s: f64, t: f64| if t > 0.0 { s / t } else { 0.0 };
             Rgb::new(a(sigma_s.r, st.r), a(sigma_s.g, st.g), a(sigma_s.b, st.b))
         };
-        let energy_scale = energy_scale(
+        let single_scale = single_scattering_scale(
             Rgb::new(dipoles[0].total(), dipoles[1].total(), dipoles[2].total()),
             single_albedo,
             g,
@@ -189,7 +189,7 @@ impl Subsurface {
             mode,
             derived: Arc::new(Derived {
                 radial: [table(&dipoles[0]), table(&dipoles[1]), table(&dipoles[2])],
-                energy_scale,
+                single_scale,
                 local: SubsurfaceBrdf::new(red, sigma_a, g, eta),
             }),
             dipoles,
@@ -199,16 +199,16 @@ impl Subsurface {
         }
     }
 
-    /// Per channel, the factor on the dipole profile and on the
-    /// single-scattering term that keeps the dipole mode within energy:
-    /// Jensen's sum `S^(1) + S_d` counts the lowest scattering orders
-    /// twice, so with little absorption it reflects more than it
-    /// receives. 1 where the published model is within energy, without
-    /// the single-scattering term (the dipole alone reflects `T R_d <= 1 -
-    /// F`) and in random-walk mode.
-    pub fn scattering_scale(&self) -> Rgb {
-        if self.mode == SubsurfaceMode::Dipole && self.single_scattering {
-            self.derived.energy_scale
+    /// Per channel, the factor on the single-scattering term that keeps
+    /// the dipole mode within energy: Jensen's sum `S^(1) + S_d` counts the
+    /// lowest scattering orders twice, so with little absorption it
+    /// reflects more than it receives. 1 where the published model is
+    /// within energy and in random-walk mode; 0 for a medium without
+    /// absorption, whose dipole term alone is exactly what a half-space
+    /// reflects (see [`crate::subsurface::energy`]).
+    pub fn single_scattering_scale(&self) -> Rgb {
+        if self.mode == SubsurfaceMode::Dipole {
+            self.derived.single_scale
         } else {
             Rgb::splat(1.0)
         }
@@ -237,8 +237,7 @@ impl Subsurface {
         }
     }
 
-    /// `R_d(r)` per channel (per scene unit area), as published (the
-    /// renderer multiplies it by [`Subsurface::scattering_scale`]).
+    /// `R_d(r)` per channel (per scene unit area), as published.
     pub fn profile(&self, r: f64) -> Rgb {
         Rgb::new(
             self.dipoles[0].r_d(r),
@@ -324,18 +323,17 @@ impl BxdfModel for Subsurface {
 mod tests {
     use super::*;
 
-    /// The energy scale applies only where it is needed: to the dipole
-    /// mode with its single-scattering term.
+    /// The single-scattering term is scaled only where it is needed: in
+    /// dipole mode, with little absorption.
     #[test]
-    fn the_energy_scale_applies_to_the_dipole_with_single_scattering() {
+    fn the_single_scattering_scale_applies_to_the_dipole_mode() {
         let white = |mode| Subsurface::new(Rgb::splat(20.0), Rgb::BLACK, 0.0, 1.3, mode);
-        let mut m = white(SubsurfaceMode::Dipole);
-        let s = m.scattering_scale();
-        assert!(s.r < 0.9 && s.r == s.g && s.g == s.b, "{s:?}");
-        m.single_scattering = false;
-        assert_eq!(m.scattering_scale(), Rgb::splat(1.0));
         assert_eq!(
-            white(SubsurfaceMode::RandomWalk).scattering_scale(),
+            white(SubsurfaceMode::Dipole).single_scattering_scale(),
+            Rgb::BLACK
+        );
+        assert_eq!(
+            white(SubsurfaceMode::RandomWalk).single_scattering_scale(),
             Rgb::splat(1.0)
         );
         // Strong absorption: the published model is within energy.
@@ -346,7 +344,7 @@ mod tests {
             1.3,
             SubsurfaceMode::Dipole,
         );
-        assert_eq!(ketchup.scattering_scale(), Rgb::splat(1.0));
+        assert_eq!(ketchup.single_scattering_scale(), Rgb::splat(1.0));
     }
 
     /// The real-time mode's local BRDF is `subsurface_brdf` of the same

@@ -138,7 +138,7 @@ fn single_scattering_light(
     use isolux_materials::subsurface::phase::single_scattering;
     let frame = Frame::from_normal(hit.n);
     let wo_l = frame.to_local(wo);
-    let albedo = m.albedo() * m.scattering_scale();
+    let albedo = m.albedo() * m.single_scattering_scale();
     let eta = m.boundary.ior;
     let f1 = |wi: DVec3| -> Rgb {
         let wl = frame.to_local(wi);
@@ -246,7 +246,7 @@ fn bssrdf_entry(
     if !(pdf > 0.0) || !pdf.is_finite() {
         return None;
     }
-    let w = m.profile(d.length()) * m.scattering_scale() / pdf;
+    let w = m.profile(d.length()) / pdf;
     w.is_finite().then_some((xi, w))
 }
 

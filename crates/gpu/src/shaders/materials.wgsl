@@ -21,7 +21,7 @@
 //   SUBSURFACE   a.x ior (its boundary: the DIELECTRIC's lobes), a.y g,
 //                a.z r_max, a.w 1 - F_dr,ext; b.rgb sigma_s, b.w single
 //                scattering on; c.rgb sigma_a; tag.w 1 for random walk;
-//                idx.x dipoles, then the energy scale, then the local
+//                idx.x dipoles, then the single-scattering scale, then the local
 //                BRDF's R_d and single-scattering albedo (sss_local_brdf);
 //                idx.yzw radial tables (render.wgsl)
 //   WAVE         wave.wgsl (placed per shading point by place_material)
@@ -905,7 +905,7 @@ fn hg_phase(cos_t: f32, g: f32) -> f32 {
 // The local approximation of a SUBSURFACE medium m, as a SUBSURFACE_BRDF
 // (Subsurface::local_brdf): what the real-time mode shades it with. Its
 // R_d and single-scattering albedo follow the dipoles (12 floats) and the
-// energy scale (3) in the material data.
+// single-scattering scale (3) in the material data.
 fn sss_local_brdf(m: Material) -> Material {
     var b = m;
     let at = m.idx.x + 15u;

@@ -478,16 +478,15 @@ fn sss_albedo(m: Material) -> vec3<f32> {
     return select(vec3<f32>(0.0), m.b.rgb / st, st > vec3<f32>(0.0));
 }
 
-// The energy scale of both scattering terms per channel
-// (Subsurface::scattering_scale), after the three dipoles.
+// The scale of the single-scattering term per channel
+// (Subsurface::single_scattering_scale), after the three dipoles.
 fn sss_scale(m: Material) -> vec3<f32> {
     let at = m.idx.x + 12u;
     return vec3<f32>(material_data[at], material_data[at + 1u], material_data[at + 2u]);
 }
 
 // R_d(r) per channel (dipoles at material_data[idx.x]: sigma_tr, z_r,
-// z_v, alpha' per channel), as subsurface::Dipole::r_d, times the energy
-// scale.
+// z_v, alpha' per channel), as subsurface::Dipole::r_d.
 fn sss_profile(m: Material, r: f32) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     for (var c = 0u; c < 3u; c++) {
@@ -501,7 +500,7 @@ fn sss_profile(m: Material, r: f32) -> vec3<f32> {
         }
         out[c] = material_data[at + 3u] / (4.0 * PI) * sum;
     }
-    return out * sss_scale(m);
+    return out;
 }
 
 // Density of the radial sampler of channel c at radius r.
