@@ -11,6 +11,13 @@
 //!   importance sampling (20,000 samples per angle; also printed as a table).
 //! - `sphere`: a lit-sphere thumbnail under a point light and a dim sky.
 //!
+//! A `subsurface` material is a boundary over a medium whose light leaves
+//! elsewhere on the surface, so it has no BRDF of its own (its boundary's
+//! `R + T` is 1 at every angle). `plot` and `albedo` show its local
+//! approximation instead, the `subsurface_brdf` of the same medium
+//! (`Subsurface::local_brdf`, what the real-time mode renders), labelled
+//! "NAME (local approximation)"; `sphere` path traces the medium itself.
+//!
 //! Text is rasterized in pure Rust (plotters' `ab_glyph` backend) with the
 //! bundled DejaVu Sans font: no system font libraries are needed.
 
@@ -156,6 +163,21 @@ pub fn materials(scene: &Path, names: &[String]) -> Result<Vec<(String, Material
         .collect()
 }
 
+/// `mats` with each `subsurface` medium replaced by its local
+/// approximation, named "NAME (local approximation)" (see the module
+/// documentation).
+fn as_brdfs(mats: Vec<(String, Material)>) -> Vec<(String, Material)> {
+    mats.into_iter()
+        .map(|(name, m)| match m.medium() {
+            Some(medium) => (
+                format!("{name} (local approximation)"),
+                Material::SubsurfaceBrdf(medium.local_brdf()),
+            ),
+            None => (name, m),
+        })
+        .collect()
+}
+
 enum Kind {
     Png,
     Svg,
@@ -293,7 +315,7 @@ fn plot(a: PlotArgs) -> Result<()> {
             a.phi_i
         );
     }
-    let mats = materials(&a.scene, &a.materials)?;
+    let mats = as_brdfs(materials(&a.scene, &a.materials)?);
     let wo = local_dir(a.theta_i, a.phi_i);
     let phi_plane = match a.plane {
         Plane::In => a.phi_i + 180.0,
@@ -368,7 +390,7 @@ pub fn albedo_curve(m: &Material, samples: usize) -> Vec<(f64, f64)> {
 
 fn albedo(a: AlbedoArgs) -> Result<()> {
     isolux_io::check_output(&a.output)?;
-    let mats = materials(&a.scene, &a.materials)?;
+    let mats = as_brdfs(materials(&a.scene, &a.materials)?);
     let curves: Vec<Curve> = mats
         .iter()
         .map(|(n, m)| (n.clone(), albedo_curve(m, 20_000)))
