@@ -239,3 +239,68 @@ fn viewer_refuses_materials_not_on_the_gpu_and_bad_flags() {
         "{err}"
     );
 }
+
+/// A bump that dwarfs its base quadric (a support of radius 50 and factor
+/// 3000 around a sphere of radius 0.45: a shell around the camera) is
+/// intersected in f64 by the viewer as by `render --gpu`, which says so,
+/// naming the object (`Gpu::precision_for`; docs/gpu.md, "Precision").
+#[test]
+fn viewer_intersects_ill_conditioned_bumps_in_f64() {
+    if !have_xvfb() {
+        eprintln!("skipped: no xvfb-run");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("shell.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[camera]
+position = [0.0, 3.4, 7.2]
+look_at = [0.0, -0.15, 0.0]
+[[light]]
+type = "point"
+position = [-3.0, 6.0, 5.0]
+intensity = [45.0, 45.0, 45.0]
+[[material]]
+name = "copper"
+type = "beckmann"
+roughness = 0.25
+metal = "Cu"
+[[object]]
+material = "copper"
+base = { type = "sphere", center = [-2.5, 0.0, 0.0], radius = 0.45 }
+[[object.perturbation]]
+quadric = { type = "sphere", center = [-2.5, 0.45, 0.0], radius = 50 }
+factor = 3000.0
+"#,
+    )
+    .unwrap();
+    let shot = dir.path().join("shot.png");
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_isolux"))
+        .arg("view")
+        .arg(&scene)
+        .args(["--width", "480", "--height", "120", "--frames", "2"])
+        .args(["--mode", "realtime", "--screenshot"])
+        .arg(&shot)
+        .output()
+        .expect("xvfb-run starts");
+    let err = String::from_utf8_lossy(&o.stderr);
+    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    if err.contains("does not offer f64 in shaders") {
+        // An adapter without SHADER_F64 refuses the scene instead.
+        assert!(!o.status.success() && !shot.exists(), "{err}");
+        return;
+    }
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("object[0]: perturbation 0 adds f Q^3") && err.contains("intersecting in f64"),
+        "{err}"
+    );
+    assert!(shot.exists());
+}
