@@ -57,7 +57,7 @@
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
 use crate::fresnel::dielectric;
 pub use crate::subsurface::energy::lobe_albedos;
-use crate::subsurface::energy::{single_scattering_scale, DiffuseExit};
+use crate::subsurface::energy::{single_scattering_scale, DiffuseExit, LobeAlbedos};
 use crate::subsurface::phase::single_scattering;
 use crate::subsurface::Dipole;
 use isolux_core::{sampling, DVec3, Rgb, INV_PI};
@@ -97,15 +97,27 @@ impl SubsurfaceBrdf {
         let (r, ar) = ch(sigma_s_reduced.r, sigma_a.r);
         let (gg, ag) = ch(sigma_s_reduced.g, sigma_a.g);
         let (b, ab) = ch(sigma_s_reduced.b, sigma_a.b);
-        let mut m = Self {
-            r_d: Rgb::new(r, gg, b),
-            single_albedo: Rgb::new(ar, ag, ab),
+        Self::with_lobes(
+            Rgb::new(r, gg, b),
+            Rgb::new(ar, ag, ab),
             g,
             eta,
-        };
-        m.single_albedo *=
-            single_scattering_scale(m.r_d, m.single_albedo, g, eta, DiffuseExit::Jensen);
-        m
+            &LobeAlbedos::new(g, eta),
+        )
+    }
+
+    /// From the dipole's total reflectance `r_d` and the single-scattering
+    /// albedo `a` per channel, with the energy check's quadrature `lobes`
+    /// for `(g, eta)` already computed (`Subsurface` shares it with its own
+    /// check): the single-scattering term is scaled as [`SubsurfaceBrdf::new`]
+    /// says.
+    pub(crate) fn with_lobes(r_d: Rgb, a: Rgb, g: f64, eta: f64, lobes: &LobeAlbedos) -> Self {
+        Self {
+            r_d,
+            single_albedo: a * single_scattering_scale(lobes, r_d, a, DiffuseExit::Jensen),
+            g,
+            eta,
+        }
     }
 
     fn p_mirror(&self, wo: DVec3) -> f64 {

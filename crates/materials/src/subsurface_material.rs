@@ -70,7 +70,7 @@
 //! ```
 
 use crate::bxdf::{BsdfSample, BxdfFlags, BxdfModel};
-use crate::subsurface::energy::{single_scattering_scale, DiffuseExit};
+use crate::subsurface::energy::{single_scattering_scale, DiffuseExit, LobeAlbedos};
 use crate::subsurface::Dipole;
 use crate::{Dielectric, SubsurfaceBrdf};
 use isolux_core::{DVec3, Distribution1D, Rgb, INV_PI, PI};
@@ -169,18 +169,11 @@ impl Subsurface {
                 .collect();
             Distribution1D::new(&w)
         };
-        let single_albedo = {
-            let st = sigma_s + sigma_a;
-            let a = |s: f64, t: f64| if t > 0.0 { s / t } else { 0.0 };
-            Rgb::new(a(sigma_s.r, st.r), a(sigma_s.g, st.g), a(sigma_s.b, st.b))
-        };
-        let single_scale = single_scattering_scale(
-            Rgb::new(dipoles[0].total(), dipoles[1].total(), dipoles[2].total()),
-            single_albedo,
-            g,
-            eta,
-            DiffuseExit::Normalized,
-        );
+        // The energy check's quadrature, shared by the BSSRDF's check and
+        // its local BRDF's (Jensen's normalization).
+        let lobes = LobeAlbedos::new(g, eta);
+        let r_d = Rgb::from_array(dipoles.map(|d| d.total()));
+        let a = single_albedo(sigma_s, sigma_a);
         Self {
             boundary: Dielectric { ior: eta },
             sigma_s,
@@ -189,8 +182,8 @@ impl Subsurface {
             mode,
             derived: Arc::new(Derived {
                 radial: [table(&dipoles[0]), table(&dipoles[1]), table(&dipoles[2])],
-                single_scale,
-                local: SubsurfaceBrdf::new(red, sigma_a, g, eta),
+                single_scale: single_scattering_scale(&lobes, r_d, a, DiffuseExit::Normalized),
+                local: SubsurfaceBrdf::with_lobes(r_d, a, g, eta, &lobes),
             }),
             dipoles,
             sw_norm: 1.0 - crate::fresnel::diffuse_external(eta),
@@ -225,13 +218,7 @@ impl Subsurface {
         if self.single_scattering {
             return self.derived.local;
         }
-        let red = self.sigma_s * (1.0 - self.g);
-        let total = |k: usize| {
-            let (s, a) = (red.to_array()[k], self.sigma_a.to_array()[k]);
-            Dipole::new(s, a, self.boundary.ior).total()
-        };
         SubsurfaceBrdf {
-            r_d: Rgb::new(total(0), total(1), total(2)),
             single_albedo: Rgb::BLACK,
             ..self.derived.local
         }
@@ -298,25 +285,16 @@ impl BxdfModel for Subsurface {
         self.boundary.flags()
     }
     fn albedo(&self) -> Rgb {
-        let st = self.sigma_t();
-        Rgb::new(
-            if st.r > 0.0 {
-                self.sigma_s.r / st.r
-            } else {
-                0.0
-            },
-            if st.g > 0.0 {
-                self.sigma_s.g / st.g
-            } else {
-                0.0
-            },
-            if st.b > 0.0 {
-                self.sigma_s.b / st.b
-            } else {
-                0.0
-            },
-        )
+        single_albedo(self.sigma_s, self.sigma_a)
     }
+}
+
+/// The single-scattering albedo `sigma_s / sigma_t` per channel (0 where
+/// the medium neither scatters nor absorbs).
+fn single_albedo(sigma_s: Rgb, sigma_a: Rgb) -> Rgb {
+    let a = |s: f64, t: f64| if t > 0.0 { s / t } else { 0.0 };
+    let st = sigma_s + sigma_a;
+    Rgb::new(a(sigma_s.r, st.r), a(sigma_s.g, st.g), a(sigma_s.b, st.b))
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@
 //! cells (roughness 1e-3, Phong exponents of 1e6), first spreading the
 //! directions near its centre over the sphere.
 
-use isolux_core::{DVec3, Pcg32, PI};
+use isolux_core::{DVec3, Frame, Pcg32, PI};
 
 /// Outcome of a chi-square test.
 #[derive(Clone, Debug)]
@@ -161,10 +161,10 @@ pub fn chi2_test_around(
     seed: u64,
 ) -> Chi2 {
     let c = center.normalize();
-    let (u, v) = orthonormal_pair(c);
+    let Frame { s: u, t: v, .. } = Frame::from_normal(c);
     // The image of `center`: on the equator, between cell boundaries.
     let e = DVec3::new(1.1f64.cos(), 1.1f64.sin(), 0.05).normalize();
-    let (u2, v2) = orthonormal_pair(e);
+    let Frame { s: u2, t: v2, .. } = Frame::from_normal(e);
     let k = magnification;
     // Warped direction -> original direction and the Jacobian factor.
     let unwarp = |w: DVec3| -> Option<(DVec3, f64)> {
@@ -196,13 +196,6 @@ pub fn chi2_test_around(
         64,
         seed,
     )
-}
-
-/// Two unit vectors completing `n` (unit) to an orthonormal frame.
-fn orthonormal_pair(n: DVec3) -> (DVec3, DVec3) {
-    let a = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-    let u = n.cross(a).normalize();
-    (u, n.cross(u))
 }
 
 /// Midpoint rule with `n x n` points over `[z0, z1] x [p0, p1]`.
@@ -399,7 +392,7 @@ mod tests {
     #[test]
     fn magnified_test_resolves_a_narrow_lobe() {
         let c = DVec3::new(0.3, -0.5, 0.8).normalize();
-        let (u, v) = orthonormal_pair(c);
+        let Frame { s: u, t: v, .. } = Frame::from_normal(c);
         let n = 1e5;
         let sample = |r: &mut Pcg32| {
             let [a, b] = r.next_2d();

@@ -24,7 +24,7 @@
 
 use crate::fresnel::dielectric;
 use crate::subsurface::phase::{hg, sample_hg_cos, single_scattering};
-use isolux_core::{DVec3, Rgb};
+use isolux_core::{DVec3, Frame, Rgb};
 
 /// Incidence angles (denser toward grazing) at which
 /// [`single_scattering_scale`] checks the directional albedo.
@@ -69,13 +69,11 @@ pub fn lobe_albedos(g: f64, eta: f64, cos_i: f64) -> (f64, f64) {
     let Some((ti, _)) = crate::dielectric::refract(wi, eta) else {
         return (multiple, 0.0);
     };
-    let ti = ti.normalize();
-    let t1 = if ti.x.abs() < 0.9 {
-        ti.cross(DVec3::X).normalize()
-    } else {
-        ti.cross(DVec3::Y).normalize()
-    };
-    let t2 = ti.cross(t1);
+    let Frame {
+        s: t1,
+        t: t2,
+        n: ti,
+    } = Frame::from_normal(ti.normalize());
     let (nu, nphi) = (256, 96);
     // The grid follows the phase function where its peak is backward, the
     // way out; a forward peak points into the medium, where the grid would
@@ -103,11 +101,43 @@ pub fn lobe_albedos(g: f64, eta: f64, cos_i: f64) -> (f64, f64) {
     (multiple, single / (nu * nphi) as f64)
 }
 
+/// [`lobe_albedos`] at the [`ENERGY_ANGLES`] incidence angles that
+/// [`single_scattering_scale`] checks, with the room the boundary's mirror
+/// leaves there: the quadrature a medium's energy check costs (about 7 ms),
+/// computed once per `(g, eta)` and shared by both normalizations.
+#[derive(Clone, Debug)]
+pub struct LobeAlbedos {
+    /// Per angle: `1 - F(cos_i)`, and the two terms' albedos per unit
+    /// weight with Jensen's exit.
+    angles: [(f64, f64, f64); ENERGY_ANGLES],
+    /// `1 - F_dr,ext`.
+    c: f64,
+}
+
+impl LobeAlbedos {
+    /// The albedos for mean cosine `g` and relative index `eta`.
+    pub fn new(g: f64, eta: f64) -> Self {
+        let angles = std::array::from_fn(|k| {
+            // Denser toward grazing, where the single-scattering term's
+            // 1 / (cos_i' + cos_o') grows (at ior 1 the albedo rises to
+            // its largest there): cos_i from 1 down to 1 / 256.
+            let x = 1.0 - k as f64 / ENERGY_ANGLES as f64;
+            let cos_i = x * x;
+            let (multiple, single) = lobe_albedos(g, eta, cos_i);
+            (1.0 - dielectric(cos_i, eta), multiple, single)
+        });
+        Self {
+            angles,
+            c: 1.0 - crate::fresnel::diffuse_external(eta),
+        }
+    }
+}
+
 /// Per channel, the factor on the single-scattering term (its albedo `a
 /// = sigma_s / sigma_t`) that keeps the directional albedo, the boundary's
 /// mirror `F(cos_i)` and the dipole's term `r_d` included, at or below 1
-/// at every one of [`ENERGY_ANGLES`] incidence angles, from normal
-/// incidence down to 89.8 degrees. Where the published model exceeds 1
+/// at every one of the [`ENERGY_ANGLES`] incidence angles of `lobes`, from
+/// normal incidence down to 89.8 degrees. Where the published model exceeds 1
 /// the factor leaves it [`ENERGY_MARGIN`] below 1 at its worst angle, or is
 /// 0 where the dipole alone comes that close (a non-absorbing medium in
 /// the normalized BSSRDF, whose dipole term is then exactly `1 - F`);
@@ -124,21 +154,13 @@ pub fn lobe_albedos(g: f64, eta: f64, cos_i: f64) -> (f64, f64) {
 /// | `apple` | 1, 1, 1 | 0.933, 1, 1 |
 ///
 /// The other seven need none either way.
-pub fn single_scattering_scale(r_d: Rgb, a: Rgb, g: f64, eta: f64, exit: DiffuseExit) -> Rgb {
+pub fn single_scattering_scale(lobes: &LobeAlbedos, r_d: Rgb, a: Rgb, exit: DiffuseExit) -> Rgb {
     let (r_d, a) = (r_d.to_array(), a.to_array());
-    let c = 1.0 - crate::fresnel::diffuse_external(eta);
     let mut scale = [1.0f64; 3];
-    for k in 0..ENERGY_ANGLES {
-        // Denser toward grazing, where the single-scattering term's
-        // 1 / (cos_i' + cos_o') grows (at ior 1 the albedo rises to its
-        // largest there): cos_i from 1 down to 1 / 256.
-        let x = 1.0 - k as f64 / ENERGY_ANGLES as f64;
-        let cos_i = x * x;
-        let room = 1.0 - dielectric(cos_i, eta);
-        let (multiple, single) = lobe_albedos(g, eta, cos_i);
+    for &(room, multiple, single) in &lobes.angles {
         let multiple = match exit {
             DiffuseExit::Jensen => multiple,
-            DiffuseExit::Normalized => multiple / c,
+            DiffuseExit::Normalized => multiple / lobes.c,
         };
         for ch in 0..3 {
             let (dipole, single) = (r_d[ch] * multiple, a[ch] * single);
@@ -201,8 +223,9 @@ mod tests {
     fn absorbing_media_keep_the_published_model() {
         for name in crate::subsurface::Medium::names() {
             let (r_d, a, eta) = named(name);
-            let j = single_scattering_scale(r_d, a, 0.0, eta, DiffuseExit::Jensen);
-            let n = single_scattering_scale(r_d, a, 0.0, eta, DiffuseExit::Normalized);
+            let lobes = LobeAlbedos::new(0.0, eta);
+            let j = single_scattering_scale(&lobes, r_d, a, DiffuseExit::Jensen);
+            let n = single_scattering_scale(&lobes, r_d, a, DiffuseExit::Normalized);
             let c = 1.0 - crate::fresnel::diffuse_external(eta);
             for ch in 0..3 {
                 let (sj, sn) = (j.to_array()[ch], n.to_array()[ch]);
@@ -210,11 +233,14 @@ mod tests {
                     (0.0..=1.0).contains(&sn) && sn <= sj && sj <= 1.0,
                     "{name} {ch}: {sj} {sn}"
                 );
-                for k in 0..=40 {
-                    let cos_i = 1.0 - k as f64 / 40.5;
-                    let (m, s) = lobe_albedos(0.0, eta, cos_i);
+            }
+            for k in 0..=40 {
+                let cos_i = 1.0 - k as f64 / 40.5;
+                let (m, s) = lobe_albedos(0.0, eta, cos_i);
+                let f = dielectric(cos_i, eta);
+                for ch in 0..3 {
+                    let (sj, sn) = (j.to_array()[ch], n.to_array()[ch]);
                     let (r, al) = (r_d.to_array()[ch], a.to_array()[ch]);
-                    let f = dielectric(cos_i, eta);
                     let jensen = f + r * m + sj * al * s;
                     let normalized = f + r * m / c + sn * al * s;
                     assert!(
@@ -228,16 +254,16 @@ mod tests {
             "ketchup", "skin1", "skin2", "potato", "chicken1", "skimmilk",
         ] {
             let (r_d, a, eta) = named(name);
-            let n = single_scattering_scale(r_d, a, 0.0, eta, DiffuseExit::Normalized);
+            let lobes = LobeAlbedos::new(0.0, eta);
+            let n = single_scattering_scale(&lobes, r_d, a, DiffuseExit::Normalized);
             assert_eq!(n, Rgb::splat(1.0), "{name}");
         }
         // A non-absorbing medium's dipole term is exactly 1 - F in the
         // normalized BSSRDF: no room for single scattering.
         let s = single_scattering_scale(
+            &LobeAlbedos::new(0.0, 1.3),
             Rgb::splat(1.0),
             Rgb::splat(1.0),
-            0.0,
-            1.3,
             DiffuseExit::Normalized,
         );
         assert_eq!(s, Rgb::BLACK);
