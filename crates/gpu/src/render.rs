@@ -334,9 +334,8 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
 /// [`worst_bump_condition`]), the f32 intersection cannot be trusted:
 /// along a ray the kernel expands `F'` into a degree-6 polynomial whose
 /// terms are then that many times the values near the surface, which
-/// cancel there. The
-/// ratio predicts the failure only to within a factor of ten or so across
-/// shapes; measured 2026-12-03 on lavapipe against the CPU's f64, a base
+/// cancel there. The ratio predicts the failure only to within a factor
+/// of ten or so across shapes; measured 2026-12-03 on lavapipe against the CPU's f64, a base
 /// sphere of radius 0.45 under one bump, 400 rays from inside and outside
 /// (unbounded supports within `bounds` of 80 units):
 ///
@@ -411,13 +410,13 @@ pub fn worst_bump_condition(scene: &Scene) -> Option<BumpCondition> {
     let mut worst: Option<BumpCondition> = None;
     for (i, o) in scene.geometry.objects().iter().enumerate() {
         let b = o.bbox();
-        if !b.is_finite() || b.is_empty() {
+        if o.perturbations().is_empty() || !b.is_finite() || b.is_empty() {
             continue;
         }
         // The base's largest |F| on the box, in the object's frame.
-        let (lo, hi) = (b.min - o.origin(), b.max - o.origin());
+        let local = b.translated(-o.origin());
         let f = |p: glam::DVec3| o.base().eval(p);
-        let base = max_over_box(f, lo, hi, 9).max(max_over_box(|p| -f(p), lo, hi, 9));
+        let base = max_over_box(f, &local, 9).max(max_over_box(|p| -f(p), &local, 9));
         for (k, q) in o.perturbations().iter().enumerate() {
             let peak = bump_peak(o, q);
             let ratio = peak / base.max(f64::MIN_POSITIVE);
@@ -444,27 +443,22 @@ pub fn worst_bump_condition(scene: &Scene) -> Option<BumpCondition> {
 /// `scripts/gpu-diff-fuzz.py`: a sphere of radius 1e5 on the quadrics
 /// example rendered with arcs of noise on the GPU.)
 fn bump_peak(o: &isolux_geometry::Object, q: &isolux_geometry::Perturbation) -> f64 {
-    let mut b = o.bbox();
+    // The quadrics are in the object's frame, the box in the world's.
+    let mut b = o.bbox().translated(-o.origin());
     let support = q.quadric.positive_bounds();
     if let Some(support) = support {
-        // The support's box is in the object's frame, the object's box in
-        // the world's.
-        b = b.intersection(&isolux_core::Aabb {
-            min: support.min + o.origin(),
-            max: support.max + o.origin(),
-        });
+        b = b.intersection(&support);
     }
     if !b.is_finite() || b.is_empty() {
         return 0.0;
     }
-    let (lo, hi) = (b.min - o.origin(), b.max - o.origin());
     // A bounded support's Q is concave: one ascent finds its maximum.
     let starts = if support.is_some() { 1 } else { 9 };
-    let peak = max_over_box(|p| q.quadric.eval(p), lo, hi, starts).max(0.0);
+    let peak = max_over_box(|p| q.quadric.eval(p), &b, starts).max(0.0);
     q.factor.abs() * peak.powi(3)
 }
 
-/// About the largest value of the quadratic `f` on the box `[lo, hi]`:
+/// About the largest value of the quadratic `f` on the box `b`:
 /// coordinate ascent (each coordinate in turn set to its best value on the
 /// box, the others fixed; the quadratic along it is read from three
 /// values) from the box's centre and, with `starts` 9, from each corner
@@ -473,12 +467,8 @@ fn bump_peak(o: &isolux_geometry::Object, q: &isolux_geometry::Perturbation) -> 
 /// paraboloid's `Q`: their maximum lies on the axis or at the centre,
 /// which corners alone miss) and for a linear one; for an indefinite `f`
 /// (a cone, a hyperboloid) the best of nine local maxima.
-fn max_over_box(
-    f: impl Fn(glam::DVec3) -> f64,
-    lo: glam::DVec3,
-    hi: glam::DVec3,
-    starts: usize,
-) -> f64 {
+fn max_over_box(f: impl Fn(glam::DVec3) -> f64, b: &isolux_core::Aabb, starts: usize) -> f64 {
+    let (lo, hi) = (b.min, b.max);
     let mut best = f64::NEG_INFINITY;
     for k in (0..9).rev().take(starts) {
         let mut x = if k == 8 {
@@ -491,9 +481,7 @@ fn max_over_box(
             )
         };
         for _ in 0..16 {
-            for i in 0..3 {
-                let mut e = glam::DVec3::ZERO;
-                e[i] = 1.0;
+            for (i, e) in glam::DVec3::AXES.into_iter().enumerate() {
                 let (f0, fp, fm) = (f(x), f(x + e), f(x - e));
                 // f(x + s e) = f0 + b s + a s^2.
                 let (a, b) = (0.5 * (fp + fm - 2.0 * f0), 0.5 * (fp - fm));
