@@ -6,9 +6,9 @@
 use crate::brdf_cmd::{atomic_plot, lit_sphere, local_dir, materials};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use isolux_core::Image;
+use isolux_core::{DVec3, Image, Rgb};
 use isolux_factor::{factorize, read_csv, write_dir, RunOptions, Source};
-use isolux_materials::{BxdfModel, Material, Merl};
+use isolux_materials::{BxdfFlags, BxdfModel, Material, Merl};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::PathBuf;
@@ -19,7 +19,8 @@ use std::time::Instant;
 pub struct FactorArgs {
     /// Scene file that defines the material (with --material).
     scene: Option<PathBuf>,
-    /// Factor this material of the scene.
+    /// Factor this material of the scene (its finite part, where it also
+    /// has a mirror lobe; a `subsurface` medium through its local BRDF).
     #[arg(long)]
     material: Option<String>,
     /// Factor a MERL measured BRDF (.binary).
@@ -88,15 +89,41 @@ pub fn run(a: FactorArgs) -> Result<()> {
             bail!("--material needs the scene file that defines it: isolux factor SCENE.toml --material {name} -o DIR");
         };
         let (n, m) = materials(scene, std::slice::from_ref(name))?.remove(0);
-        if m.flags().is_specular() {
+        // A `subsurface` medium has no BRDF of its own (its boundary is a
+        // smooth dielectric): its local approximation is factored, as
+        // `brdf plot` shows it.
+        let (n, m) = match m.medium() {
+            Some(medium) => (
+                format!("{n} (local approximation)"),
+                Material::SubsurfaceBrdf(medium.local_brdf()),
+            ),
+            None => (n, m),
+        };
+        let flags = m.flags();
+        let finite = flags.contains(BxdfFlags::DIFFUSE) || flags.contains(BxdfFlags::GLOSSY);
+        if !finite {
             bail!(
                 "{}: material \"{n}\" is a delta ({}) material: it has no finite BRDF to factor",
                 scene.display(),
                 m.type_name()
             );
         }
+        let mut label = format!("{n} from {}", scene.display());
+        if flags.is_specular() {
+            // A smooth coat over a finite lobe (`plastic` without
+            // `roughness`, `subsurface_brdf`, a mix holding a mirror): the
+            // finite part is factored; the delta lobe, which no texture
+            // holds, is named and measured, never dropped silently.
+            let r = delta_albedo(&m);
+            eprintln!(
+                "isolux: note: material \"{n}\" ({}) has a delta lobe (a mirror reflection, {:.3} of the light at normal incidence) beside its finite BRDF: the factors hold the finite part only, and a `factored` material made from them renders without that reflection",
+                m.type_name(),
+                r.luminance()
+            );
+            label.push_str(" (finite part; its delta lobe left out)");
+        }
         Source::Material {
-            label: format!("{n} from {}", scene.display()),
+            label,
             material: Box::new(m),
         }
     } else {
@@ -196,6 +223,26 @@ pub fn run(a: FactorArgs) -> Result<()> {
         if a.no_preview { "" } else { ", preview.png" }
     );
     Ok(())
+}
+
+/// The reflectance of `m`'s delta lobes at normal incidence: the mean
+/// weight `f cos / pdf` of its delta samples over 4096 stratified lobe
+/// choices (a delta lobe's `pdf` is its discrete probability, so the mean
+/// is the lobe's reflectance whatever the others draw).
+fn delta_albedo(m: &Material) -> Rgb {
+    const N: usize = 4096;
+    let mut sum = Rgb::BLACK;
+    for k in 0..N {
+        let uc = (k as f64 + 0.5) / N as f64;
+        // Directions from a rank-1 lattice: a delta lobe ignores them.
+        let u = [(k as f64 * 0.618_033_988_749_895).fract(), 0.5];
+        if let Some(s) = m.sample(DVec3::Z, uc, u) {
+            if s.flags.is_specular() && s.pdf > 0.0 {
+                sum += s.weight(s.wi.z);
+            }
+        }
+    }
+    sum * (1.0 / N as f64)
 }
 
 /// Source and factored BRDF side by side: lit spheres, then in-plane lobes
