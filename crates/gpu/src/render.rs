@@ -163,18 +163,26 @@ pub fn worst_scale_ratio(scene: &Scene) -> Option<ScaleRatio> {
 /// [`MAX_SCALE_RATIO`] times its own size (10 km for a 1 m object). The
 /// message names the object with the largest ratio, and what to do. (A
 /// large object far out, a floor, is no obstacle to small ones near the
-/// camera: each is weighed against its own size.)
+/// camera: each is weighed against its own size.) Also why a `wave`
+/// heightfield's coordinates are too coarse in f32
+/// ([`wave_coordinate_shortfall`]).
 pub fn f32_shortfall(scene: &Scene) -> Option<String> {
     if let Some(why) = f32_overflow(scene) {
         return Some(why);
     }
-    let ScaleRatio {
+    let Some(ScaleRatio {
         object,
         reach,
         size,
         ratio,
-    } = worst_scale_ratio(scene)?;
-    (ratio > MAX_SCALE_RATIO).then(|| {
+    }) = worst_scale_ratio(scene)
+    else {
+        return wave_coordinate_shortfall(scene);
+    };
+    if ratio <= MAX_SCALE_RATIO {
+        return wave_coordinate_shortfall(scene);
+    }
+    Some({
         let (from, fix) = if planar_wave(scene) {
             (
                 "the origin (a planar `wave` mapping keeps the GPU's origin there)",
@@ -189,6 +197,101 @@ pub fn f32_shortfall(scene: &Scene) -> Option<String> {
              ({MAX_SCALE_RATIO}; docs/gpu.md, \"Precision\"): {fix}, or render without --gpu"
         )
     })
+}
+
+/// The finest a `wave` heightfield coordinate must be resolved on the
+/// GPU, in texels: f32 (an ulp of the coordinate, in um) must place a
+/// shading point on its heightfield within a quarter of a texel.
+const WAVE_COORDINATE_TEXELS: f64 = 0.25;
+
+/// Why f32 cannot place shading points on a `wave` heightfield of `scene`,
+/// if it cannot: the GPU maps a point to heightfield coordinates in f32
+/// (`place_wave`: `phi r` and `theta r` about a spherical mapping's
+/// centre, `phi rho` and `y` about a cylindrical one's, or the world
+/// coordinates for a planar one, times `um_per_unit`), so a bounded object
+/// far from its mapping's centre (or, planar, from the origin) gets
+/// coordinates whose f32 ulp exceeds [`WAVE_COORDINATE_TEXELS`] of the
+/// heightfield's texel. (Found by `scripts/gpu-diff-fuzz.py`: a spherical
+/// mapping centred 1e7 units away, coordinates of 1.6e10 um resolved to
+/// 2e3 um, rendered the brushed sphere half as bright as the CPU did; at
+/// 1e5 units, ulps of 16 um over texels of 1 um, the image's mean still
+/// matched but not its scratches.) The CPU maps in f64.
+fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
+    use isolux_materials::wave::{Mapping, Wave};
+    use isolux_materials::Material as M;
+    fn waves<'a>(m: &'a M, out: &mut Vec<&'a Wave>) {
+        match m {
+            M::Wave(w) => out.push(w),
+            M::Mix(x) => x.components.iter().for_each(|(c, _)| waves(c, out)),
+            _ => {}
+        }
+    }
+    for (i, o) in scene.geometry.objects().iter().enumerate() {
+        let b = o.bbox();
+        if !b.is_finite() || b.is_empty() {
+            continue;
+        }
+        let m = scene.object_material[i];
+        let mut ws = Vec::new();
+        waves(&scene.materials[m], &mut ws);
+        for w in ws {
+            let corners = (0..8).map(|k| {
+                glam::DVec3::new(
+                    if k & 1 == 0 { b.min.x } else { b.max.x },
+                    if k & 2 == 0 { b.min.y } else { b.max.y },
+                    if k & 4 == 0 { b.min.z } else { b.max.z },
+                )
+            });
+            // The largest coordinate on the box, in scene units (bounds:
+            // |phi| and theta at most pi, the distances at most a
+            // corner's).
+            let (reach, from) = match w.mapping {
+                Mapping::Planar(a) => (
+                    corners
+                        .map(|p| {
+                            (0..3)
+                                .filter(|&k| k != a)
+                                .map(|k| p[k].abs())
+                                .fold(0.0, f64::max)
+                        })
+                        .fold(0.0, f64::max),
+                    "the origin (its planar mapping's)".to_string(),
+                ),
+                Mapping::Spherical(c) => (
+                    std::f64::consts::PI * corners.map(|p| (p - c).length()).fold(0.0, f64::max),
+                    format!("its spherical mapping's centre {}", nums3(c)),
+                ),
+                Mapping::Cylindrical(c) => (
+                    corners
+                        .map(|p| {
+                            let d = p - c;
+                            (std::f64::consts::PI * d.x.hypot(d.z)).max(d.y.abs())
+                        })
+                        .fold(0.0, f64::max),
+                    format!("its cylindrical mapping's centre {}", nums3(c)),
+                ),
+            };
+            let coordinate = reach * w.um_per_unit;
+            let ulp = coordinate * f32::EPSILON as f64;
+            let texel = w.surface.texel_um;
+            if ulp > WAVE_COORDINATE_TEXELS * texel {
+                return Some(format!(
+                    "object[{i}] wears the `wave` material \"{}\" and lies far from {from}: its \
+                     heightfield coordinates reach {coordinate:.3e} um, which the GPU's f32 \
+                     resolves to {ulp:.2e} um, coarser than {WAVE_COORDINATE_TEXELS} of its \
+                     {texel} um texel (docs/gpu.md, \"Precision\"): move the mapping's centre \
+                     to the object, or render without --gpu (the CPU maps in f64)",
+                    scene.material_names[m]
+                ));
+            }
+        }
+    }
+    None
+}
+
+/// `[x, y, z]`, each as Rust writes the shortest `f64` that reads back.
+fn nums3(v: glam::DVec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
 
 /// A warning for the thinnest object of `scene` whose box is thinner than

@@ -933,6 +933,61 @@ fn every_example_scene_fits_the_gpus_f32() {
     }
 }
 
+/// A `wave` heightfield is placed in f32 on the GPU (`place_wave`), so a
+/// spherical mapping centred far from its object gives coordinates whose
+/// ulp exceeds the heightfield's texel: `wave-brushed.toml`'s mapping
+/// centre moved 1e7 units away (a fuzzed scene) rendered the sphere half
+/// as bright as the CPU. `f32_shortfall` refuses where an ulp of the
+/// largest coordinate on the object's box (`pi` times its farthest
+/// corner's distance from the centre, in um) exceeds a quarter texel, and
+/// names the material: the centre moved to 0.95 of that distance is
+/// accepted, to 1.05 of it refused, and the GPU's `render` refuses it with
+/// the same words.
+#[test]
+fn far_wave_mappings_are_refused() {
+    use glam::DVec3;
+    use isolux_materials::wave::Mapping;
+    let with_centre = |c: DVec3| {
+        let mut scene = common::example("wave-brushed.toml");
+        match &mut scene.materials[scene.object_material[0]] {
+            Material::Wave(w) => w.mapping = Mapping::Spherical(c),
+            other => panic!("{}", other.type_name()),
+        }
+        scene
+    };
+    let scene = with_centre(DVec3::ZERO);
+    assert!(isolux_gpu::f32_shortfall(&scene).is_none());
+    let (texel, um) = match &scene.materials[scene.object_material[0]] {
+        Material::Wave(w) => (w.surface.texel_um, w.um_per_unit),
+        _ => unreachable!(),
+    };
+    // The farthest corner's distance at which an ulp of pi r um is a
+    // quarter texel; the centre at (0, 0, z) beyond the box's near face.
+    let b = scene.geometry.objects()[0].bbox();
+    let r = 0.25 * texel / (f32::EPSILON as f64 * std::f64::consts::PI * um);
+    let (x, y) = (
+        b.min.x.abs().max(b.max.x.abs()),
+        b.min.y.abs().max(b.max.y.abs()),
+    );
+    let z_at = |r: f64| b.min.z + (r * r - x * x - y * y).sqrt();
+    assert!(
+        isolux_gpu::f32_shortfall(&with_centre(DVec3::new(0.0, 0.0, z_at(0.95 * r)))).is_none()
+    );
+    let far = with_centre(DVec3::new(0.0, 0.0, z_at(1.05 * r)));
+    let why = isolux_gpu::f32_shortfall(&far).expect("refused");
+    assert!(
+        why.starts_with("object[0] wears the `wave` material \"brushed\" and lies far from its spherical mapping's centre"),
+        "{why}"
+    );
+    let Some(gpu) = common::open("far wave mappings") else {
+        return;
+    };
+    match gpu.render(&far, &|_, _| {}) {
+        Err(isolux_gpu::GpuError::Precision(m)) => assert_eq!(m, why),
+        other => panic!("{:?}", other.map(|_| ())),
+    }
+}
+
 /// Camera rays test their 8 x 8 tile's list of objects (`cull_tiles` and
 /// `use_tile` in render.wgsl) instead of walking the object hierarchy
 /// each, and find the same hits: the list holds, in the walk's order, every
