@@ -18,6 +18,12 @@
 //! (`Subsurface::local_brdf`, what the real-time mode renders), labelled
 //! "NAME (local approximation)"; `sphere` path traces the medium itself.
 //!
+//! A `wave` material (or a mix holding one) has a BRDF per footprint on
+//! its heightfield: `plot` and `albedo` show the one it holds before it is
+//! placed on a surface, at the heightfield's origin over its coherence
+//! area, and a note on standard error says so (`isolux wave brdf
+//! --center-um` shows any other); `sphere` renders it placed.
+//!
 //! Text is rasterized in pure Rust (plotters' `ab_glyph` backend) with the
 //! bundled DejaVu Sans font: no system font libraries are needed.
 
@@ -165,15 +171,28 @@ pub fn materials(scene: &Path, names: &[String]) -> Result<Vec<(String, Material
 
 /// `mats` with each `subsurface` medium replaced by its local
 /// approximation, named "NAME (local approximation)" (see the module
-/// documentation).
-fn as_brdfs(mats: Vec<(String, Material)>) -> Vec<(String, Material)> {
+/// documentation). A material that varies across the surface (a `wave`,
+/// or a mix holding one) has a BRDF per footprint; it is `what` (plotted,
+/// factored) at the one it holds before placement, the heightfield's
+/// origin over its coherence area, and a note on standard error says so.
+pub(crate) fn as_brdfs(mats: Vec<(String, Material)>, what: &str) -> Vec<(String, Material)> {
     mats.into_iter()
-        .map(|(name, m)| match m.medium() {
-            Some(medium) => (
-                format!("{name} (local approximation)"),
-                Material::SubsurfaceBrdf(medium.local_brdf()),
-            ),
-            None => (name, m),
+        .map(|(name, m)| {
+            if m.varies_in_space() {
+                eprintln!(
+                    "isolux: note: material \"{name}\" ({}) varies across the surface: it is {what} \
+                     at one footprint, the heightfield's origin over its coherence area \
+                     (`isolux wave brdf --center-um` shows the BRDF at any point; `isolux brdf sphere` renders it placed)",
+                    m.type_name()
+                );
+            }
+            match m.medium() {
+                Some(medium) => (
+                    format!("{name} (local approximation)"),
+                    Material::SubsurfaceBrdf(medium.local_brdf()),
+                ),
+                None => (name, m),
+            }
         })
         .collect()
 }
@@ -315,7 +334,7 @@ fn plot(a: PlotArgs) -> Result<()> {
             a.phi_i
         );
     }
-    let mats = as_brdfs(materials(&a.scene, &a.materials)?);
+    let mats = as_brdfs(materials(&a.scene, &a.materials)?, "plotted");
     let wo = local_dir(a.theta_i, a.phi_i);
     let phi_plane = match a.plane {
         Plane::In => a.phi_i + 180.0,
@@ -390,7 +409,7 @@ pub fn albedo_curve(m: &Material, samples: usize) -> Vec<(f64, f64)> {
 
 fn albedo(a: AlbedoArgs) -> Result<()> {
     isolux_io::check_output(&a.output)?;
-    let mats = as_brdfs(materials(&a.scene, &a.materials)?);
+    let mats = as_brdfs(materials(&a.scene, &a.materials)?, "plotted");
     let curves: Vec<Curve> = mats
         .iter()
         .map(|(n, m)| (n.clone(), albedo_curve(m, 20_000)))

@@ -3,7 +3,7 @@
 //! parabolic maps and a small angle table), with a held-out error report
 //! against the SVD baseline. See `docs/factorization.md`.
 
-use crate::brdf_cmd::{atomic_plot, lit_sphere, local_dir, materials};
+use crate::brdf_cmd::{as_brdfs, atomic_plot, lit_sphere, local_dir, materials};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use isolux_core::{DVec3, Image, Rgb};
@@ -88,17 +88,10 @@ pub fn run(a: FactorArgs) -> Result<()> {
         let Some(scene) = &a.scene else {
             bail!("--material needs the scene file that defines it: isolux factor SCENE.toml --material {name} -o DIR");
         };
-        let (n, m) = materials(scene, std::slice::from_ref(name))?.remove(0);
         // A `subsurface` medium has no BRDF of its own (its boundary is a
         // smooth dielectric): its local approximation is factored, as
         // `brdf plot` shows it.
-        let (n, m) = match m.medium() {
-            Some(medium) => (
-                format!("{n} (local approximation)"),
-                Material::SubsurfaceBrdf(medium.local_brdf()),
-            ),
-            None => (n, m),
-        };
+        let (n, m) = as_brdfs(materials(scene, std::slice::from_ref(name))?, "factored").remove(0);
         let flags = m.flags();
         let finite = flags.contains(BxdfFlags::DIFFUSE) || flags.contains(BxdfFlags::GLOSSY);
         if !finite {

@@ -540,3 +540,59 @@ fn a_rough_heightfield_is_warned_about() {
         assert_eq!(err.contains("RMS slope"), warned, "rms {rms}: {err}");
     }
 }
+
+/// A `wave` material has a BRDF per footprint, so `brdf plot`, `brdf
+/// albedo` and `factor` take the one it holds before placement (the
+/// heightfield's origin) and say so on standard error, naming the
+/// material; a material that does not vary across the surface gets no
+/// such note.
+#[test]
+fn plotting_or_factoring_a_wave_material_names_its_footprint() {
+    let dir = tempfile::tempdir().unwrap();
+    let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes");
+    let brushed = format!("{examples}/wave-brushed.toml");
+    let plot = dir.path().join("p.svg");
+    let note = "material \"brushed\" (wave) varies across the surface: it is";
+    let out = run(&[
+        "brdf",
+        "plot",
+        &brushed,
+        "--material",
+        "brushed",
+        "--material",
+        "floor",
+        "--theta-i",
+        "30",
+        "-o",
+        plot.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("{note} plotted at one footprint")),
+        "{err}"
+    );
+    assert!(!err.contains("\"floor\""), "{err}");
+    let fdir = dir.path().join("f");
+    let out = run(&[
+        "factor",
+        &brushed,
+        "--material",
+        "brushed",
+        "--res",
+        "8",
+        "--fit-samples",
+        "2000",
+        "--held-out",
+        "500",
+        "--no-preview",
+        "-o",
+        fdir.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("{note} factored at one footprint")),
+        "{err}"
+    );
+}
