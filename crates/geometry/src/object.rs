@@ -2083,53 +2083,25 @@ mod tests {
     #[test]
     fn planes_on_their_boxs_face_are_hit() {
         let mut rng = isolux_core::Pcg32::new(5, 8);
-        for axis in 0..3 {
-            for side in [-1.0, 1.0] {
-                for offset in [0.0, 0.3, -7.25] {
-                    let mut n = DVec3::ZERO;
-                    n[axis] = side;
-                    let mut point = DVec3::new(0.999, -0.37, 3e3);
-                    point[axis] = offset;
-                    let (mut min, mut max) = (DVec3::splat(-1.5), DVec3::splat(1.5));
-                    // The plane on the box's face: the box below or above it.
-                    if side > 0.0 {
-                        (min[axis], max[axis]) = (offset, offset + 0.1);
-                    } else {
-                        (min[axis], max[axis]) = (offset - 0.1, offset);
+        for plane in crate::samples::planes_on_their_boxs_face() {
+            let (axis, offset) = (plane.axis, plane.offset);
+            let mut missed = 0;
+            for (from, to) in plane.rays(400, &mut rng) {
+                let far = (to - from).length();
+                let ray = Ray::new(from, (to - from) / far);
+                match plane.object.intersect(&ray, 0.0, f64::INFINITY) {
+                    Some(h) => {
+                        assert!((h.p[axis] - offset).abs() < 1e-12, "{}", h.p);
+                        assert!((h.t - far).abs() < 1e-9 * far.max(1.0), "{} {far}", h.t);
                     }
-                    let o =
-                        Object::new(Quadric::plane(point, n), vec![], Some(Aabb::new(min, max)))
-                            .unwrap();
-                    let mut missed = 0;
-                    for k in 0..400 {
-                        // A point on the face, seen from either side of it.
-                        let mut to = DVec3::new(
-                            -1.4 + 2.8 * rng.next_f64(),
-                            -1.4 + 2.8 * rng.next_f64(),
-                            -1.4 + 2.8 * rng.next_f64(),
-                        );
-                        to[axis] = offset;
-                        let mut dir =
-                            isolux_core::sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
-                        let from_box = k % 2 == 0;
-                        // Through the box first (leaving by the face), or
-                        // from outside it (entering by the face).
-                        let sign = if from_box { side } else { -side };
-                        dir[axis] = -sign * (0.05 + dir[axis].abs());
-                        let far = [0.05, 2.6, 40.0][k % 3];
-                        let from = to - far * dir.normalize();
-                        let ray = Ray::new(from, dir.normalize());
-                        match o.intersect(&ray, 0.0, f64::INFINITY) {
-                            Some(h) => {
-                                assert!((h.p[axis] - offset).abs() < 1e-12, "{}", h.p);
-                                assert!((h.t - far).abs() < 1e-9 * far.max(1.0), "{} {far}", h.t);
-                            }
-                            None => missed += 1,
-                        }
-                    }
-                    assert_eq!(missed, 0, "axis {axis}, side {side}, offset {offset}");
+                    None => missed += 1,
                 }
             }
+            assert_eq!(
+                missed, 0,
+                "axis {axis}, side {}, offset {offset}",
+                plane.side
+            );
         }
     }
 

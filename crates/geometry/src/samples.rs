@@ -1,7 +1,7 @@
 //! Reference objects shared by benchmarks, tests and examples.
 
 use crate::{Beam, Object, Perturbation, Quadric};
-use isolux_core::{DVec3, Ray};
+use isolux_core::{Aabb, DVec3, Pcg32, Ray};
 
 /// Form factor of the benchmark bumps: raises a bump about 0.05 high on a
 /// sphere of radius 0.6 (`1.2 h = f (0.04 - h^2)^3`).
@@ -124,4 +124,78 @@ pub fn cast_rows(obj: &Object, size: u32, rows: std::ops::Range<u32>, coherent: 
         }
     }
     hits
+}
+
+/// A plane lying on a face of its own box: the normal `side` (+1 or -1)
+/// along `axis`, at `offset` on that axis, the box 0.1 thick on the
+/// normal's side of it and 3 across (a floor `y = 0` whose `bounds` start
+/// at `y = 0`). Rays crossing that face meet the plane exactly where they
+/// cross the box's face, which rounding decides independently
+/// (`Object::intersect_in`'s `FACE_ULPS`).
+pub struct FacePlane {
+    /// The plane, bounded by its box.
+    pub object: Object,
+    /// The axis of its normal.
+    pub axis: usize,
+    /// Where the plane lies on that axis.
+    pub offset: f64,
+    /// The normal's direction along the axis.
+    pub side: f64,
+}
+
+/// [`FacePlane`]s on every face of the box: each axis, each side, at
+/// offsets 0, 0.3 (no f32 holds it) and -7.25.
+pub fn planes_on_their_boxs_face() -> Vec<FacePlane> {
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        for side in [-1.0, 1.0] {
+            for offset in [0.0, 0.3, -7.25] {
+                let mut n = DVec3::ZERO;
+                n[axis] = side;
+                let mut point = DVec3::new(0.999, -0.37, 3e3);
+                point[axis] = offset;
+                let (mut min, mut max) = (DVec3::splat(-1.5), DVec3::splat(1.5));
+                if side > 0.0 {
+                    (min[axis], max[axis]) = (offset, offset + 0.1);
+                } else {
+                    (min[axis], max[axis]) = (offset - 0.1, offset);
+                }
+                let object =
+                    Object::new(Quadric::plane(point, n), vec![], Some(Aabb::new(min, max)))
+                        .expect("a bounded plane");
+                out.push(FacePlane {
+                    object,
+                    axis,
+                    offset,
+                    side,
+                });
+            }
+        }
+    }
+    out
+}
+
+impl FacePlane {
+    /// `n` rays `(from, to)` to random points `to` of the plane's face:
+    /// the even ones through the box first (leaving it by the face), the
+    /// odd ones from outside (entering by it), at least 0.05 of the way
+    /// along the axis, from 0.05, 2.6 and 40 units away in turn.
+    pub fn rays(&self, n: usize, rng: &mut Pcg32) -> Vec<(DVec3, DVec3)> {
+        (0..n)
+            .map(|k| {
+                let mut to = DVec3::new(
+                    -1.4 + 2.8 * rng.next_f64(),
+                    -1.4 + 2.8 * rng.next_f64(),
+                    -1.4 + 2.8 * rng.next_f64(),
+                );
+                to[self.axis] = self.offset;
+                let mut dir =
+                    isolux_core::sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
+                let sign = if k % 2 == 0 { self.side } else { -self.side };
+                dir[self.axis] = -sign * (0.05 + dir[self.axis].abs());
+                let far = [0.05, 2.6, 40.0][k % 3];
+                (to - far * dir.normalize(), to)
+            })
+            .collect()
+    }
 }

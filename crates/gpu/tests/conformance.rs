@@ -723,54 +723,20 @@ fn planes_on_their_boxs_face_are_hit() {
     };
     let mut rng = Pcg32::new(5, 8);
     let mut worst = (0usize, 0.0f64);
-    for axis in 0..3 {
-        for side in [-1.0, 1.0] {
-            for offset in [0.0, 0.3, -7.25] {
-                let mut n = DVec3::ZERO;
-                n[axis] = side;
-                let mut point = DVec3::new(0.999, -0.37, 3e3);
-                point[axis] = offset;
-                let (mut min, mut max) = (DVec3::splat(-1.5), DVec3::splat(1.5));
-                if side > 0.0 {
-                    (min[axis], max[axis]) = (offset, offset + 0.1);
-                } else {
-                    (min[axis], max[axis]) = (offset - 0.1, offset);
-                }
-                let object = Object::new(
-                    Quadric::plane(point, n),
-                    vec![],
-                    Some(isolux_core::Aabb::new(min, max)),
-                )
-                .unwrap();
-                let rays: Vec<(DVec3, DVec3)> = (0..300)
-                    .map(|k| {
-                        let mut to = DVec3::new(
-                            -1.4 + 2.8 * rng.next_f64(),
-                            -1.4 + 2.8 * rng.next_f64(),
-                            -1.4 + 2.8 * rng.next_f64(),
-                        );
-                        to[axis] = offset;
-                        let mut dir = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
-                        // Leaving the box by the face, or entering by it.
-                        let sign = if k % 2 == 0 { side } else { -side };
-                        dir[axis] = -sign * (0.05 + dir[axis].abs());
-                        let far = [0.05, 2.6, 40.0][k % 3];
-                        (to - far * dir.normalize(), to)
-                    })
-                    .collect();
-                let mut missed = 0;
-                for (t, c) in single_object_hits(&gpu, &object, &rays) {
-                    let tc = c.expect("the CPU hits every ray");
-                    if t < 0.0 {
-                        missed += 1;
-                    } else {
-                        worst.1 = worst.1.max((t - tc).abs() / tc.max(1.0));
-                    }
-                }
-                worst.0 = worst.0.max(missed);
-                assert_eq!(missed, 0, "axis {axis}, side {side}, offset {offset}");
+    for plane in isolux_geometry::samples::planes_on_their_boxs_face() {
+        let rays = plane.rays(300, &mut rng);
+        let mut missed = 0;
+        for (t, c) in single_object_hits(&gpu, &plane.object, &rays) {
+            let tc = c.expect("the CPU hits every ray");
+            if t < 0.0 {
+                missed += 1;
+            } else {
+                worst.1 = worst.1.max((t - tc).abs() / tc.max(1.0));
             }
         }
+        worst.0 = worst.0.max(missed);
+        let (axis, side, offset) = (plane.axis, plane.side, plane.offset);
+        assert_eq!(missed, 0, "axis {axis}, side {side}, offset {offset}");
     }
     eprintln!(
         "most rays missed per plane: {}; largest relative |t_gpu - t_cpu|: {:.1e}",
