@@ -245,7 +245,7 @@ fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
             // The largest coordinate on the box, in scene units (bounds:
             // |phi| and theta at most pi, the distances at most a
             // corner's).
-            let (reach, from) = match w.mapping {
+            let (reach, from, fix) = match w.mapping {
                 Mapping::Planar(a) => (
                     corners
                         .map(|p| {
@@ -256,10 +256,12 @@ fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
                         })
                         .fold(0.0, f64::max),
                     "the origin (its planar mapping's)".to_string(),
+                    "move the object nearer the origin",
                 ),
                 Mapping::Spherical(c) => (
                     std::f64::consts::PI * corners.map(|p| (p - c).length()).fold(0.0, f64::max),
                     format!("its spherical mapping's centre {}", nums3(c)),
+                    "move the mapping's `center` to the object",
                 ),
                 Mapping::Cylindrical(c) => (
                     corners
@@ -269,6 +271,7 @@ fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
                         })
                         .fold(0.0, f64::max),
                     format!("its cylindrical mapping's centre {}", nums3(c)),
+                    "move the mapping's `center` to the object",
                 ),
             };
             let coordinate = reach * w.um_per_unit;
@@ -279,8 +282,8 @@ fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
                     "object[{i}] wears the `wave` material \"{}\" and lies far from {from}: its \
                      heightfield coordinates reach {coordinate:.3e} um, which the GPU's f32 \
                      resolves to {ulp:.2e} um, coarser than {WAVE_COORDINATE_TEXELS} of its \
-                     {texel} um texel (docs/gpu.md, \"Precision\"): move the mapping's centre \
-                     to the object, or render without --gpu (the CPU maps in f64)",
+                     texel ({texel} um; docs/gpu.md, \"Precision\"): {fix}, or render without \
+                     --gpu (the CPU maps in f64)",
                     scene.material_names[m]
                 ));
             }
