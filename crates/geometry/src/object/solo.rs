@@ -50,8 +50,9 @@ pub(super) enum Outcome {
     /// No crossing.
     Miss,
     /// A hit: the base quadric's own crossing (an `Object::base_hit`) or a
-    /// crossing of `F'` (an `Object::hit_at`); its point and normal are
-    /// in [`Lanes::p`] and [`Lanes::nrm`].
+    /// crossing of `F'` (an `Object::hit_at`), at the walk's `t`; its
+    /// `t` polished as `Object::hit_at` polishes it, its point and normal
+    /// are in [`Lanes::t`], [`Lanes::p`] and [`Lanes::nrm`].
     Hit(f64),
 }
 
@@ -862,8 +863,9 @@ fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
         base: is_base,
         ..
     } = lanes;
-    for l in 0..n {
-        let t = t[l];
+    // `F'` and its gradient at `t` along lane `l`: `Object::value_gradient`
+    // operation for operation.
+    let at = |l: usize, t: f64| {
         let q = [
             o[0][l] + t * d[0][l],
             o[1][l] + t * d[1][l],
@@ -875,12 +877,18 @@ fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
             q[2] - base.centre[2],
         ];
         let kb = -2.0 * base.k;
+        let mut v = base.c0 - base.k * (vb[0] * vb[0] + vb[1] * vb[1] + vb[2] * vb[2]);
         let mut g = [kb * vb[0], kb * vb[1], kb * vb[2]];
         for k in 0..K {
             let vc = [q[0] - sc[k][0][l], q[1] - sc[k][1][l], q[2] - sc[k][2][l]];
             let xq = sc0[k][l] - sk[k][l] * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
             let kc = -2.0 * sk[k][l];
             let s = 3.0 * f[k][l] * xq * xq;
+            v = if xq > 0.0 {
+                v + f[k][l] * xq * xq * xq
+            } else {
+                v
+            };
             for x in 0..3 {
                 g[x] = if xq > 0.0 {
                     g[x] + s * (kc * vc[x])
@@ -889,12 +897,28 @@ fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
                 };
             }
         }
+        let slope = g[0] * d[0][l] + g[1] * d[1][l] + g[2] * d[2][l];
+        (v, g, slope, vb)
+    };
+    let walked = *t;
+    for l in 0..n {
+        let tl = t[l];
+        let (v, g, slope, vb) = at(l, tl);
+        let on_base = is_base[l];
+        // `Object::hit_at_raw`'s Newton steps (`polish`), off the base's
+        // own crossings, and the point at the polished `t`. Further steps
+        // (rare: a root far from converged) are taken after this loop.
+        let step = v / slope;
+        let tp = if !on_base & (step.abs() <= super::POLISH_LIMIT * tl.abs()) {
+            tl - step
+        } else {
+            tl
+        };
+        t[l] = tp;
         let m = [-g[0], -g[1], -g[2]];
         let rcp = 1.0 / (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
         let ok = rcp.is_finite() & (rcp > 0.0);
-        let on_base = is_base[l];
         for x in 0..3 {
-            p[x][l] = q[x];
             nrm[x][l] = if on_base {
                 vb[x] * base.inv_radius
             } else if ok {
@@ -904,5 +928,21 @@ fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
             };
         }
         unit[l] = on_base | ok;
+    }
+    for l in 0..n {
+        if !is_base[l] {
+            let mut last = (walked[l], t[l]);
+            for _ in 1..super::POLISH_STEPS {
+                if !super::polish_again(last.0, last.1) {
+                    break;
+                }
+                let (v, _, slope, _) = at(l, last.1);
+                last = (last.1, super::polish(last.1, v, slope));
+            }
+            t[l] = last.1;
+        }
+        for x in 0..3 {
+            p[x][l] = o[x][l] + t[l] * d[x][l];
+        }
     }
 }
