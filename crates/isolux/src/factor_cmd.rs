@@ -104,7 +104,7 @@ pub fn run(a: FactorArgs) -> Result<()> {
         let mut label = format!("{n} from {}", scene.display());
         if flags.is_specular() {
             // A smooth coat over a finite lobe (`plastic` without
-            // `roughness`, `subsurface_brdf`, a mix holding a mirror): the
+            // `roughness`, `subsurface_brdf`): the
             // finite part is factored; the delta lobe, which no texture
             // holds, is named and measured, never dropped silently.
             let r = delta_albedo(&m);
