@@ -492,9 +492,13 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
 pub enum PathKernel {
     /// The wavefront for scenes with a random-walk medium, whose paths run
     /// long (hundreds of scattering events: 0.52-0.57 of the megakernel's
-    /// time on lavapipe), the megakernel for the rest (the gallery
-    /// 0.95-1.03, the dipole 0.88-1.02 on lavapipe; not yet measured on
-    /// NVIDIA).
+    /// time on lavapipe), and for scenes with a `wave` material, whose
+    /// code the megakernel runs at every bounce of its loop: Mesa 22.3's
+    /// lavapipe miscompiles its second run there (paths ended at their
+    /// second `wave` vertex; docs/gpu.md, "Known defect"), and the
+    /// wavefront runs one bounce per dispatch. The megakernel for the rest
+    /// (the gallery 0.95-1.03, the dipole 0.88-1.02 on lavapipe; not yet
+    /// measured on NVIDIA).
     #[default]
     Auto,
     /// One kernel runs each path to its end (`main`).

@@ -1162,7 +1162,7 @@ impl Gpu {
             aov,
             samples: 0,
             wavefront: match self.path_kernel() {
-                crate::PathKernel::Auto => random_walk,
+                crate::PathKernel::Auto => random_walk || needed.wave(),
                 crate::PathKernel::Megakernel => false,
                 crate::PathKernel::Wavefront => true,
             },

@@ -88,8 +88,8 @@ pub struct RenderArgs {
     /// path to its end. The same paths and random numbers, so the same
     /// image; which is faster depends on the scene and the device
     /// (`isolux bench gpu --wavefront` times both; docs/gpu.md). By
-    /// default scenes with a random-walk `subsurface` medium run as a
-    /// wavefront, the others as a megakernel.
+    /// default scenes with a random-walk `subsurface` medium or a `wave`
+    /// material run as a wavefront, the others as a megakernel.
     #[arg(long, requires = "gpu", conflicts_with = "realtime")]
     pub wavefront: bool,
     /// With `--gpu`: path trace with the megakernel, whatever the scene
@@ -232,6 +232,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         if let Some(why) = isolux_gpu::thin_object_warning(&scene) {
             eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
+        }
+        if a.megakernel
+            && gpu.driver.contains("Mesa 22.")
+            && scene.materials.iter().any(|m| m.varies_in_space())
+        {
+            eprintln!(
+                "isolux: warning: --megakernel: {}: this driver ({}) miscompiles the `wave` \
+                 code's second run in the megakernel's loop: paths end at their second `wave` \
+                 vertex (docs/gpu.md, \"Known defect\"); the default runs such scenes as a \
+                 wavefront",
+                a.scene.display(),
+                gpu.driver
+            );
         }
         if a.f64 {
             gpu.set_precision(isolux_gpu::Precision::F64)
