@@ -284,7 +284,7 @@ fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
                      resolves to {ulp:.2e} um, coarser than {WAVE_COORDINATE_TEXELS} of its \
                      texel ({texel} um; docs/gpu.md, \"Precision\"): {fix}, or render without \
                      --gpu (the CPU maps in f64)",
-                    scene.material_names[m]
+                    scene.material_names.get(m).map_or("?", |n| n.as_str())
                 ));
             }
         }
