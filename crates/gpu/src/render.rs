@@ -165,7 +165,7 @@ pub fn worst_scale_ratio(scene: &Scene) -> Option<ScaleRatio> {
 /// large object far out, a floor, is no obstacle to small ones near the
 /// camera: each is weighed against its own size.) Also why a `wave`
 /// heightfield's coordinates are too coarse in f32
-/// ([`wave_coordinate_shortfall`]).
+/// (`wave_coordinate_shortfall`).
 pub fn f32_shortfall(scene: &Scene) -> Option<String> {
     if let Some(why) = f32_overflow(scene) {
         return Some(why);
