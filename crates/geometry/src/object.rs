@@ -627,10 +627,9 @@ fn walk_lanes<const K: usize>(
         let r = r as usize;
         hits[r] = match *out {
             solo::Outcome::Miss => None,
-            solo::Outcome::Hit(_) => {
+            solo::Outcome::Hit => {
                 raw[r] = !lanes.unit[l];
                 Some(Hit {
-                    // The walk's `t` polished (`solo::hits`).
                     t: lanes.t[l],
                     p: DVec3::new(lanes.p[0][l], lanes.p[1][l], lanes.p[2][l]),
                     n: DVec3::new(lanes.nrm[0][l], lanes.nrm[1][l], lanes.nrm[2][l]),
@@ -1388,25 +1387,28 @@ impl Object {
 
     fn intersect_in(&self, ray: &Ray, t_min: f64, t_max: f64, items: Items) -> Option<Hit> {
         let (mut t0, mut t1) = self.bbox.clip(ray, t_min, t_max)?;
-        if matches!(self.base_along, Along::General) {
-            // Where the ray enters or leaves through a face of the box,
-            // the span reaches FACE_ULPS ulps of the ray's reach beyond
-            // it (never beyond `[t_min, t_max]`), as on the GPU: a surface
-            // lying on the face (a floor plane on its box's bottom) has
-            // its crossings and the face's `t` rounded independently, and
-            // a quarter of the rays leaving through that face missed it.
-            // (A sphere base meets a face at a point or a curve, never
-            // over an area; its tiles keep the exact span.)
-            let scale = ray.origin.abs().max_element() / ray.dir.abs().max_element();
-            let margin = |t: f64| FACE_ULPS * f64::EPSILON * (scale + t.abs());
-            if t0 > t_min {
-                t0 = (t0 - margin(t0)).max(t_min);
-            }
-            if t1 < t_max {
-                t1 = (t1 + margin(t1)).min(t_max);
-            }
+        if matches!(self.base_along, Along::Sphere { .. }) {
+            // A sphere's terms are a centred square, without the loss
+            // below, and it meets a face at a point or a curve, never over
+            // an area: its rays keep their origin and the exact span, so
+            // that the sphere's lanes stay the scalar code's to the bit.
+            return self.intersect_clipped(ray, t0, t1, items);
         }
-        if t0 > 0.0 && matches!(self.base_along, Along::General) {
+        // Where the ray enters or leaves through a face of the box, the
+        // span reaches FACE_ULPS ulps of the ray's reach beyond it (never
+        // beyond `[t_min, t_max]`), as on the GPU: a surface lying on the
+        // face (a floor plane on its box's bottom) has its crossings and
+        // the face's `t` rounded independently, and a quarter of the rays
+        // leaving through that face missed it.
+        let scale = ray.origin.abs().max_element() / ray.dir.abs().max_element();
+        let margin = |t: f64| FACE_ULPS * f64::EPSILON * (scale + t.abs());
+        if t0 > t_min {
+            t0 = (t0 - margin(t0)).max(t_min);
+        }
+        if t1 < t_max {
+            t1 = (t1 + margin(t1)).min(t_max);
+        }
+        if t0 > 0.0 {
             // Restarted where the ray enters the box, as the GPU does:
             // along a ray from afar, a quadric's terms are differences of
             // large values, and for an ellipsoid thin along an axis (a
@@ -1414,9 +1416,6 @@ impl Object {
             // the crossing near its pole, where the surface touches the
             // box's face, before the entry, where it was dropped: a third
             // of the rays within 1e-2 of its radius from the pole missed.
-            // (A sphere's terms are a centred square, `Along::Sphere`,
-            // without that loss; its rays keep their origin, so that the
-            // sphere's lanes stay the scalar code's to the bit.)
             let entry = Ray::new(ray.at(t0), ray.dir);
             return self
                 .intersect_clipped(&entry, 0.0, t1 - t0, items)
@@ -1709,15 +1708,10 @@ impl Object {
     #[inline]
     fn hit_at_raw(&self, ray: &Ray, t: f64, cands: &[Candidate]) -> Hit {
         let (v, g) = self.value_gradient(ray.at(t), cands);
-        let mut last = (t, polish(t, v, g.dot(ray.dir)));
-        for _ in 1..POLISH_STEPS {
-            if !polish_again(last.0, last.1) {
-                break;
-            }
-            let (v, g) = self.value_gradient(ray.at(last.1), cands);
-            last = (last.1, polish(last.1, v, g.dot(ray.dir)));
-        }
-        let t = last.1;
+        let t = polish_more(t, polish(t, v, g.dot(ray.dir)), |t| {
+            let (v, g) = self.value_gradient(ray.at(t), cands);
+            (v, g.dot(ray.dir))
+        });
         Hit {
             t,
             p: ray.at(t),
@@ -2059,11 +2053,22 @@ const POLISH_STEPS: usize = 3;
 /// ulps, and no second one is taken.
 const POLISH_AGAIN: f64 = 1e-12;
 
-/// Whether the Newton step from `before` to `after` was long enough to
-/// take another ([`POLISH_STEPS`]).
+/// The Newton steps after the first, which took `t` to `first`: while
+/// the last step was longer than [`POLISH_AGAIN`] of its start, another
+/// ([`polish`], with `F'` and its slope at a point from `at`), up to
+/// [`POLISH_STEPS`] in all. `Object::hit_at_raw` and `solo::hits` share
+/// it, so the lanes take the per-ray steps to the bit.
 #[inline(always)]
-fn polish_again(before: f64, after: f64) -> bool {
-    (after - before).abs() > POLISH_AGAIN * before.abs()
+fn polish_more(t: f64, first: f64, mut at: impl FnMut(f64) -> (f64, f64)) -> f64 {
+    let (mut before, mut after) = (t, first);
+    for _ in 1..POLISH_STEPS {
+        if (after - before).abs() <= POLISH_AGAIN * before.abs() {
+            break;
+        }
+        let (v, slope) = at(after);
+        (before, after) = (after, polish(after, v, slope));
+    }
+    after
 }
 
 /// `t` moved by one Newton step on `F'` (`value` and `slope`, its

@@ -50,10 +50,10 @@ pub(super) enum Outcome {
     /// No crossing.
     Miss,
     /// A hit: the base quadric's own crossing (an `Object::base_hit`) or a
-    /// crossing of `F'` (an `Object::hit_at`), at the walk's `t`; its
-    /// `t` polished as `Object::hit_at` polishes it, its point and normal
-    /// are in [`Lanes::t`], [`Lanes::p`] and [`Lanes::nrm`].
-    Hit(f64),
+    /// crossing of `F'` (an `Object::hit_at`); its `t` (polished as
+    /// `Object::hit_at` polishes it), point and normal are in
+    /// [`Lanes::t`], [`Lanes::p`] and [`Lanes::nrm`].
+    Hit,
 }
 
 /// The rays that meet `K` supports on their first phase, packed: lane `l`
@@ -754,7 +754,7 @@ fn walk_lanes<const K: usize>(
                 lanes.t[l] = w.t.0[i];
                 lanes.base[l] = w.kind.0[i] == 1.0;
                 out[l] = match (w.live.at(i) & (w.kind.0[i] != 3.0), w.kind.0[i]) {
-                    (false, 1.0) | (false, 2.0) => Outcome::Hit(w.t.0[i]),
+                    (false, 1.0) | (false, 2.0) => Outcome::Hit,
                     (false, 3.0) => Outcome::Miss,
                     _ => Outcome::Slow,
                 };
@@ -908,13 +908,11 @@ fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
         // `Object::hit_at_raw`'s Newton steps (`polish`), off the base's
         // own crossings, and the point at the polished `t`. Further steps
         // (rare: a root far from converged) are taken after this loop.
-        let step = v / slope;
-        let tp = if !on_base & (step.abs() <= super::POLISH_LIMIT * tl.abs()) {
-            tl - step
-        } else {
+        t[l] = if on_base {
             tl
+        } else {
+            super::polish(tl, v, slope)
         };
-        t[l] = tp;
         let m = [-g[0], -g[1], -g[2]];
         let rcp = 1.0 / (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
         let ok = rcp.is_finite() & (rcp > 0.0);
@@ -931,15 +929,10 @@ fn hits<const K: usize>(lanes: &mut Lanes<K>, base: BaseSphere) {
     }
     for l in 0..n {
         if !is_base[l] {
-            let mut last = (walked[l], t[l]);
-            for _ in 1..super::POLISH_STEPS {
-                if !super::polish_again(last.0, last.1) {
-                    break;
-                }
-                let (v, _, slope, _) = at(l, last.1);
-                last = (last.1, super::polish(last.1, v, slope));
-            }
-            t[l] = last.1;
+            t[l] = super::polish_more(walked[l], t[l], |t| {
+                let (v, _, slope, _) = at(l, t);
+                (v, slope)
+            });
         }
         for x in 0..3 {
             p[x][l] = o[x][l] + t[l] * d[x][l];
