@@ -95,6 +95,16 @@ impl Aabb {
         0.5 * (self.min + self.max)
     }
 
+    /// Corner `k` (0..8): bit 0 of `k` picks `max.x` over `min.x`, bit 1
+    /// `max.y`, bit 2 `max.z`.
+    pub fn corner(&self, k: usize) -> DVec3 {
+        DVec3::new(
+            if k & 1 == 0 { self.min.x } else { self.max.x },
+            if k & 2 == 0 { self.min.y } else { self.max.y },
+            if k & 4 == 0 { self.min.z } else { self.max.z },
+        )
+    }
+
     /// Whether `p` lies inside or on the box.
     pub fn contains(&self, p: DVec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
@@ -142,6 +152,21 @@ impl Aabb {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn corners_are_the_eight_extremes() {
+        let b = Aabb::new(DVec3::new(-1.0, 2.0, 3.0), DVec3::new(4.0, -5.0, 6.0));
+        let corners: Vec<DVec3> = (0..8).map(|k| b.corner(k)).collect();
+        for x in [-1.0, 4.0] {
+            for y in [-5.0, 2.0] {
+                for z in [3.0, 6.0] {
+                    assert!(corners.contains(&DVec3::new(x, y, z)));
+                }
+            }
+        }
+        assert_eq!(b.corner(0), b.min);
+        assert_eq!(b.corner(7), b.max);
+    }
 
     #[test]
     fn clip_unit_box() {

@@ -170,18 +170,15 @@ pub fn f32_shortfall(scene: &Scene) -> Option<String> {
     if let Some(why) = f32_overflow(scene) {
         return Some(why);
     }
-    let Some(ScaleRatio {
+    let ScaleRatio {
         object,
         reach,
         size,
         ratio,
-    }) = worst_scale_ratio(scene)
-    else {
-        return wave_coordinate_shortfall(scene);
+    } = match worst_scale_ratio(scene) {
+        Some(worst) if worst.ratio > MAX_SCALE_RATIO => worst,
+        _ => return wave_coordinate_shortfall(scene),
     };
-    if ratio <= MAX_SCALE_RATIO {
-        return wave_coordinate_shortfall(scene);
-    }
     Some({
         let (from, fix) = if planar_wave(scene) {
             (
@@ -217,31 +214,15 @@ const WAVE_COORDINATE_TEXELS: f64 = 0.25;
 /// 1e5 units, ulps of 16 um over texels of 1 um, the image's mean still
 /// matched but not its scratches.) The CPU maps in f64.
 fn wave_coordinate_shortfall(scene: &Scene) -> Option<String> {
-    use isolux_materials::wave::{Mapping, Wave};
-    use isolux_materials::Material as M;
-    fn waves<'a>(m: &'a M, out: &mut Vec<&'a Wave>) {
-        match m {
-            M::Wave(w) => out.push(w),
-            M::Mix(x) => x.components.iter().for_each(|(c, _)| waves(c, out)),
-            _ => {}
-        }
-    }
+    use isolux_materials::wave::Mapping;
     for (i, o) in scene.geometry.objects().iter().enumerate() {
         let b = o.bbox();
         if !b.is_finite() || b.is_empty() {
             continue;
         }
         let m = scene.object_material[i];
-        let mut ws = Vec::new();
-        waves(&scene.materials[m], &mut ws);
-        for w in ws {
-            let corners = (0..8).map(|k| {
-                glam::DVec3::new(
-                    if k & 1 == 0 { b.min.x } else { b.max.x },
-                    if k & 2 == 0 { b.min.y } else { b.max.y },
-                    if k & 4 == 0 { b.min.z } else { b.max.z },
-                )
-            });
+        for w in waves(&scene.materials[m]) {
+            let corners = (0..8).map(|k| b.corner(k));
             // The largest coordinate on the box, in scene units (bounds:
             // |phi| and theta at most pi, the distances at most a
             // corner's).
@@ -577,15 +558,7 @@ fn max_over_box(f: impl Fn(glam::DVec3) -> f64, b: &isolux_core::Aabb, starts: u
     let (lo, hi) = (b.min, b.max);
     let mut best = f64::NEG_INFINITY;
     for k in (0..9).rev().take(starts) {
-        let mut x = if k == 8 {
-            0.5 * (lo + hi)
-        } else {
-            glam::DVec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            )
-        };
+        let mut x = if k == 8 { b.center() } else { b.corner(k) };
         for _ in 0..16 {
             for (i, e) in glam::DVec3::AXES.into_iter().enumerate() {
                 let (f0, fp, fm) = (f(x), f(x + e), f(x - e));
@@ -612,18 +585,23 @@ fn max_over_box(f: impl Fn(glam::DVec3) -> f64, b: &isolux_core::Aabb, starts: u
 /// mix) that maps its heightfield by plain world coordinates
 /// (`Mapping::Planar`).
 fn planar_wave(scene: &Scene) -> bool {
-    fn planar(m: &isolux_materials::Material) -> bool {
-        use isolux_materials::wave::Mapping;
-        match m {
-            isolux_materials::Material::Wave(w) => matches!(w.mapping, Mapping::Planar(_)),
-            isolux_materials::Material::Mix(x) => x.components.iter().any(|(c, _)| planar(c)),
-            _ => false,
-        }
+    use isolux_materials::wave::Mapping;
+    scene.object_material.iter().any(|&m| {
+        waves(&scene.materials[m])
+            .iter()
+            .any(|w| matches!(w.mapping, Mapping::Planar(_)))
+    })
+}
+
+/// The `wave` materials `m` is made of: itself, or a mix's `wave`
+/// components (mixes nested included).
+fn waves(m: &isolux_materials::Material) -> Vec<&isolux_materials::wave::Wave> {
+    use isolux_materials::Material as M;
+    match m {
+        M::Wave(w) => vec![w],
+        M::Mix(x) => x.components.iter().flat_map(|(c, _)| waves(c)).collect(),
+        _ => Vec::new(),
     }
-    scene
-        .object_material
-        .iter()
-        .any(|&m| planar(&scene.materials[m]))
 }
 
 /// The world point the GPU takes as its origin for `scene`: the camera
