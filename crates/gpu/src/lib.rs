@@ -700,6 +700,13 @@ impl Gpu {
         self.f64_supported
     }
 
+    /// Whether the driver is Mesa 22's, whose loop miscompile (docs/gpu.md,
+    /// "Known defect") loses a few long paths and, in the megakernel, ends
+    /// paths at their second `wave` vertex.
+    pub fn miscompiles_loops(&self) -> bool {
+        self.driver.contains("Mesa 22.")
+    }
+
     /// The precision the intersection computes in.
     pub fn precision(&self) -> Precision {
         self.precision

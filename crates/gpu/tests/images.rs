@@ -131,7 +131,7 @@ fn furnace_images(gpu: &Gpu) -> Vec<(&'static str, Image, u32)> {
 /// Mesa 22.3's lavapipe miscompiles long loops (docs/gpu.md): the one
 /// driver known to lose whole paths.
 fn loses_whole_paths(gpu: &Gpu) -> bool {
-    gpu.driver.contains("Mesa 22.")
+    gpu.miscompiles_loops()
 }
 
 #[test]

@@ -234,7 +234,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
         }
         if a.megakernel
-            && gpu.driver.contains("Mesa 22.")
+            && gpu.miscompiles_loops()
             && scene.materials.iter().any(|m| m.varies_in_space())
         {
             eprintln!(
