@@ -43,20 +43,18 @@ fn have_xvfb() -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
-/// Runs the viewer under Xvfb in `mode`; the screenshot's path, or None
-/// when this machine cannot run it (outside CI).
-fn view_screenshot(dir: &Path, mode: &str) -> Option<isolux_io::RgbImage> {
-    let scene = dir.join(format!("sphere-{mode}.toml"));
-    std::fs::write(&scene, SPHERE).unwrap();
-    let shot = dir.join(format!("shot-{mode}.exr"));
+/// Runs `isolux view SCENE` under Xvfb with `flags`, saving a screenshot
+/// to `shot`; its output, or None (saying so) when this machine has no
+/// adapter outside CI.
+fn view_under_xvfb(scene: &Path, flags: &[&str], shot: &Path) -> Option<std::process::Output> {
     let o = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1024x768x24"])
         .arg(env!("CARGO_BIN_EXE_isolux"))
         .arg("view")
-        .arg(&scene)
-        .args(["--width", "600", "--height", "200", "--frames", "3"])
-        .args(["--mode", mode, "--screenshot"])
-        .arg(&shot)
+        .arg(scene)
+        .args(flags)
+        .arg("--screenshot")
+        .arg(shot)
         .output()
         .expect("xvfb-run starts");
     let err = String::from_utf8_lossy(&o.stderr);
@@ -64,6 +62,20 @@ fn view_screenshot(dir: &Path, mode: &str) -> Option<isolux_io::RgbImage> {
         eprintln!("skipped: no GPU adapter");
         return None;
     }
+    Some(o)
+}
+
+/// Runs the viewer under Xvfb in `mode`; the screenshot's path, or None
+/// when this machine cannot run it (outside CI).
+fn view_screenshot(dir: &Path, mode: &str) -> Option<isolux_io::RgbImage> {
+    let scene = dir.join(format!("sphere-{mode}.toml"));
+    std::fs::write(&scene, SPHERE).unwrap();
+    let shot = dir.join(format!("shot-{mode}.exr"));
+    let flags = [
+        "--width", "600", "--height", "200", "--frames", "3", "--mode", mode,
+    ];
+    let o = view_under_xvfb(&scene, &flags, &shot)?;
+    let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         o.status.success(),
         "isolux view --mode {mode} failed: {err}"
@@ -277,21 +289,13 @@ factor = 3000.0
     )
     .unwrap();
     let shot = dir.path().join("shot.png");
-    let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_isolux"))
-        .arg("view")
-        .arg(&scene)
-        .args(["--width", "480", "--height", "120", "--frames", "2"])
-        .args(["--mode", "realtime", "--screenshot"])
-        .arg(&shot)
-        .output()
-        .expect("xvfb-run starts");
-    let err = String::from_utf8_lossy(&o.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
-        eprintln!("skipped: no GPU adapter");
+    let flags = [
+        "--width", "480", "--height", "120", "--frames", "2", "--mode", "realtime",
+    ];
+    let Some(o) = view_under_xvfb(&scene, &flags, &shot) else {
         return;
-    }
+    };
+    let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("does not offer f64 in shaders") {
         // An adapter without SHADER_F64 refuses the scene instead.
         assert!(!o.status.success() && !shot.exists(), "{err}");
