@@ -104,9 +104,9 @@ pub fn run(a: FactorArgs) -> Result<()> {
         let mut label = format!("{n} from {}", scene.display());
         if flags.is_specular() {
             // A smooth coat over a finite lobe (`plastic` without
-            // `roughness`, `subsurface_brdf`): the
-            // finite part is factored; the delta lobe, which no texture
-            // holds, is named and measured, never dropped silently.
+            // `roughness`, `subsurface_brdf`): the finite part is
+            // factored; the delta lobe, which no texture holds, is named
+            // and measured, never dropped silently.
             let r = delta_albedo(&m);
             eprintln!(
                 "isolux: note: material \"{n}\" ({}) has a delta lobe (a mirror reflection, {:.3} of the light at normal incidence) beside its finite BRDF: the factors hold the finite part only, and a `factored` material made from them renders without that reflection",
