@@ -940,6 +940,12 @@ impl Object {
         beam.translated(-self.origin)
     }
 
+    /// Whether `p` (world coordinates) lies inside the object: in its box,
+    /// where `F'(p) > 0`. (A point on the surface is not inside.)
+    pub fn contains(&self, p: DVec3) -> bool {
+        self.bbox().contains(p) && self.eval(p) > 0.0
+    }
+
     /// `F'(p)`: positive inside (`p` in world coordinates).
     pub fn eval(&self, p: DVec3) -> f64 {
         let p = p - self.origin;

@@ -995,6 +995,10 @@ pub struct GpuParams {
     /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
     /// render.wgsl).
     pub layers: [u32; 4],
+    /// `[1 + material of the random-walk medium the camera is in (0:
+    /// none), 0, 0, 0]`: where camera paths start
+    /// (`isolux_render::Scene::medium_at`).
+    pub camera: [u32; 4],
 }
 
 /// A material conformance query: `f`, `pdf` at `(wo, wi)` and a sample for
@@ -1372,7 +1376,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
         assert_eq!(std::mem::size_of::<GpuLight>(), 32);
-        assert_eq!(std::mem::size_of::<GpuParams>(), 176);
+        assert_eq!(std::mem::size_of::<GpuParams>(), 192);
         assert_eq!(std::mem::size_of::<GpuQuery>(), 80);
         assert_eq!(std::mem::size_of::<GpuAnswer>(), 48);
         // And naga agrees (layouts computed from the shader sources).

@@ -792,6 +792,19 @@ pub struct GpuFrame {
     /// The scene has a random-walk medium (long paths: more wavefront
     /// steps, [`WF_MEDIUM_STEPS`]).
     random_walk: bool,
+    /// The objects of random-walk media (world coordinates) and `1 +`
+    /// their material: where [`GpuFrame::set_camera`] looks up the medium
+    /// the camera is in ([`camera_medium`]).
+    media: Vec<(isolux_geometry::Object, u32)>,
+}
+
+/// `1 +` the material of the first of `media` that holds `at`, 0 for none
+/// (`isolux_render::Scene::medium_at`): `GpuParams::camera`.
+fn camera_medium(media: &[(isolux_geometry::Object, u32)], at: glam::DVec3) -> u32 {
+    media
+        .iter()
+        .find_map(|(o, m)| o.contains(at).then_some(*m))
+        .unwrap_or(0)
 }
 
 /// Texels with their density in `(u, v)` (`w`), and the CDFs: the marginal
@@ -1018,6 +1031,10 @@ impl Gpu {
         let grid_m = (film.spp as f64).sqrt().ceil() as u32;
         let grid_n = film.spp.div_ceil(grid_m);
         let seed = isolux_core::rng::mix64(scene.integrator.seed ^ 0x1502_7a1e);
+        let media: Vec<_> = scene
+            .media()
+            .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
+            .collect();
         let params = GpuParams {
             origin: v4(origin),
             forward: v4(forward),
@@ -1035,6 +1052,7 @@ impl Gpu {
             env_size,
             wave: [0; 4],
             layers: [0; 4],
+            camera: [camera_medium(&media, scene.camera.position), 0, 0, 0],
         };
 
         let limit = self.binding_limit();
@@ -1147,6 +1165,7 @@ impl Gpu {
             wf: None,
             first_hits: false,
             random_walk,
+            media,
         };
         frame.cull_tiles(self);
         Ok(frame)
@@ -1634,6 +1653,7 @@ impl GpuFrame {
             .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         self.params.origin = v4(origin - self.rebase);
+        self.params.camera[0] = camera_medium(&self.media, origin);
         self.params.forward = v4(forward);
         self.params.right = v4(right);
         self.params.up = v4(up);

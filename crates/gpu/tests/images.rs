@@ -363,6 +363,96 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.8 }
     );
 }
 
+/// A camera inside a non-absorbing random-walk medium of index `n` under
+/// a white sky sees the radiance of equilibrium there, `n^2` (closed form;
+/// the CPU's check in `crates/isolux/tests/analytic.rs`): each path brings
+/// exactly `3 n^2` in the channel it carries, so every pixel's channels
+/// sum to `3 n^2` to rounding, in the wavefront and the megakernel alike.
+/// A frame prepared with the camera outside and then moved inside
+/// (`GpuFrame::set_camera`, the viewer's orbit) starts its paths in the
+/// medium too; moved out again, it sees the sky around the sphere.
+#[test]
+fn a_camera_inside_a_random_walk_medium_sees_it_on_the_gpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let src = r#"
+[camera]
+position = [0.1, -0.2, 3.0]
+look_at = [0.0, 0.0, -5.0]
+fov_y = 60.0
+[film]
+width = 48
+height = 32
+spp = 16
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "medium"
+type = "subsurface"
+sigma_s = [2.0, 1.0, 0.5]
+sigma_a = [0.0, 0.0, 0.0]
+g = 0.3
+ior = 1.5
+scale = 1.0
+mode = "random_walk"
+[[object]]
+material = "medium"
+base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }
+"#;
+    let mut scene = isolux_scene::parse_str(src, Path::new("inside.toml"), Path::new(".")).unwrap();
+    let check = |img: &Image, what: &str| {
+        for p in &img.rgb {
+            let sum = p.iter().map(|&v| v as f64).sum::<f64>();
+            assert!((sum - 6.75).abs() < 1e-4, "{what}: {p:?}");
+        }
+        let n = img.rgb.len() as f64;
+        for c in 0..3 {
+            let m = img.rgb.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+            let v = img
+                .rgb
+                .iter()
+                .map(|p| (p[c] as f64 - m).powi(2))
+                .sum::<f64>()
+                / n;
+            let se = (v / n).sqrt();
+            eprintln!("{what}, channel {c}: {m} +- {se}");
+            assert!(
+                (m - 2.25).abs() < 4.0 * se + 1e-3,
+                "{what}, channel {c}: {m} +- {se}"
+            );
+        }
+    };
+    let mut frame = gpu.prepare(&scene).unwrap();
+    scene.camera.position.z = 0.3;
+    frame.set_camera(&gpu, &scene.camera).unwrap();
+    for wavefront in [true, false] {
+        frame.set_wavefront(wavefront);
+        frame.reset(&gpu);
+        frame.run(&gpu, 16);
+        let (img, stats) = frame.image(&gpu).unwrap();
+        assert_eq!(stats.rejected_samples, 0);
+        check(&img, if wavefront { "wavefront" } else { "megakernel" });
+    }
+    check(&gpu_image(&gpu, &scene), "render");
+    // Out again: the sky (1) shows around the sphere.
+    scene.camera.position.z = 3.0;
+    frame.set_camera(&gpu, &scene.camera).unwrap();
+    frame.run(&gpu, 4);
+    let (img, _) = frame.image(&gpu).unwrap();
+    let sky = img
+        .rgb
+        .iter()
+        .filter(|p| p.iter().all(|&v| v == 1.0))
+        .count();
+    assert!(
+        sky > img.rgb.len() / 4,
+        "{sky} sky pixels of {}",
+        img.rgb.len()
+    );
+}
+
 /// The random walk at many samples (`--ignored`: minutes on Mesa 22.3's
 /// lavapipe, CI's driver, whose loop miscompile loses some of these long
 /// paths, docs/gpu.md): the image means of `SEEDS` renders on each side

@@ -519,6 +519,89 @@ fn medium_scene(params: &str, spp: u32) -> Image {
     render_with(&scene(&src), 2)
 }
 
+/// The camera inside a non-absorbing random-walk medium (a sphere of
+/// index `n` around it) under a white sky of radiance 1: the radiance of
+/// equilibrium inside a medium of index `n` is `n^2` times that outside,
+/// so every channel averages `n^2` (closed form). More: the medium loses
+/// nothing and every path leaves the convex sphere to the sky, so each
+/// path brings exactly `3 n^2` in the one channel it carries, and every
+/// pixel's channels sum to `3 n^2` to rounding. With absorption, every
+/// channel loses energy, most where it absorbs most. Paths used to start
+/// outside every medium and saw the sky through empty space (mean 1 per
+/// channel at any `n`).
+#[test]
+fn a_camera_inside_a_random_walk_medium_sees_it() {
+    let src = |ior: f64, sigma_a: &str| {
+        format!(
+            r#"
+[camera]
+position = [0.1, -0.2, 0.3]
+look_at = [0.0, 0.0, -5.0]
+fov_y = 60.0
+[film]
+width = 48
+height = 32
+spp = 16
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "medium"
+type = "subsurface"
+sigma_s = [2.0, 1.0, 0.5]
+sigma_a = {sigma_a}
+g = 0.3
+ior = {ior}
+scale = 1.0
+mode = "random_walk"
+[[object]]
+material = "medium"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
+"#
+        )
+    };
+    for ior in [1.0, 1.5] {
+        let s = scene(&src(ior, "[0.0, 0.0, 0.0]"));
+        assert!(s.medium_at(s.camera.position).is_some());
+        let img = render_with(&s, 2);
+        let want = ior * ior;
+        for p in &img.rgb {
+            let sum = p.iter().map(|&v| v as f64).sum::<f64>();
+            assert!((sum - 3.0 * want).abs() < 1e-5 * want, "n = {ior}: {p:?}");
+        }
+        let n = img.rgb.len() as f64;
+        for c in 0..3 {
+            let m = img.rgb.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+            let v = img
+                .rgb
+                .iter()
+                .map(|p| (p[c] as f64 - m).powi(2))
+                .sum::<f64>()
+                / n;
+            let se = (v / n).sqrt();
+            eprintln!("n = {ior}, channel {c}: {m} +- {se}");
+            assert!(
+                (m - want).abs() < 4.0 * se,
+                "n = {ior}, channel {c}: {m} +- {se}"
+            );
+        }
+    }
+    let img = render_with(&scene(&src(1.5, "[0.05, 0.5, 2.0]")), 2);
+    let n = img.rgb.len() as f64;
+    let mean: Vec<f64> = (0..3)
+        .map(|c| img.rgb.iter().map(|p| p[c] as f64).sum::<f64>() / n)
+        .collect();
+    eprintln!("absorbing: {mean:?}");
+    assert!(
+        mean[0] < 2.2 && mean[0] > mean[1] && mean[1] > mean[2],
+        "{mean:?}"
+    );
+    // Outside the sphere the camera starts in no medium.
+    let outside =
+        scene(&src(1.5, "[0.0, 0.0, 0.0]").replace("[0.1, -0.2, 0.3]", "[0.1, -0.2, 3.0]"));
+    assert!(outside.medium_at(outside.camera.position).is_none());
+}
+
 #[test]
 fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
     // Non-absorbing medium, optically large (radius 0.8 = 16 mean free

@@ -26,9 +26,11 @@
 //! coefficients differ per colour channel, so the first entry picks one
 //! channel uniformly and carries it with weight 3 (unbiased; colour noise
 //! is the price). Events inside a medium do not count toward `max_depth`;
-//! a path is cut after 100,000 of them. Media do not nest, and paths start
-//! outside every medium: a camera inside one sees it as empty space
-//! (`isolux render` warns, [`crate::Scene::camera_in_medium`]).
+//! a path is cut after 100,000 of them. Media do not nest. A camera inside
+//! a medium starts its paths in it ([`crate::Scene::medium_at`], found
+//! once per render): under a white sky of radiance 1, a non-absorbing
+//! medium of index `n` around the camera shows `n^2` everywhere, the
+//! radiance of equilibrium in it.
 //!
 //! Spawned rays start at the hit point moved by [`Hit::offset`] along the
 //! geometric normal, to the side of the new direction ([`Hit::spawn`]):
@@ -266,19 +268,25 @@ fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
     (!beta.is_black()).then_some(beta)
 }
 
-/// Radiance arriving along `ray` (from the camera), and the first hit.
+/// Radiance arriving along `ray` (from the camera), and the first hit. A
+/// ray starting inside a random-walk medium starts in it
+/// ([`crate::Scene::medium_at`]).
 pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<FirstHit>) {
-    radiance_culled(scene, ray, None, rng)
+    let start = scene.medium_at(ray.origin).map(|(_, m)| m);
+    radiance_culled(scene, ray, None, start, rng)
 }
 
 /// [`radiance`] for a camera ray inside the beam that `primary` was culled
 /// for ([`isolux_geometry::Aggregate::cull`]): its first intersection
 /// tests only the culled objects and perturbations (the same hit, found
-/// faster); the rest of the path is unchanged.
+/// faster); the rest of the path is unchanged. `start` is the medium the
+/// ray starts in (the camera's, [`crate::Scene::medium_at`], looked up
+/// once for all its rays).
 pub fn radiance_culled(
     scene: &Scene,
     mut ray: Ray,
     primary: Option<&Culled>,
+    start: Option<&Subsurface>,
     rng: &mut Pcg32,
 ) -> (Rgb, Option<FirstHit>) {
     let mut primary = primary;
@@ -292,8 +300,13 @@ pub fn radiance_culled(
     let mut depth = 0u32;
     let mut eta_scale = 1.0;
     // The medium the path is in, and the colour channel it carries.
-    let mut inside: Option<Subsurface> = None;
+    let mut inside: Option<Subsurface> = start.cloned();
     let mut path_channel: Option<usize> = None;
+    if inside.is_some() {
+        let c = rng.next_below(3) as usize;
+        path_channel = Some(c);
+        beta = only_channel(beta, c, 3.0);
+    }
     let mut medium_events = 0u32;
     // The environment along the current ray was already counted (the
     // mirror reflection of a subsurface boundary, below).

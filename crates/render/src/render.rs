@@ -89,6 +89,8 @@ pub fn render(
     let spp = film.spp;
     let m = (spp as f64).sqrt().ceil() as u32;
     let n = spp.div_ceil(m);
+    // Camera paths start in the medium around the camera, if any.
+    let start = scene.medium_at(rig.basis()[0]).map(|(_, m)| m);
     let rt_env = options
         .realtime
         .then(|| RealtimeEnv::new(&scene.environment));
@@ -133,7 +135,7 @@ pub fn render(
                         let ray = rig.ray(fx, fy);
                         let (l, first) = match &rt_env {
                             Some(env) => realtime_radiance(scene, env, ray, primary, spp, &mut rng),
-                            None => radiance_culled(scene, ray, primary, &mut rng),
+                            None => radiance_culled(scene, ray, primary, start, &mut rng),
                         };
                         if l.is_finite() && l.r >= 0.0 && l.g >= 0.0 && l.b >= 0.0 {
                             sum += l;

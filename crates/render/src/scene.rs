@@ -2,8 +2,10 @@
 //! directly in code).
 
 use crate::{Camera, Environment, PointLight};
-use isolux_geometry::Aggregate;
-use isolux_materials::Material;
+use isolux_core::DVec3;
+use isolux_geometry::{Aggregate, Object};
+use isolux_materials::subsurface_material::SubsurfaceMode;
+use isolux_materials::{Material, Subsurface};
 
 /// Image size and sampling.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -178,37 +180,32 @@ impl Scene {
             .collect()
     }
 
-    /// A warning when the camera lies inside an object whose material is a
-    /// random-walk medium (`subsurface` in `random_walk` mode): paths
-    /// start outside every medium (`integrator.rs`), so the medium around
-    /// the camera is rendered as empty space, and its boundary, met from
-    /// inside, as if entered from outside. Both back ends do this; neither
-    /// models a camera in a medium. (Found by `scripts/gpu-diff-fuzz.py`:
-    /// a marble grown around the camera, which the two back ends rendered
-    /// differently, 93 against 180 of 255.) A camera inside any other
-    /// solid, the inside of an opaque enclosure, is a scene like any other.
-    pub fn camera_in_medium(&self) -> Option<String> {
-        use isolux_materials::subsurface_material::SubsurfaceMode;
-        let at = self.camera.position;
+    /// The first object (in file order) whose material is a random-walk
+    /// medium (`subsurface` in `random_walk` mode) and whose inside holds
+    /// `p`, with that medium: where a path from `p` starts. The integrator
+    /// starts camera paths there ([`crate::integrator::radiance`]), so
+    /// that a camera inside a medium (under water, inside a block of
+    /// marble) sees it scatter and absorb. Media do not nest: inside two
+    /// overlapping ones, the path starts in the first. (A camera inside a
+    /// dipole medium or any other solid needs nothing: those are
+    /// surfaces.)
+    pub fn medium_at(&self, p: DVec3) -> Option<(usize, &Subsurface)> {
+        self.media()
+            .find_map(|(i, o, m)| o.contains(p).then_some((i, m)))
+    }
+
+    /// The objects whose material is a random-walk medium (`subsurface`
+    /// in `random_walk` mode), with their index and medium, in file
+    /// order.
+    pub fn media(&self) -> impl Iterator<Item = (usize, &Object, &Subsurface)> {
         self.geometry
             .objects()
             .iter()
             .zip(&self.object_material)
             .enumerate()
-            .find_map(|(i, (o, &mi))| {
-                let Material::Subsurface(m) = &self.materials[mi] else {
-                    return None;
-                };
-                (m.mode == SubsurfaceMode::RandomWalk && o.bbox().contains(at) && o.eval(at) > 0.0)
-                    .then(|| {
-                        format!(
-                            "the camera is inside object[{i}], whose material \"{}\" is a \
-                             random-walk medium: paths start outside every medium, so the \
-                             medium around the camera renders as empty space; move the \
-                             camera out of it",
-                            self.material_names.get(mi).map_or("?", |n| n.as_str())
-                        )
-                    })
+            .filter_map(|(i, (o, &mi))| match &self.materials[mi] {
+                Material::Subsurface(m) if m.mode == SubsurfaceMode::RandomWalk => Some((i, o, m)),
+                _ => None,
             })
     }
 }

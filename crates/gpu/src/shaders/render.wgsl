@@ -41,6 +41,9 @@ struct Params {
     // `resolve`: layer count, 1 when `resolve` replaces the sum (a
     // real-time frame's first layers) instead of adding to it.
     layers: vec4<u32>,
+    // 1 + the material of the random-walk medium the camera is in (0:
+    // none), 0, 0, 0: camera paths start in it.
+    camera: vec4<u32>,
 }
 
 struct Light { position: vec4<f32>, intensity: vec4<f32> }
@@ -823,8 +826,18 @@ fn bounce_bound() -> u32 {
 }
 
 // A camera path from o along d, in `path`.
+// A camera inside a random-walk medium starts in it, carrying one colour
+// channel (integrator.rs).
 fn start_path(o: vec3<f32>, d: vec3<f32>) {
     path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
+    if (SUBSURFACE && params.camera.x != 0u) {
+        let c = min(u32(rand() * 3.0), 2u);
+        path.medium = params.camera.x;
+        path.channel = c;
+        var one = vec3<f32>(0.0);
+        one[c] = 3.0;
+        path.beta = one;
+    }
 }
 
 // Up to n bounces of `path`: whether it is still alive after them.
