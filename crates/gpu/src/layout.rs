@@ -500,19 +500,14 @@ fn p_lobe(reflectance: Rgb, specular: Rgb) -> f64 {
 }
 
 /// Whether `m` has a GPU implementation: a `mix` when all its components
-/// have and at most one of its leaves is a `wave` (the kernels evaluate one
-/// per material: two, in a loop, met Mesa 22.3's loop miscompile,
-/// docs/gpu.md).
+/// have (with any number of `wave` leaves, of which the kernels evaluate
+/// one per hit, chosen at random: docs/gpu.md, "Inside a `mix`").
 pub fn supported(m: &Material) -> bool {
     match m {
         // A medium inside a mix is its boundary alone ([`flatten_mix`]).
         Material::Mix(_) => {
             let c = flatten_mix(m, 1.0, 1.0);
             c.iter().all(|(m, ..)| is_void(m) || supported(m))
-                && c.iter()
-                    .filter(|(m, ..)| matches!(m, Material::Wave(_)))
-                    .count()
-                    <= 1
         }
         // Without copying its kernels.
         Material::Wave(_) => true,
@@ -657,10 +652,17 @@ impl GpuMaterials {
 
     /// A mix: its flattened leaves as records of their own after the
     /// scene's, their weights `(w_k, p_k)` in `data` (any number of
-    /// leaves), its `wave` leaf + 1 in `tag[3]` (0: none), and the frame's
-    /// tangent: the first leaf's that has one, as on the CPU, written
-    /// here, or placed per hit when that leaf is the `wave` (`idx[3]` 1;
-    /// `place_material`).
+    /// leaves), its first `wave` leaf + 1 in `tag[3]` (0: none), the sums
+    /// of its `wave` leaves' weights and probabilities and their count in
+    /// `a` (`[W, P, count, 0]`), and the frame's tangent: the first leaf's
+    /// that has one, as on the CPU, written here, or placed per hit when
+    /// that leaf is the first `wave` (`idx[3]` 1; `place_material`).
+    ///
+    /// With several `wave` leaves the kernels evaluate one per hit:
+    /// `place_material` chooses leaf `j` with probability `w_j / W` and
+    /// gives it the weight `W` and probability `P` of them all (the
+    /// others count zero), so that `f` is `sum_k w_k f_k` in expectation
+    /// (docs/gpu.md, "Inside a `mix`").
     fn mix(&mut self, m: &Material) -> Option<GpuMaterial> {
         let parts = flatten_mix(m, 1.0, 1.0);
         let mut g = GpuMaterial::default();
@@ -690,6 +692,11 @@ impl GpuMaterials {
         if let Some(k) = parts.iter().position(|(c, ..)| is_wave(c)) {
             g.tag[3] = k as u32 + 1;
         }
+        let waves = parts.iter().filter(|(c, ..)| is_wave(c));
+        let (w, p, n) = waves.fold((0.0, 0.0, 0), |(w, p, n), (_, cw, cp)| {
+            (w + cw, p + cp, n + 1)
+        });
+        g.a = [w as f32, p as f32, n as f32, 0.0];
         let mut tangent_is_wave = 0;
         match parts.iter().find_map(|(c, ..)| Some((c, c.tangent()?))) {
             Some((c, _)) if is_wave(c) => tangent_is_wave = 1,
@@ -1249,12 +1256,25 @@ mod tests {
                 assert_eq!(top.d, [1.0, 0.0, 0.0, 0.0]);
             }
         }
-        assert!(!supported(&mix(vec![(a.clone(), 1.0), (b.clone(), 1.0)])));
+        // Two `wave` leaves (one placed per hit): their summed weight and
+        // probability and their count in `a`, the first named in `tag[3]`.
         let nested = mix(vec![
             (a.clone(), 1.0),
             (mix([five, vec![(b.clone(), 1.0)]].concat()), 1.0),
         ]);
-        assert!(!supported(&nested));
+        assert!(supported(&nested));
+        let g = GpuMaterials::new(std::slice::from_ref(&nested)).unwrap();
+        let top = g.materials[0];
+        // f weights 1 and 1 (a mix's f is its weighted sum, unnormalized),
+        // probabilities 1/2 and a sixth of the inner mix's 1/2.
+        assert_eq!(top.tag[3], 1);
+        let (w, p) = (2.0, 0.5 + 0.5 / 6.0);
+        assert!(
+            (top.a[0] - w as f32).abs() < 1e-6 && (top.a[1] - p as f32).abs() < 1e-6,
+            "{:?}",
+            top.a
+        );
+        assert_eq!(top.a[2], 2.0);
         let g = GpuMaterials::new(&[a, b]).unwrap();
         let (m0, m1) = (g.materials[0], g.materials[1]);
         assert_eq!(

@@ -25,9 +25,9 @@ pub mod layout;
 mod render;
 
 pub use render::{
-    f32_ill_conditioned, f32_shortfall, rebase_point, replace_unsupported, thin_object_warning,
-    unsupported_material, worst_bump_condition, worst_scale_ratio, BumpCondition, GpuFrame,
-    ScaleRatio, F32_CONDITION_LIMIT, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
+    f32_ill_conditioned, f32_shortfall, mix_of_waves, rebase_point, replace_unsupported,
+    thin_object_warning, unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio,
+    BumpCondition, GpuFrame, ScaleRatio, F32_CONDITION_LIMIT, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;

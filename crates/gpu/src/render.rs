@@ -593,6 +593,29 @@ fn planar_wave(scene: &Scene) -> bool {
     })
 }
 
+/// The first material of `scene` used by an object that mixes two or
+/// more `wave` materials, with their number: the kernels evaluate one per
+/// hit, chosen at random, which Mesa 22's lavapipe miscompiles
+/// ([`crate::Gpu::miscompiles_loops`]; docs/gpu.md).
+pub fn mix_of_waves(scene: &Scene) -> Option<(String, usize)> {
+    scene.object_material.iter().find_map(|&m| {
+        let n = waves(&scene.materials[m]).len();
+        (n > 1).then(|| (scene.material_names.get(m).cloned().unwrap_or_default(), n))
+    })
+}
+
+/// The number of distinct `wave` materials the objects of `scene` use
+/// (a mix's leaves counted one by one): above one, neighbouring pixels
+/// run the wave code with different loop bounds, which Mesa 22's lavapipe
+/// miscompiles in the sampled lobes ([`crate::Gpu::miscompiles_loops`];
+/// docs/gpu.md).
+pub fn wave_count(scene: &Scene) -> usize {
+    let mut used: Vec<usize> = scene.object_material.clone();
+    used.sort_unstable();
+    used.dedup();
+    used.iter().map(|&m| waves(&scene.materials[m]).len()).sum()
+}
+
 /// The `wave` materials `m` is made of: itself, or a mix's `wave`
 /// components (mixes nested included).
 fn waves(m: &isolux_materials::Material) -> Vec<&isolux_materials::wave::Wave> {
@@ -959,6 +982,17 @@ impl Gpu {
     ) -> Result<GpuFrame, GpuError> {
         if let Some((name, type_name)) = unsupported_material(scene) {
             return Err(GpuError::Unsupported { name, type_name });
+        }
+        if self.miscompiles_loops() {
+            if let Some((name, n)) = mix_of_waves(scene) {
+                return Err(GpuError::Setup(format!(
+                    "material \"{name}\" mixes {n} `wave` materials, which this driver ({}) \
+                     miscompiles (the wave code diverging across a SIMD group: sampled lobes \
+                     come out wrong; docs/gpu.md, \"Known defect\"): render without --gpu, or \
+                     on another driver (Mesa 25 or later, or a GPU's)",
+                    self.driver
+                )));
+            }
         }
         if let Some(why) = f32_shortfall(scene) {
             return Err(GpuError::Precision(why));

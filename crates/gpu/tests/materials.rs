@@ -551,8 +551,19 @@ fn wave_library() -> Vec<(&'static str, Material, f64)> {
             (grey(0.8), 0.5),
         ],
     });
+    // Two `wave` leaves (the kernels place one per hit, `two_waves_chosen`),
+    // the first giving the frame its tangent whichever is chosen.
+    let two = Material::Mix(isolux_materials::Mix {
+        components: vec![
+            (grey(0.3), 1.0),
+            (Material::Wave(a.clone()), 1.0),
+            (grey(0.5), 0.5),
+            (Material::Wave(c.clone()), 2.0),
+        ],
+    });
     vec![
         ("wave grating Ag planar, 4 wl", Material::Wave(a), 0.0),
+        ("mix: grey, wave grating, grey, wave noise", two, 0.004),
         ("mix: diffuse 1, wave noise ohs 2, ggx 1", mixed, 0.004),
         ("mix: 6 leaves, a wave after a tangent", crowded, 0.004),
         ("wave noise ohs seed ior, 1 wl", Material::Wave(b), 0.004),
@@ -562,6 +573,50 @@ fn wave_library() -> Vec<(&'static str, Material, f64)> {
             0.003,
         ),
     ]
+}
+
+/// What the kernels evaluate of mix `m` with comb offset `xi`, as a CPU
+/// material and offset: for a flat mix of several `wave` leaves, leaf `j`
+/// chosen with probability `w_j / W` (in f32, as `place_material`), with
+/// the others' weight `W` and theirs 0, and `xi` rescaled within `j`'s
+/// share; any other material as it is.
+fn two_waves_chosen(m: &Material, xi: f64) -> (Material, f64) {
+    let Material::Mix(mix) = m else {
+        return (m.clone(), xi);
+    };
+    let is_wave = |c: &Material| matches!(c, Material::Wave(_));
+    let waves: Vec<usize> = (0..mix.components.len())
+        .filter(|&k| is_wave(&mix.components[k].0))
+        .collect();
+    if waves.len() < 2 {
+        return (m.clone(), xi);
+    }
+    let total: f64 = waves.iter().map(|&k| mix.components[k].1).sum();
+    let (x, w32) = (xi as f32, total as f32);
+    let (mut acc, mut chosen, mut u) = (0.0f32, waves[0], x);
+    for &k in &waves {
+        let pk = mix.components[k].1 as f32 / w32;
+        chosen = k;
+        u = ((x - acc) / pk).clamp(0.0, 0.99999994);
+        if x < acc + pk {
+            break;
+        }
+        acc += pk;
+    }
+    let components = mix
+        .components
+        .iter()
+        .enumerate()
+        .map(|(k, (c, w))| match k {
+            _ if k == chosen => (c.clone(), total),
+            _ if is_wave(c) => (c.clone(), 0.0),
+            _ => (c.clone(), *w),
+        })
+        .collect();
+    (
+        Material::Mix(isolux_materials::Mix { components }),
+        u as f64,
+    )
 }
 
 /// The GPU's `wave` against the CPU's on the same placements and
@@ -575,7 +630,17 @@ fn wave_matches_the_cpu() {
     let Some(gpu) = common::open("GPU wave conformance") else {
         return;
     };
-    let lib = wave_library();
+    // Mesa 22's lavapipe (CI's) miscompiles the wave code when the lanes
+    // of a SIMD group run different `wave` materials (different loop
+    // bounds): the sampled lobes come out wrong (docs/gpu.md, "Known
+    // defect"; `render --gpu` refuses a mix of two there and warns about
+    // two in a scene). There the queries run material by material and
+    // the mix of two is left out; elsewhere they run interleaved.
+    let mesa22 = gpu.miscompiles_loops();
+    let mut lib = wave_library();
+    if mesa22 {
+        lib.retain(|(_, m, _)| !matches!(m, Material::Mix(x) if x.components.iter().filter(|(c, _)| matches!(c, Material::Wave(_))).count() > 1));
+    }
     let mats: Vec<Material> = lib.iter().map(|(_, m, _)| m.clone()).collect();
     let gmats = GpuMaterials::new(&mats).unwrap();
     let n = 1500;
@@ -612,11 +677,21 @@ fn wave_matches_the_cpu() {
                 index: [mi as u32, 0, 0, 0],
                 point: [p.x as f32, p.y as f32, p.z as f32, fp as f32],
             });
+            let (m, xi) = two_waves_chosen(m, xi);
             placed.push(m.at_point(p, (fp > 0.0).then_some(fp), || xi).into_owned());
             inputs.push((wo, wi, u));
         }
     }
-    let answers = gpu.eval_materials(&gmats, &queries).unwrap();
+    // Interleaved: neighbouring lanes hold different materials.
+    let total = queries.len();
+    let stride = if mesa22 { 1 } else { 7919 };
+    let perm: Vec<usize> = (0..total).map(|i| (i * stride) % total).collect();
+    let shuffled: Vec<_> = perm.iter().map(|&i| queries[i]).collect();
+    let got = gpu.eval_materials(&gmats, &shuffled).unwrap();
+    let mut answers = got.clone();
+    for (k, &i) in perm.iter().enumerate() {
+        answers[i] = got[k];
+    }
     let mut report = Vec::new();
     for (mi, (name, ..)) in lib.iter().enumerate() {
         let range = mi * n..(mi + 1) * n;

@@ -230,6 +230,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(why) = isolux_gpu::thin_object_warning(&scene) {
             eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
         }
+        // (A mix of two is refused there, by `Gpu::render`.)
+        if gpu.miscompiles_loops()
+            && isolux_gpu::wave_count(&scene) > 1
+            && isolux_gpu::mix_of_waves(&scene).is_none()
+        {
+            eprintln!(
+                "isolux: warning: --gpu: {}: this driver ({}) miscompiles the `wave` code where \
+                 neighbouring pixels hold different `wave` materials: their sampled lobes come \
+                 out wrong (docs/gpu.md, \"Known defect\"); render without --gpu, or on another \
+                 driver (Mesa 25 or later, or a GPU's)",
+                a.scene.display(),
+                gpu.driver
+            );
+        }
         if a.megakernel
             && gpu.miscompiles_loops()
             && scene.materials.iter().any(|m| m.varies_in_space())

@@ -1468,8 +1468,8 @@ fn material_flags(m: Material) -> u32 {
     return f;
 }
 
-// A mix's `wave` component (`tag.w`: its position + 1; at most one, see
-// layout.rs `supported`), placed: `place_material` keeps its placed state
+// A mix's `wave` component (`tag.w`: its position + 1; of several, the one
+// `place_material` chose for the hit), placed: `place_material` keeps its placed state
 // `e` (footprint centre, sigma, comb offset) in the mix's `e`, from which
 // `mix_wave` rebuilds it (`wave_f`, `wave_pdf` and `wave_sample_dir` read
 // no placed tangent: they work in the mix's frame, as on the CPU).
@@ -1532,11 +1532,11 @@ fn wave_of(m: Material) -> Material {
 }
 
 // The weight in f and the selection probability in m of m's `wave`:
-// (weight, probability), both 1 for a plain `wave`.
+// (weight, probability), both 1 for a plain `wave`; for a mix the sums
+// over its `wave` leaves (`a.xy`), which the one placed leaf stands for.
 fn wave_weights(m: Material) -> vec2<f32> {
     if (is_mix(m)) {
-        let k = m.tag.w - 1u;
-        return vec2<f32>(mix_w(m, k), mix_p(m, k));
+        return m.a.xy;
     }
     return vec2<f32>(1.0);
 }
@@ -1582,7 +1582,12 @@ fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSampl
         var acc = 0.0;
         var chosen = n - 1u;
         for (var k = 0u; k < n; k++) {
-            let p = mix_p(m, k);
+            var p = mix_p(m, k);
+            // Of several `wave` leaves the placed one (`tag.w`) stands for
+            // all: probability P, the others' 0 (`place_material`).
+            if (has_model(MAT_WAVE) && m.a.z > 1.0 && materials[m.idx.y + k].tag.x == MAT_WAVE) {
+                p = select(0.0, m.a.y, k + 1u == m.tag.w);
+            }
             if (uc < acc + p || k + 1u == n) {
                 chosen = k;
                 uc_rest = select(0.0, clamp((uc - acc) / p, 0.0, 0.99999994), p > 0.0);

@@ -26,15 +26,42 @@
 // model is returned as is.
 fn place_material(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
     if (m.tag.x == MAT_MIX && m.tag.w > 0u) {
-        // A mix's `wave` component (`tag.w` its position + 1), placed once
-        // per hit: its state `e` kept in the mix's free `e` for `mix_wave`,
-        // its tangent the frame's when the first component with a tangent
-        // is the `wave` (`idx.w` 1).
-        let w = place_wave(materials[m.idx.y + m.tag.w - 1u], p, footprint, xi);
+        // A mix's `wave` leaves (`tag.w` the first's position + 1; `a`
+        // their summed weight W, probability P and count, layout.rs
+        // `GpuMaterials::mix`): one is placed per hit, leaf j with
+        // probability w_j / W, xi rescaled for its comb offset (one leaf:
+        // j the first, xi as it is). `tag.w` then names j, which
+        // `wave_weights` gives W and P: f is sum_k w_k f_k in expectation.
+        // Its state `e` is kept in the mix's free `e` for `mix_wave`; the
+        // frame's tangent is the first `wave`'s when the first leaf with
+        // a tangent is that one (`idx.w` 1).
+        let first = m.tag.w - 1u;
+        var j = first;
+        var u = xi;
+        if (m.a.z > 1.0 && m.a.x > 0.0) {
+            var acc = 0.0;
+            for (var k = first; k < m.idx.z; k++) {
+                if (materials[m.idx.y + k].tag.x != MAT_WAVE) {
+                    continue;
+                }
+                let pk = mix_w(m, k) / m.a.x;
+                if (pk <= 0.0) {
+                    continue;
+                }
+                j = k;
+                u = clamp((xi - acc) / pk, 0.0, 0.99999994);
+                if (xi < acc + pk) {
+                    break;
+                }
+                acc += pk;
+            }
+        }
+        let w = place_wave(materials[m.idx.y + j], p, footprint, u);
         var out = m;
         out.e = w.e;
+        out.tag.w = j + 1u;
         if (m.idx.w == 1u) {
-            out.d = w.d;
+            out.d = place_wave(materials[m.idx.y + first], p, footprint, u).d;
             out.tag.z = 1u;
         }
         return out;
