@@ -161,8 +161,9 @@ fn white_furnaces_render_one() {
 
 /// Subsurface scattering (`examples/scenes/translucent*.toml`): the
 /// dipole BSSRDF with single scattering under point lights and a dim sky,
-/// and the volumetric random walk under an environment map, GPU against
-/// CPU within noise (as the gallery). A translucent object's light comes
+/// and the volumetric random walk under an environment map and (in
+/// `underwater.toml`) around the camera, GPU against CPU within noise (as
+/// the gallery). A translucent object's light comes
 /// from elsewhere on its surface (probe rays, reservoir choice of the
 /// hit) or from hundreds of scattering events, all of it on the GPU.
 #[test]
@@ -173,6 +174,8 @@ fn translucent_scenes_match_the_cpu_within_noise() {
     for (name, spp) in [
         ("translucent.toml", 16),
         ("translucent-random-walk.toml", 16),
+        // The camera inside the medium.
+        ("underwater.toml", 16),
     ] {
         let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());

@@ -25,8 +25,10 @@
 //! the surface meets the boundary's Fresnel reflection and refraction. The
 //! coefficients differ per colour channel, so the first entry picks one
 //! channel uniformly and carries it with weight 3 (unbiased; colour noise
-//! is the price). Events inside a medium do not count toward `max_depth`;
-//! a path is cut after 100,000 of them. Media do not nest. A camera inside
+//! is the price). Events inside a medium (scattering, meeting its
+//! boundary) do not count toward `max_depth`; a path is cut after 100,000
+//! of them. A bounce on another surface inside a medium counts toward it,
+//! as anywhere. Media do not nest. A camera inside
 //! a medium starts its paths in it ([`crate::Scene::medium_at`], found
 //! once per render): under a white sky of radiance 1, a non-absorbing
 //! medium of index `n` around the camera shows `n^2` everywhere, the
@@ -374,7 +376,9 @@ pub fn radiance_culled(
                 depth: hit.t,
             });
         }
-        if depth >= max_depth && inside.is_none() {
+        // A surface inside a medium ends the path at `max_depth` like any
+        // other; the medium's own boundary, met from inside, lets it out.
+        if depth >= max_depth && (inside.is_none() || material.medium().is_none()) {
             break;
         }
         let wo = -ray.dir;
@@ -493,8 +497,11 @@ pub fn radiance_culled(
             Some(s.pdf)
         };
         ray = Ray::new(hit.spawn(s.wi), s.wi);
-        if inside.is_some()
-            || material.medium().is_some() && s.flags.contains(BxdfFlags::TRANSMISSION)
+        // Meetings with a medium's boundary (crossing it, or reflected
+        // inside) are medium events; a bounce on any other surface counts
+        // toward the depth, also inside a medium.
+        if material.medium().is_some()
+            && (inside.is_some() || s.flags.contains(BxdfFlags::TRANSMISSION))
         {
             medium_events += 1;
             if medium_events > MAX_MEDIUM_EVENTS {

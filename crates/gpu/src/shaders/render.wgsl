@@ -708,16 +708,19 @@ fn bounce() -> bool {
             path.l += path.beta * env_eval(d) * w;
             return false;
         }
-        if (path.depth >= params.counts.z && (!SUBSURFACE || path.medium == 0u)) {
-            return false;
-        }
         oi = hit_object;
         mi = objects[oi].range.z;
+        m = materials[mi];
+        // A surface inside a medium ends the path at max depth like any
+        // other; the medium's boundary, met from inside, lets it out.
+        if (path.depth >= params.counts.z
+            && (!SUBSURFACE || path.medium == 0u || m.tag.x != MAT_SUBSURFACE)) {
+            return false;
+        }
         p = o + h.x * d;
         // Spatially varying materials (wave) are placed at the hit, camera
         // rays with the pixel footprint (the angle of one pixel times the
         // distance), as on the CPU; the comb offset is drawn only for them.
-        m = materials[mi];
         if (has_wave(m)) {
             let fp = select(-1.0, pixel_footprint(h.x), path.depth == 0u);
             m = place_material(m, p, fp, rand());
@@ -800,7 +803,9 @@ fn bounce() -> bool {
     path.prev_pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
     path.o = offset_origin(p, ng, wi);
     path.d = wi;
-    if (SUBSURFACE && (path.medium != 0u || (is_medium && transmitted))) {
+    // Meetings with a medium's boundary are medium events; a bounce on
+    // any other surface counts toward the depth, also inside a medium.
+    if (is_medium && (path.medium != 0u || transmitted)) {
         path.events += 1u;
         if (path.events > MAX_MEDIUM_EVENTS) {
             return false;
