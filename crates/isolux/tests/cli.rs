@@ -571,3 +571,69 @@ fn sss_media_and_profile() {
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("unknown medium \"jelly\" (valid: apple,"));
 }
+
+/// A point light inside a random-walk medium is warned about, naming the
+/// light, the object and its material (neither back end attenuates its
+/// light through the medium nor scatters it there); the same light
+/// outside is not, nor one inside an opaque solid.
+#[test]
+fn a_light_inside_a_random_walk_medium_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |light_z: f64, material: &str| {
+        format!(
+            r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+[film]
+width = 8
+height = 6
+spp = 1
+[[light]]
+type = "point"
+position = [0.0, 0.0, {light_z}]
+intensity = [1.0, 1.0, 1.0]
+[[material]]
+name = "milk"
+type = "subsurface"
+medium = "skimmilk"
+scale = 20.0
+mode = "random_walk"
+[[material]]
+name = "plaster"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+[[object]]
+material = "{material}"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
+"#
+        )
+    };
+    for (light_z, material, warned) in [
+        (0.2, "milk", true),
+        (3.0, "milk", false),
+        (0.2, "plaster", false),
+    ] {
+        let file = write_scene(dir.path(), &scene(light_z, material));
+        let out = dir.path().join("out.png");
+        let o = isolux()
+            .args([
+                "render",
+                file.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--quiet",
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        let want =
+            "light[0] lies inside object[0], whose material \"milk\" is a random-walk medium";
+        assert_eq!(
+            err.contains(want),
+            warned,
+            "light at z = {light_z}, {material}: {err}"
+        );
+    }
+}
