@@ -366,6 +366,69 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.8 }
     );
 }
 
+/// A point light inside a medium (the CPU's closed-form checks in
+/// `crates/isolux/tests/analytic.rs`): through an absorbing medium onto a
+/// diffuse floor (shadow rays attenuated), and scattered once or more in
+/// a scattering medium around the camera (next-event estimation at the
+/// scattering events). GPU against CPU within noise.
+#[test]
+fn lamps_in_media_match_the_cpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let lamp = |sigma_s: f64, sigma_a: f64, extra: &str| {
+        format!(
+            r#"
+[camera]
+position = [0.0, 0.5, 2.0]
+look_at = [0.0, -0.6, 0.0]
+fov_y = 50.0
+[film]
+width = 96
+height = 64
+spp = 32
+[integrator]
+max_depth = 4
+[environment]
+type = "constant"
+radiance = [0.0, 0.0, 0.0]
+[[light]]
+type = "point"
+position = [0.7, 0.9, -0.4]
+intensity = [20.0, 20.0, 20.0]
+[[material]]
+name = "water"
+type = "subsurface"
+sigma_s = [{sigma_s}, {sigma_s}, {sigma_s}]
+sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]
+g = 0.5
+ior = 1.0
+scale = 1.0
+mode = "random_walk"
+[[object]]
+material = "water"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
+{extra}
+"#
+        )
+    };
+    let floor = "[[material]]\nname = \"floor\"\ntype = \"diffuse\"\nreflectance = [0.8, 0.8, 0.8]\n\
+         [[object]]\nmaterial = \"floor\"\nbase = { type = \"plane\", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }\n\
+         bounds = { min = [-30.0, -2.0, -30.0], max = [30.0, 0.0, 30.0] }";
+    for (name, src) in [
+        ("absorbing, floor", lamp(0.0, 0.6, floor)),
+        ("scattering", lamp(0.3, 0.2, "")),
+        ("scattering, floor", lamp(0.3, 0.2, floor)),
+    ] {
+        let mut scene =
+            isolux_scene::parse_str(&src, Path::new("lamp.toml"), Path::new(".")).unwrap();
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
+        assert!(mc > 0.01, "{name}: {mc}");
+        assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    }
+}
+
 /// A sphere of two `wave` leaves (the GPU places one per hit, chosen by
 /// weight: docs/gpu.md, "Inside a `mix`") renders the CPU's image in
 /// expectation: per channel, the mean difference over the sphere's

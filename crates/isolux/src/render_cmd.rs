@@ -167,9 +167,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
     for why in scene.rough_wave_materials() {
         eprintln!("isolux: warning: {}: {why}", a.scene.display());
     }
-    for why in scene.lights_in_media() {
-        eprintln!("isolux: warning: {}: {why}", a.scene.display());
-    }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),
         // Each worker reserves a stack; 100,000 of them took minutes to

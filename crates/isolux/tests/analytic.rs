@@ -602,6 +602,163 @@ base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
     assert!(outside.medium_at(outside.camera.position).is_none());
 }
 
+/// A scene inside a large sphere of medium (index 1: its boundary is
+/// invisible; radius 50) with a point light at `light` in it and a black
+/// sky: `sigma_s`, `sigma_a` per unit, grey in every channel.
+fn lamp_in_medium(sigma_s: f64, sigma_a: f64, extra: &str) -> Scene {
+    scene(&format!(
+        r#"
+[camera]
+position = [0.0, 0.5, 2.0]
+look_at = [0.0, -0.6, 0.0]
+fov_y = 50.0
+[film]
+width = 48
+height = 36
+spp = 64
+[integrator]
+max_depth = 1
+[environment]
+type = "constant"
+radiance = [0.0, 0.0, 0.0]
+[[light]]
+type = "point"
+position = [0.7, 0.9, -0.4]
+intensity = [20.0, 20.0, 20.0]
+[[material]]
+name = "water"
+type = "subsurface"
+sigma_s = [{sigma_s}, {sigma_s}, {sigma_s}]
+sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]
+g = 0.5
+ior = 1.0
+scale = 1.0
+mode = "random_walk"
+[[object]]
+material = "water"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
+{extra}
+"#
+    ))
+}
+
+/// `f(ray)` per pixel, the mean at 4 x 4 stratified points (the renderer
+/// jitters its samples over the pixel likewise).
+fn film_of(s: &Scene, f: impl Fn(&isolux_core::Ray) -> f64) -> Vec<f64> {
+    let rig = s.camera.rig(s.film.width, s.film.height).unwrap();
+    let mut out = Vec::new();
+    for y in 0..s.film.height {
+        for x in 0..s.film.width {
+            let mut sum = 0.0;
+            for k in 0..16 {
+                let fx = x as f64 + (k % 4) as f64 / 4.0 + 0.125;
+                let fy = y as f64 + (k / 4) as f64 / 4.0 + 0.125;
+                sum += f(&rig.ray(fx, fy));
+            }
+            out.push(sum / 16.0);
+        }
+    }
+    out
+}
+
+/// The means of a grey render and of a reference per pixel, and the
+/// standard error of the mean of their difference (the render's noise).
+fn against(img: &Image, want: &[f64]) -> (f64, f64, f64) {
+    let d: Vec<f64> = img
+        .rgb
+        .iter()
+        .zip(want)
+        .map(|(p, w)| p.iter().map(|&c| c as f64).sum::<f64>() / 3.0 - w)
+        .collect();
+    let n = d.len() as f64;
+    let md = d.iter().sum::<f64>() / n;
+    let se = (d.iter().map(|x| (x - md).powi(2)).sum::<f64>() / n / n).sqrt();
+    let mw = want.iter().sum::<f64>() / n;
+    (mw + md, mw, se)
+}
+
+/// A point light inside an absorbing medium lights a diffuse floor in it
+/// through the medium: each pixel's expected value is `exp(-sigma t) rho /
+/// pi I cos / r^2 exp(-sigma r)` (closed form; `t` the camera ray's length
+/// to the floor, `r` the light's distance, `max_depth` 1, no scattering).
+/// The film's mean agrees within four standard errors; without the
+/// light's attenuation it came out `exp(sigma r)` brighter.
+#[test]
+fn a_lamp_in_an_absorbing_medium_lights_a_floor_through_it() {
+    let (sigma, rho) = (0.6, 0.8);
+    let floor = format!(
+        "[[material]]\nname = \"floor\"\ntype = \"diffuse\"\nreflectance = [{rho}, {rho}, {rho}]\n\
+         [[object]]\nmaterial = \"floor\"\nbase = {{ type = \"plane\", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }}\n\
+         bounds = {{ min = [-30.0, -2.0, -30.0], max = [30.0, 0.0, 30.0] }}"
+    );
+    let s = lamp_in_medium(0.0, sigma, &floor);
+    let light = s.lights[0].position;
+    let want = film_of(&s, |ray| {
+        if ray.dir.y >= 0.0 {
+            return 0.0;
+        }
+        let t = (-1.0 - ray.origin.y) / ray.dir.y;
+        let p = ray.at(t);
+        if p.x.abs() > 30.0 || p.z.abs() > 30.0 {
+            return 0.0;
+        }
+        let d = light - p;
+        let r = d.length();
+        let cos = (d.y / r).max(0.0);
+        (-sigma * t).exp() * rho / std::f64::consts::PI * 20.0 * cos / (r * r) * (-sigma * r).exp()
+    });
+    let (got, want, se) = against(&render_with(&s, 2), &want);
+    eprintln!("lamp in absorbing medium: render {got} +- {se}, closed form {want}");
+    assert!(want > 0.02, "{want}");
+    assert!(
+        (got - want).abs() < 4.0 * se + 1e-3 * want,
+        "render {got} +- {se}, closed form {want}"
+    );
+}
+
+/// A point light inside a scattering medium glows: along a camera ray,
+/// single scattering gives `int sigma_s exp(-sigma_t t) p(cos) I
+/// exp(-sigma_t r) / r^2 dt` (Henyey-Greenstein `p`, integrated here by
+/// Simpson's rule). At albedo 0.02 the higher orders add a few percent
+/// (the scattering events per photon, `a / (1 - a)`, against `a` for
+/// single scattering; measured at 1024 spp: +3.2%), so the film's mean
+/// lies between the single scattering and 5% above it. Without
+/// next-event estimation at the scattering events the image was black.
+#[test]
+fn a_lamp_in_a_scattering_medium_glows_by_single_scattering() {
+    let (ss, sa, g) = (0.02, 0.98, 0.5);
+    let st = ss + sa;
+    let s = lamp_in_medium(ss, sa, "");
+    let light = s.lights[0].position;
+    let hg = |c: f64| {
+        let d = 1.0 + g * g - 2.0 * g * c;
+        (1.0 - g * g) / (4.0 * std::f64::consts::PI * d * d.sqrt())
+    };
+    let want = film_of(&s, |ray| {
+        let (n, t_end) = (4000, 40.0);
+        let h = t_end / n as f64;
+        let f = |t: f64| {
+            let p = ray.at(t);
+            let d = light - p;
+            let r2 = d.length_squared();
+            let r = r2.sqrt();
+            ss * (-st * t).exp() * hg(d.dot(ray.dir) / r) * 20.0 * (-st * r).exp() / r2
+        };
+        let mut sum = f(0.0) + f(t_end);
+        for k in 1..n {
+            sum += f(k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+        }
+        sum * h / 3.0
+    });
+    let (got, want, se) = against(&render_with(&s, 2), &want);
+    eprintln!("lamp in scattering medium: render {got} +- {se}, single scattering {want}");
+    assert!(want > 1e-3, "{want}");
+    assert!(
+        got > want - 4.0 * se && got < 1.03 * want + 4.0 * se,
+        "render {got} +- {se}, single scattering {want}"
+    );
+}
+
 #[test]
 fn dipole_mode_conserves_energy_and_agrees_with_the_random_walk() {
     // Non-absorbing medium, optically large (radius 0.8 = 16 mean free

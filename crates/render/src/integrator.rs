@@ -20,8 +20,10 @@
 //! **Participating media** (`subsurface` materials in `random_walk` mode):
 //! a path refracted into such an object samples exponential free flights
 //! `t = -ln(u) / sigma_t` inside it; a flight that ends before the surface
-//! scatters by the Henyey-Greenstein phase function (no next-event
-//! estimation inside: the boundary is a delta interface), one that reaches
+//! scatters by the Henyey-Greenstein phase function (next-event estimation
+//! of the point lights inside the medium, attenuated by it; the
+//! environment and lights outside lie behind its boundary, a delta
+//! interface, and arrive by the sampled paths alone), one that reaches
 //! the surface meets the boundary's Fresnel reflection and refraction. The
 //! coefficients differ per colour channel, so the first entry picks one
 //! channel uniformly and carries it with weight 3 (unbiased; colour noise
@@ -83,9 +85,15 @@ pub struct FirstHit {
 /// the environment map with multiple importance sampling against the
 /// scattering density. `f_cos_pdf(wi, need_pdf)` returns `f |cos|` and (when
 /// `need_pdf`) the density with which the path would continue toward `wi`.
+/// `sigma_t`: the extinction of the medium around `p` in the path's
+/// channel (0 outside media); a light reached unoccluded from inside a
+/// medium lies in it, and its light is attenuated by `exp(-sigma_t d)`
+/// (the environment never is reached so: the medium's boundary occludes
+/// it).
 fn direct_light(
     scene: &Scene,
     hit: &Hit,
+    sigma_t: f64,
     rng: &mut Pcg32,
     f_cos_pdf: impl Fn(DVec3, bool) -> (Rgb, f64),
 ) -> Rgb {
@@ -104,7 +112,7 @@ fn direct_light(
             continue;
         }
         if !scene.geometry.occluded(&Ray::new(origin, wi), 0.0, dist) {
-            l += fc * light.intensity / dist2;
+            l += fc * light.intensity * ((-sigma_t * dist).exp() / dist2);
         }
     }
     let env = &scene.environment;
@@ -121,6 +129,30 @@ fn direct_light(
                     l += fc * s.radiance * (w / s.pdf);
                 }
             }
+        }
+    }
+    l
+}
+
+/// Light from the point lights that reach `p`, a scattering event inside
+/// a medium (extinction `sigma_t` in the path's channel, phase
+/// Henyey-Greenstein with `g`) on a path travelling along `dir`: `I
+/// p(wl . dir) exp(-sigma_t d) / d^2` per unoccluded light at distance `d`
+/// in direction `wl` (a light outside the medium is occluded by its
+/// boundary: no next-event estimation through a delta interface).
+fn medium_light(scene: &Scene, p: DVec3, dir: DVec3, g: f64, sigma_t: f64) -> Rgb {
+    let mut l = Rgb::BLACK;
+    for light in &scene.lights {
+        let d = light.position - p;
+        let dist2 = d.length_squared();
+        if !(dist2 > 0.0) {
+            continue;
+        }
+        let dist = dist2.sqrt();
+        let wl = d / dist;
+        if !scene.geometry.occluded(&Ray::new(p, wl), 0.0, dist) {
+            let phase = isolux_materials::subsurface::phase::hg(wl.dot(dir), g);
+            l += light.intensity * (phase * (-sigma_t * dist).exp() / dist2);
         }
     }
     l
@@ -151,7 +183,7 @@ fn single_scattering_light(
         }
         albedo * single_scattering(wo_l, wl, 1.0, m.g, eta)
     };
-    let mut l = direct_light(scene, hit, rng, |wi, _| {
+    let mut l = direct_light(scene, hit, 0.0, rng, |wi, _| {
         let c = wi.dot(hit.n);
         if c <= 0.0 {
             (Rgb::BLACK, 0.0)
@@ -335,11 +367,14 @@ pub fn radiance_culled(
                 }
                 let st = channel(m.sigma_t(), c);
                 beta *= channel(m.sigma_s, c) / st;
+                let p = ray.at(t_max);
+                // Point lights in the medium, by next-event estimation
+                // (the environment lies behind the medium's boundary).
+                l += beta * medium_light(scene, p, ray.dir, m.g, st);
                 match russian_roulette(beta, eta_scale, rng) {
                     Some(b) => beta = b,
                     None => break,
                 }
-                let p = ray.at(t_max);
                 let cos_t = sample_hg_cos(m.g, rng.next_f64());
                 let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
                 let phi = 2.0 * PI * rng.next_f64();
@@ -388,8 +423,14 @@ pub fn radiance_culled(
         };
         let ns = bsdf.normal();
 
+        // Inside a medium (a surface in it), lights in the medium are
+        // seen through it.
+        let sigma_t = match (&inside, path_channel) {
+            (Some(m), Some(c)) if material.medium().is_none() => channel(m.sigma_t(), c),
+            _ => 0.0,
+        };
         l += beta
-            * direct_light(scene, &hit, rng, |wi, need_pdf| {
+            * direct_light(scene, &hit, sigma_t, rng, |wi, need_pdf| {
                 // The density only weighs environment samples (MIS); point
                 // lights skip it (costly for wave-optics materials).
                 let pdf = if need_pdf { bsdf.pdf(wo, wi) } else { 0.0 };
@@ -448,7 +489,7 @@ pub fn radiance_culled(
                 // At x_i: light arriving through the boundary, weighted by
                 // S_w(wi) = (1 - F(cos_i)) / (c pi).
                 l += beta
-                    * direct_light(scene, &xi, rng, |wi, _| {
+                    * direct_light(scene, &xi, 0.0, rng, |wi, _| {
                         let c = wi.dot(xi.n);
                         if c <= 0.0 {
                             (Rgb::BLACK, 0.0)

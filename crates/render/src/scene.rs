@@ -194,30 +194,6 @@ impl Scene {
             .find_map(|(i, o, m)| o.contains(p).then_some((i, m)))
     }
 
-    /// A warning for each point light inside a random-walk medium, naming
-    /// the light, the object and its material: neither back end
-    /// attenuates such a light's shadow rays through the medium nor
-    /// gathers its light at scattering events inside (no next-event
-    /// estimation there), so surfaces in the medium receive it as if
-    /// through vacuum and the medium's glow around it is missing.
-    pub fn lights_in_media(&self) -> Vec<String> {
-        self.lights
-            .iter()
-            .enumerate()
-            .filter_map(|(k, l)| {
-                let (i, _) = self.medium_at(l.position)?;
-                let mi = self.object_material[i];
-                Some(format!(
-                    "light[{k}] lies inside object[{i}], whose material \"{}\" is a \
-                     random-walk medium: its light is not attenuated through the medium nor \
-                     scattered in it (surfaces there receive it as through vacuum); move it \
-                     out of the medium (docs/subsurface.md)",
-                    self.material_names.get(mi).map_or("?", |n| n.as_str())
-                ))
-            })
-            .collect()
-    }
-
     /// The objects whose material is a random-walk medium (`subsurface`
     /// in `random_walk` mode), with their index and medium, in file
     /// order.

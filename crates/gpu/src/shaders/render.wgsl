@@ -353,6 +353,12 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             t_max = sqrt(dist2);
             wi = d / t_max;
             rad = light.intensity.rgb / dist2;
+            // A surface inside a medium sees the lights in it through it
+            // (a light outside is occluded by the medium's boundary).
+            if (SUBSURFACE && path.medium != 0u && m.tag.x != MAT_SUBSURFACE) {
+                let pm = materials[path.medium - 1u];
+                rad *= exp(-(pm.b.rgb + pm.c.rgb)[path.channel] * t_max);
+            }
             if (first) {
                 // Occluded: no need to shade it.
                 if (((shadow_lights >> i) & 1u) == 0u) {
@@ -636,15 +642,41 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
     return max3(path.beta) > 0.0;
 }
 
+// Light from the point lights that reach p, a scattering event inside a
+// medium (extinction st in the path's channel, Henyey-Greenstein g) on a
+// path travelling along d (integrator.rs `medium_light`): I p(wl . d)
+// exp(-st r) / r^2 per unoccluded light; a light outside the medium is
+// occluded by its boundary.
+fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32, st: f32) -> vec3<f32> {
+    var l = vec3<f32>(0.0);
+    for (var i = 0u; i < params.counts.y; i++) {
+        let light = lights[i];
+        let dl = light.position.xyz - p;
+        let dist2 = dot(dl, dl);
+        if (!(dist2 > 0.0)) {
+            continue;
+        }
+        let dist = sqrt(dist2);
+        let wl = dl / dist;
+        if (!occluded(p, wl, dist)) {
+            l += light.intensity.rgb * (hg_phase(dot(wl, d), g) * exp(-st * dist) / dist2);
+        }
+    }
+    return l;
+}
+
 // A scattering event at p inside the medium (random walk): albedo of the
-// path's channel, roulette, a Henyey-Greenstein direction about d.
+// path's channel, the point lights in the medium (`medium_light`),
+// roulette, a Henyey-Greenstein direction about d.
 fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
     path.events += 1u;
     if (path.events > MAX_MEDIUM_EVENTS) {
         return false;
     }
     let mm = materials[path.medium - 1u];
-    let beta = roulette(path.beta * (mm.b.rgb[path.channel] / st));
+    let scattered = path.beta * (mm.b.rgb[path.channel] / st);
+    path.l += scattered * medium_light(p, d, mm.a.y, st);
+    let beta = roulette(scattered);
     if (!(max3(beta) > 0.0)) {
         return false;
     }
