@@ -962,7 +962,9 @@ impl GpuMaterials {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
-    /// `[x, y, z, 0]`.
+    /// `[x, y, z, m]`: `m` 1 + the material of the random-walk medium the
+    /// light lies in (0: none; `medium_light` in render.wgsl gathers a
+    /// light only at scattering events in its medium).
     pub position: [f32; 4],
     /// `[r, g, b, 0]` (W/sr).
     pub intensity: [f32; 4],

@@ -1033,7 +1033,14 @@ impl Gpu {
             .lights
             .iter()
             .map(|l| GpuLight {
-                position: v4(l.position - at),
+                // w: 1 + the material of the random-walk medium the light
+                // lies in (0: none), whose scattering events gather it.
+                position: {
+                    let medium = scene.medium_at(l.position);
+                    let m = medium.map_or(0, |(i, _)| scene.object_material[i] + 1);
+                    let [x, y, z, _] = v4(l.position - at);
+                    [x, y, z, m as f32]
+                },
                 intensity: [
                     l.intensity.r as f32,
                     l.intensity.g as f32,

@@ -138,11 +138,23 @@ fn direct_light(
 /// a medium (extinction `sigma_t` in the path's channel, phase
 /// Henyey-Greenstein with `g`) on a path travelling along `dir`: `I
 /// p(wl . dir) exp(-sigma_t d) / d^2` per unoccluded light at distance `d`
-/// in direction `wl` (a light outside the medium is occluded by its
-/// boundary: no next-event estimation through a delta interface).
-fn medium_light(scene: &Scene, p: DVec3, dir: DVec3, g: f64, sigma_t: f64) -> Rgb {
+/// in direction `wl`, of the lights `inside(k)` says lie in the medium
+/// (one outside is occluded by its boundary: no next-event estimation
+/// through a delta interface, and no shadow ray is traced to find that
+/// out).
+fn medium_light(
+    scene: &Scene,
+    p: DVec3,
+    dir: DVec3,
+    g: f64,
+    sigma_t: f64,
+    inside: impl Fn(usize) -> bool,
+) -> Rgb {
     let mut l = Rgb::BLACK;
-    for light in &scene.lights {
+    for (k, light) in scene.lights.iter().enumerate() {
+        if !inside(k) {
+            continue;
+        }
         let d = light.position - p;
         let dist2 = d.length_squared();
         if !(dist2 > 0.0) {
@@ -302,25 +314,50 @@ fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
     (!beta.is_black()).then_some(beta)
 }
 
+/// What the paths of a render share about the random-walk media: the one
+/// around the camera ([`crate::Scene::medium_at`]), and the one each
+/// point light lies in (scattering events gather only those lights,
+/// `medium_light`: the others lie behind the medium's boundary).
+#[derive(Clone, Debug, Default)]
+pub struct Media<'a> {
+    /// The object index and medium the camera is in.
+    pub camera: Option<(usize, &'a Subsurface)>,
+    /// Per point light, the object index of the medium it lies in.
+    pub lights: Vec<Option<usize>>,
+}
+
+impl<'a> Media<'a> {
+    /// The media of `scene` for paths from `origin`.
+    pub fn new(scene: &'a Scene, origin: DVec3) -> Self {
+        Media {
+            camera: scene.medium_at(origin),
+            lights: scene
+                .lights
+                .iter()
+                .map(|l| scene.medium_at(l.position).map(|(i, _)| i))
+                .collect(),
+        }
+    }
+}
+
 /// Radiance arriving along `ray` (from the camera), and the first hit. A
 /// ray starting inside a random-walk medium starts in it
 /// ([`crate::Scene::medium_at`]).
 pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<FirstHit>) {
-    let start = scene.medium_at(ray.origin).map(|(_, m)| m);
-    radiance_culled(scene, ray, None, start, rng)
+    radiance_culled(scene, ray, None, &Media::new(scene, ray.origin), rng)
 }
 
 /// [`radiance`] for a camera ray inside the beam that `primary` was culled
 /// for ([`isolux_geometry::Aggregate::cull`]): its first intersection
 /// tests only the culled objects and perturbations (the same hit, found
-/// faster); the rest of the path is unchanged. `start` is the medium the
-/// ray starts in (the camera's, [`crate::Scene::medium_at`], looked up
-/// once for all its rays).
+/// faster); the rest of the path is unchanged. `media` tells the medium
+/// the ray starts in (the camera's) and those of the lights, looked up
+/// once for all the rays of a render.
 pub fn radiance_culled(
     scene: &Scene,
     mut ray: Ray,
     primary: Option<&Culled>,
-    start: Option<&Subsurface>,
+    media: &Media,
     rng: &mut Pcg32,
 ) -> (Rgb, Option<FirstHit>) {
     let mut primary = primary;
@@ -334,7 +371,9 @@ pub fn radiance_culled(
     let mut depth = 0u32;
     let mut eta_scale = 1.0;
     // The medium the path is in, and the colour channel it carries.
-    let mut inside: Option<Subsurface> = start.cloned();
+    let mut inside: Option<Subsurface> = media.camera.map(|(_, m)| m.clone());
+    // The object of that medium.
+    let mut inside_obj = media.camera.map(|(i, _)| i);
     let mut path_channel: Option<usize> = None;
     if inside.is_some() {
         let c = rng.next_below(3) as usize;
@@ -370,7 +409,9 @@ pub fn radiance_culled(
                 let p = ray.at(t_max);
                 // Point lights in the medium, by next-event estimation
                 // (the environment lies behind the medium's boundary).
-                l += beta * medium_light(scene, p, ray.dir, m.g, st);
+                let lights =
+                    |k: usize| inside_obj.is_some() && media.lights.get(k) == Some(&inside_obj);
+                l += beta * medium_light(scene, p, ray.dir, m.g, st, lights);
                 match russian_roulette(beta, eta_scale, rng) {
                     Some(b) => beta = b,
                     None => break,
@@ -522,6 +563,7 @@ pub fn radiance_culled(
             if let Some(m) = material.medium() {
                 if inside.is_some() {
                     inside = None;
+                    inside_obj = None;
                 } else {
                     if path_channel.is_none() {
                         let c = rng.next_below(3) as usize;
@@ -529,6 +571,7 @@ pub fn radiance_culled(
                         beta = only_channel(beta, c, 3.0);
                     }
                     inside = Some(m.clone());
+                    inside_obj = Some(obj);
                 }
             }
         }

@@ -17,7 +17,7 @@
 //! prevent) is dropped and counted in [`RenderStats::rejected_samples`];
 //! no NaN or Inf reaches the image.
 
-use crate::integrator::radiance_culled;
+use crate::integrator::{radiance_culled, Media};
 use crate::realtime::{realtime_radiance, RealtimeEnv};
 use crate::Scene;
 use isolux_core::{rng::mix64, Aovs, DVec3, Image, Pcg32, Rgb};
@@ -90,7 +90,7 @@ pub fn render(
     let m = (spp as f64).sqrt().ceil() as u32;
     let n = spp.div_ceil(m);
     // Camera paths start in the medium around the camera, if any.
-    let start = scene.medium_at(rig.basis()[0]).map(|(_, m)| m);
+    let media = Media::new(scene, rig.basis()[0]);
     let rt_env = options
         .realtime
         .then(|| RealtimeEnv::new(&scene.environment));
@@ -135,7 +135,7 @@ pub fn render(
                         let ray = rig.ray(fx, fy);
                         let (l, first) = match &rt_env {
                             Some(env) => realtime_radiance(scene, env, ray, primary, spp, &mut rng),
-                            None => radiance_culled(scene, ray, primary, start, &mut rng),
+                            None => radiance_culled(scene, ray, primary, &media, &mut rng),
                         };
                         if l.is_finite() && l.r >= 0.0 && l.g >= 0.0 && l.b >= 0.0 {
                             sum += l;

@@ -645,12 +645,16 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
 // Light from the point lights that reach p, a scattering event inside a
 // medium (extinction st in the path's channel, Henyey-Greenstein g) on a
 // path travelling along d (integrator.rs `medium_light`): I p(wl . d)
-// exp(-st r) / r^2 per unoccluded light; a light outside the medium is
-// occluded by its boundary.
+// exp(-st r) / r^2 per unoccluded light of the medium's material
+// (`position.w`, layout.rs `GpuLight`); a light outside the medium is
+// occluded by its boundary, and no shadow ray is traced to it.
 fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32, st: f32) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
         let light = lights[i];
+        if (u32(light.position.w) != path.medium) {
+            continue;
+        }
         let dl = light.position.xyz - p;
         let dist2 = dot(dl, dl);
         if (!(dist2 > 0.0)) {
