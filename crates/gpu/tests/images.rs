@@ -376,52 +376,32 @@ fn lamps_in_media_match_the_cpu() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let lamp = |sigma_s: f64, sigma_a: f64, extra: &str| {
-        format!(
-            r#"
-[camera]
-position = [0.0, 0.5, 2.0]
-look_at = [0.0, -0.6, 0.0]
-fov_y = 50.0
-[film]
-width = 96
-height = 64
-spp = 32
-[integrator]
-max_depth = 4
-[environment]
-type = "constant"
-radiance = [0.0, 0.0, 0.0]
-[[light]]
-type = "point"
-position = [0.7, 0.9, -0.4]
-intensity = [20.0, 20.0, 20.0]
-[[material]]
-name = "water"
-type = "subsurface"
-sigma_s = [{sigma_s}, {sigma_s}, {sigma_s}]
-sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]
-g = 0.5
-ior = 1.0
-scale = 1.0
-mode = "random_walk"
-[[object]]
-material = "water"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
-{extra}
-"#
-        )
+    // examples/tests/lamp-in-medium.toml with the coefficients, with or
+    // without its floor.
+    let lamp = |sigma_s: f64, sigma_a: f64, floor: bool| {
+        let mut src = common::test_scene_text("lamp-in-medium.toml")
+            .replace(
+                "sigma_s = [0.3, 0.3, 0.3]",
+                &format!("sigma_s = [{sigma_s}, {sigma_s}, {sigma_s}]"),
+            )
+            .replace(
+                "sigma_a = [0.2, 0.2, 0.2]",
+                &format!("sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]"),
+            );
+        if !floor {
+            src.truncate(src.find("\n# floor\n").unwrap());
+        }
+        src
     };
-    let floor = "[[material]]\nname = \"floor\"\ntype = \"diffuse\"\nreflectance = [0.8, 0.8, 0.8]\n\
-         [[object]]\nmaterial = \"floor\"\nbase = { type = \"plane\", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }\n\
-         bounds = { min = [-30.0, -2.0, -30.0], max = [30.0, 0.0, 30.0] }";
     for (name, src) in [
-        ("absorbing, floor", lamp(0.0, 0.6, floor)),
-        ("scattering", lamp(0.3, 0.2, "")),
-        ("scattering, floor", lamp(0.3, 0.2, floor)),
+        ("absorbing, floor", lamp(0.0, 0.6, true)),
+        ("scattering", lamp(0.3, 0.2, false)),
+        ("scattering, floor", lamp(0.3, 0.2, true)),
     ] {
         let mut scene =
             isolux_scene::parse_str(&src, Path::new("lamp.toml"), Path::new(".")).unwrap();
+        (scene.film.width, scene.film.height, scene.film.spp) = (96, 64, 32);
+        scene.integrator.max_depth = 4;
         let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
         assert!(mc > 0.01, "{name}: {mc}");
         assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
@@ -523,32 +503,12 @@ fn a_camera_inside_a_random_walk_medium_sees_it_on_the_gpu() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let src = r#"
-[camera]
-position = [0.1, -0.2, 3.0]
-look_at = [0.0, 0.0, -5.0]
-fov_y = 60.0
-[film]
-width = 48
-height = 32
-spp = 16
-[environment]
-type = "constant"
-radiance = [1.0, 1.0, 1.0]
-[[material]]
-name = "medium"
-type = "subsurface"
-sigma_s = [2.0, 1.0, 0.5]
-sigma_a = [0.0, 0.0, 0.0]
-g = 0.3
-ior = 1.5
-scale = 1.0
-mode = "random_walk"
-[[object]]
-material = "medium"
-base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }
-"#;
-    let mut scene = isolux_scene::parse_str(src, Path::new("inside.toml"), Path::new(".")).unwrap();
+    let src = common::test_scene_text("medium-around-camera.toml");
+    let mut scene =
+        isolux_scene::parse_str(&src, Path::new("inside.toml"), Path::new(".")).unwrap();
+    // Prepared with the camera outside, then moved in.
+    let inside = scene.camera.position;
+    scene.camera.position.z = 3.0;
     let check = |img: &Image, what: &str| {
         for p in &img.rgb {
             let sum = p.iter().map(|&v| v as f64).sum::<f64>();
@@ -572,7 +532,7 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }
         }
     };
     let mut frame = gpu.prepare(&scene).unwrap();
-    scene.camera.position.z = 0.3;
+    scene.camera.position = inside;
     frame.set_camera(&gpu, &scene.camera).unwrap();
     for wavefront in [true, false] {
         frame.set_wavefront(wavefront);

@@ -532,32 +532,12 @@ fn medium_scene(params: &str, spp: u32) -> Image {
 #[test]
 fn a_camera_inside_a_random_walk_medium_sees_it() {
     let src = |ior: f64, sigma_a: &str| {
-        format!(
-            r#"
-[camera]
-position = [0.1, -0.2, 0.3]
-look_at = [0.0, 0.0, -5.0]
-fov_y = 60.0
-[film]
-width = 48
-height = 32
-spp = 16
-[environment]
-type = "constant"
-radiance = [1.0, 1.0, 1.0]
-[[material]]
-name = "medium"
-type = "subsurface"
-sigma_s = [2.0, 1.0, 0.5]
-sigma_a = {sigma_a}
-g = 0.3
-ior = {ior}
-scale = 1.0
-mode = "random_walk"
-[[object]]
-material = "medium"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
-"#
+        test_scene(
+            "medium-around-camera.toml",
+            &[
+                ("ior = 1.5", &format!("ior = {ior}")),
+                ("sigma_a = [0.0, 0.0, 0.0]", &format!("sigma_a = {sigma_a}")),
+            ],
         )
     };
     for ior in [1.0, 1.5] {
@@ -602,44 +582,39 @@ base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
     assert!(outside.medium_at(outside.camera.position).is_none());
 }
 
-/// A scene inside a large sphere of medium (index 1: its boundary is
-/// invisible; radius 50) with a point light at `light` in it and a black
-/// sky: `sigma_s`, `sigma_a` per unit, grey in every channel.
-fn lamp_in_medium(sigma_s: f64, sigma_a: f64, extra: &str) -> Scene {
-    scene(&format!(
-        r#"
-[camera]
-position = [0.0, 0.5, 2.0]
-look_at = [0.0, -0.6, 0.0]
-fov_y = 50.0
-[film]
-width = 48
-height = 36
-spp = 64
-[integrator]
-max_depth = 1
-[environment]
-type = "constant"
-radiance = [0.0, 0.0, 0.0]
-[[light]]
-type = "point"
-position = [0.7, 0.9, -0.4]
-intensity = [20.0, 20.0, 20.0]
-[[material]]
-name = "water"
-type = "subsurface"
-sigma_s = [{sigma_s}, {sigma_s}, {sigma_s}]
-sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]
-g = 0.5
-ior = 1.0
-scale = 1.0
-mode = "random_walk"
-[[object]]
-material = "water"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
-{extra}
-"#
-    ))
+/// The text of `examples/tests/<name>` with each `(from, to)` replaced.
+fn test_scene(name: &str, edits: &[(&str, &str)]) -> String {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/tests/");
+    let mut src = std::fs::read_to_string(format!("{dir}{name}")).unwrap();
+    for (from, to) in edits {
+        assert!(src.contains(from), "{name}: no {from}");
+        src = src.replace(from, to);
+    }
+    src
+}
+
+/// `examples/tests/lamp-in-medium.toml`: a point light inside a large
+/// sphere of medium (index 1: its boundary is invisible; radius 50) under
+/// a black sky, `sigma_s`, `sigma_a` per unit in every channel, with or
+/// without its diffuse floor (reflectance 0.8).
+fn lamp_in_medium(sigma_s: f64, sigma_a: f64, floor: bool) -> Scene {
+    let mut src = test_scene(
+        "lamp-in-medium.toml",
+        &[
+            (
+                "sigma_s = [0.3, 0.3, 0.3]",
+                &format!("sigma_s = [{sigma_s}, {sigma_s}, {sigma_s}]"),
+            ),
+            (
+                "sigma_a = [0.2, 0.2, 0.2]",
+                &format!("sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]"),
+            ),
+        ],
+    );
+    if !floor {
+        src.truncate(src.find("\n# floor\n").unwrap());
+    }
+    scene(&src)
 }
 
 /// `f(ray)` per pixel, the mean at 4 x 4 stratified points (the renderer
@@ -685,13 +660,9 @@ fn against(img: &Image, want: &[f64]) -> (f64, f64, f64) {
 /// light's attenuation it came out `exp(sigma r)` brighter.
 #[test]
 fn a_lamp_in_an_absorbing_medium_lights_a_floor_through_it() {
+    // The file's floor reflectance.
     let (sigma, rho) = (0.6, 0.8);
-    let floor = format!(
-        "[[material]]\nname = \"floor\"\ntype = \"diffuse\"\nreflectance = [{rho}, {rho}, {rho}]\n\
-         [[object]]\nmaterial = \"floor\"\nbase = {{ type = \"plane\", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }}\n\
-         bounds = {{ min = [-30.0, -2.0, -30.0], max = [30.0, 0.0, 30.0] }}"
-    );
-    let s = lamp_in_medium(0.0, sigma, &floor);
+    let s = lamp_in_medium(0.0, sigma, true);
     let light = s.lights[0].position;
     let want = film_of(&s, |ray| {
         if ray.dir.y >= 0.0 {
@@ -728,7 +699,7 @@ fn a_lamp_in_an_absorbing_medium_lights_a_floor_through_it() {
 fn a_lamp_in_a_scattering_medium_glows_by_single_scattering() {
     let (ss, sa, g) = (0.02, 0.98, 0.5);
     let st = ss + sa;
-    let s = lamp_in_medium(ss, sa, "");
+    let s = lamp_in_medium(ss, sa, false);
     let light = s.lights[0].position;
     let hg = |c: f64| {
         let d = 1.0 + g * g - 2.0 * g * c;

@@ -250,7 +250,7 @@ fn defaults_fill_a_minimal_scene() {
 fn every_example_scene_loads() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     let mut n = 0;
-    for dir in ["scenes", "bench"] {
+    for dir in ["scenes", "bench", "tests"] {
         for e in std::fs::read_dir(root.join(dir)).unwrap() {
             let p = e.unwrap().path();
             if p.extension().is_some_and(|x| x == "toml") {

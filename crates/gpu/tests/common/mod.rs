@@ -31,6 +31,16 @@ pub fn example(name: &str) -> isolux_render::Scene {
     isolux_scene::load(&p).unwrap()
 }
 
+/// The text of the test scene `examples/tests/<name>` (shared with the
+/// CPU's tests).
+#[allow(dead_code)]
+pub fn test_scene_text(name: &str) -> String {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/tests")
+        .join(name);
+    std::fs::read_to_string(p).unwrap()
+}
+
 /// Mean luminance of each 8 x 8 block of `img`.
 #[allow(dead_code)]
 pub fn blocks(img: &isolux_core::Image) -> Vec<f64> {
