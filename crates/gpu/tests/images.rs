@@ -421,42 +421,8 @@ fn a_mix_of_two_waves_renders_the_cpus_image() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let field = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/heightfields/brushed.exr"
-    );
-    let src = format!(
-        r#"
-[camera]
-position = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-[film]
-width = 64
-height = 48
-spp = 64
-[environment]
-type = "constant"
-radiance = [1.0, 1.0, 1.0]
-[[material]]
-name = "brushed"
-type = "wave"
-heightfield = "{field}"
-[[material]]
-name = "brushed too"
-type = "wave"
-heightfield = "{field}"
-model = "ohs"
-wavelengths = 1
-[[material]]
-name = "blend"
-type = "mix"
-components = [{{ material = "brushed", weight = 0.5 }}, {{ material = "brushed too", weight = 0.5 }}]
-[[object]]
-material = "blend"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.7 }}
-"#
-    );
-    let scene = isolux_scene::parse_str(&src, Path::new("two-waves.toml"), Path::new(".")).unwrap();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/tests/two-waves.toml");
+    let scene = isolux_scene::load(&path).unwrap();
     if gpu.miscompiles_loops() {
         let Err(e) = gpu.render(&scene, &|_, _| {}) else {
             panic!("a mix of two waves rendered on {}", gpu.driver);

@@ -398,47 +398,18 @@ bounds = { min = [-5.0, -0.1, -5.0], max = [5.0, 0.1, 5.0] }
 fn render_gpu_takes_a_mix_of_two_waves_or_refuses_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
-    let field = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/heightfields/brushed.exr"
-    );
+    // examples/tests/two-waves.toml, small, its heightfield's path made
+    // absolute.
+    let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples");
+    let text = std::fs::read_to_string(format!("{examples}/tests/two-waves.toml"))
+        .unwrap()
+        .replace("../heightfields/", &format!("{examples}/heightfields/"))
+        .replace(
+            "width = 64\nheight = 48\nspp = 64",
+            "width = 16\nheight = 12\nspp = 1",
+        );
     let scene = dir.path().join("mixed.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            r#"
-[camera]
-position = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-
-[film]
-width = 16
-height = 12
-spp = 1
-
-[[material]]
-name = "brushed"
-type = "wave"
-heightfield = "{field}"
-
-[[material]]
-name = "brushed too"
-type = "wave"
-heightfield = "{field}"
-model = "ohs"
-
-[[material]]
-name = "blend"
-type = "mix"
-components = [{{ material = "brushed", weight = 0.5 }}, {{ material = "brushed too", weight = 0.5 }}]
-
-[[object]]
-material = "blend"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.7 }}
-"#
-        ),
-    )
-    .unwrap();
+    std::fs::write(&scene, &text).unwrap();
     let o = run(&[
         "render",
         scene.to_str().unwrap(),
