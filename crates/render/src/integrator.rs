@@ -100,13 +100,9 @@ fn direct_light(
     let mut l = Rgb::BLACK;
     for light in &scene.lights {
         let origin = hit.spawn(light.position - hit.p);
-        let d = light.position - origin;
-        let dist2 = d.length_squared();
-        if !(dist2 > 0.0) {
+        let Some((wi, dist, dist2)) = light.toward(origin) else {
             continue;
-        }
-        let dist = dist2.sqrt();
-        let wi = d / dist;
+        };
         let (fc, _) = f_cos_pdf(wi, false);
         if fc.is_black() {
             continue;
@@ -155,13 +151,9 @@ fn medium_light(
         if !inside(k) {
             continue;
         }
-        let d = light.position - p;
-        let dist2 = d.length_squared();
-        if !(dist2 > 0.0) {
+        let Some((wl, dist, dist2)) = light.toward(p) else {
             continue;
-        }
-        let dist = dist2.sqrt();
-        let wl = d / dist;
+        };
         if !scene.geometry.occluded(&Ray::new(p, wl), 0.0, dist) {
             let phase = isolux_materials::subsurface::phase::hg(wl.dot(dir), g);
             l += light.intensity * (phase * (-sigma_t * dist).exp() / dist2);

@@ -257,13 +257,9 @@ pub fn realtime_radiance(
     let mut l = Rgb::BLACK;
     for light in &scene.lights {
         let origin = hit.spawn(light.position - hit.p);
-        let d = light.position - origin;
-        let dist2 = d.length_squared();
-        if !(dist2 > 0.0) {
+        let Some((wi, dist, dist2)) = light.toward(origin) else {
             continue;
-        }
-        let dist = dist2.sqrt();
-        let wi = d / dist;
+        };
         let fc = bsdf.f(wo, wi) * wi.dot(ns).abs();
         if fc.is_black() {
             continue;
