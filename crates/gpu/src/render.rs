@@ -817,13 +817,14 @@ pub struct GpuFrame {
     random_walk: bool,
     /// The objects of random-walk media (world coordinates) and `1 +`
     /// their material: where [`GpuFrame::set_camera`] looks up the medium
-    /// the camera is in ([`camera_medium`]).
+    /// the camera is in ([`medium_of`]).
     media: Vec<(isolux_geometry::Object, u32)>,
 }
 
 /// `1 +` the material of the first of `media` that holds `at`, 0 for none
-/// (`isolux_render::Scene::medium_at`): `GpuParams::camera`.
-fn camera_medium(media: &[(isolux_geometry::Object, u32)], at: glam::DVec3) -> u32 {
+/// (`isolux_render::Scene::medium_at`): `GpuParams::camera`, and each
+/// light's `position.w`.
+fn medium_of(media: &[(isolux_geometry::Object, u32)], at: glam::DVec3) -> u32 {
     media
         .iter()
         .find_map(|(o, m)| o.contains(at).then_some(*m))
@@ -1029,6 +1030,10 @@ impl Gpu {
             .collect();
         let materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
         let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
+        let media: Vec<_> = scene
+            .media()
+            .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
+            .collect();
         let lights: Vec<GpuLight> = scene
             .lights
             .iter()
@@ -1036,10 +1041,8 @@ impl Gpu {
                 // w: 1 + the material of the random-walk medium the light
                 // lies in (0: none), whose scattering events gather it.
                 position: {
-                    let medium = scene.medium_at(l.position);
-                    let m = medium.map_or(0, |(i, _)| scene.object_material[i] + 1);
                     let [x, y, z, _] = v4(l.position - at);
-                    [x, y, z, m as f32]
+                    [x, y, z, medium_of(&media, l.position) as f32]
                 },
                 intensity: [
                     l.intensity.r as f32,
@@ -1072,10 +1075,6 @@ impl Gpu {
         let grid_m = (film.spp as f64).sqrt().ceil() as u32;
         let grid_n = film.spp.div_ceil(grid_m);
         let seed = isolux_core::rng::mix64(scene.integrator.seed ^ 0x1502_7a1e);
-        let media: Vec<_> = scene
-            .media()
-            .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
-            .collect();
         let params = GpuParams {
             origin: v4(origin),
             forward: v4(forward),
@@ -1093,7 +1092,7 @@ impl Gpu {
             env_size,
             wave: [0; 4],
             layers: [0; 4],
-            camera: [camera_medium(&media, scene.camera.position), 0, 0, 0],
+            camera: [medium_of(&media, scene.camera.position), 0, 0, 0],
         };
 
         let limit = self.binding_limit();
@@ -1694,7 +1693,7 @@ impl GpuFrame {
             .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         self.params.origin = v4(origin - self.rebase);
-        self.params.camera[0] = camera_medium(&self.media, origin);
+        self.params.camera[0] = medium_of(&self.media, origin);
         self.params.forward = v4(forward);
         self.params.right = v4(right);
         self.params.up = v4(up);
