@@ -61,13 +61,18 @@ fn channel(c: Rgb, i: usize) -> f64 {
     }
 }
 
-fn only_channel(c: Rgb, i: usize, k: f64) -> Rgb {
-    let v = channel(c, i) * k;
-    match i {
+/// The colour channel a path carries through media from its first one
+/// on, chosen uniformly, and the throughput `beta` in that channel alone,
+/// weighted 3 (unbiased).
+fn pick_channel(beta: Rgb, rng: &mut Pcg32) -> (usize, Rgb) {
+    let c = rng.next_below(3) as usize;
+    let v = channel(beta, c) * 3.0;
+    let one = match c {
         0 => Rgb::new(v, 0.0, 0.0),
         1 => Rgb::new(0.0, v, 0.0),
         _ => Rgb::new(0.0, 0.0, v),
-    }
+    };
+    (c, one)
 }
 
 /// What the first camera-ray hit saw (for AOVs).
@@ -368,9 +373,8 @@ pub fn radiance_culled(
     let mut inside_obj = media.camera.map(|(i, _)| i);
     let mut path_channel: Option<usize> = None;
     if inside.is_some() {
-        let c = rng.next_below(3) as usize;
-        path_channel = Some(c);
-        beta = only_channel(beta, c, 3.0);
+        let (c, one) = pick_channel(beta, rng);
+        (path_channel, beta) = (Some(c), one);
     }
     let mut medium_events = 0u32;
     // The environment along the current ray was already counted (the
@@ -558,9 +562,8 @@ pub fn radiance_culled(
                     inside_obj = None;
                 } else {
                     if path_channel.is_none() {
-                        let c = rng.next_below(3) as usize;
-                        path_channel = Some(c);
-                        beta = only_channel(beta, c, 3.0);
+                        let (c, one) = pick_channel(beta, rng);
+                        (path_channel, beta) = (Some(c), one);
                     }
                     inside = Some(m.clone());
                     inside_obj = Some(obj);

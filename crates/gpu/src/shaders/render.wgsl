@@ -827,11 +827,7 @@ fn bounce() -> bool {
             path.medium = 0u;
         } else {
             if (path.channel > 2u) {
-                let c = min(u32(rand() * 3.0), 2u);
-                path.channel = c;
-                var one = vec3<f32>(0.0);
-                one[c] = 3.0 * beta[c];
-                beta = one;
+                beta = pick_channel(beta);
             }
             path.medium = mi + 1u;
         }
@@ -866,18 +862,25 @@ fn bounce_bound() -> u32 {
     return 2u * params.counts.z + MAX_MEDIUM_EVENTS + 3u;
 }
 
+// The colour channel the path carries through media from its first one
+// on, chosen uniformly (into `path.channel`), and the throughput beta in
+// that channel alone, weighted 3 (integrator.rs `pick_channel`).
+fn pick_channel(beta: vec3<f32>) -> vec3<f32> {
+    let c = min(u32(rand() * 3.0), 2u);
+    path.channel = c;
+    var one = vec3<f32>(0.0);
+    one[c] = 3.0 * beta[c];
+    return one;
+}
+
 // A camera path from o along d, in `path`.
 // A camera inside a random-walk medium starts in it, carrying one colour
 // channel (integrator.rs).
 fn start_path(o: vec3<f32>, d: vec3<f32>) {
     path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
     if (SUBSURFACE && params.camera.x != 0u) {
-        let c = min(u32(rand() * 3.0), 2u);
         path.medium = params.camera.x;
-        path.channel = c;
-        var one = vec3<f32>(0.0);
-        one[c] = 3.0;
-        path.beta = one;
+        path.beta = pick_channel(path.beta);
     }
 }
 
