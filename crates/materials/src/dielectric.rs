@@ -22,6 +22,10 @@
 //! |---|---|---|---|
 //! | `ior` | number > 0 | `1.5` | relative index of refraction (inside / outside) |
 //!
+//! Under a random-walk medium (glass under water), the integrators use
+//! `ior / n_medium` ([`crate::Material::relative_to`]): `ior` is the
+//! glass's own index against vacuum.
+//!
 //! Source: Born and Wolf §1.5; pbrt-v4 §9.5.
 //!
 //! ```

@@ -73,6 +73,38 @@ impl Fresnel {
             }
         }
     }
+    /// The same interface seen from a medium of index `n` instead of
+    /// vacuum: every index divided by `n` (a conductor's complex index
+    /// too). Schlick's `f0` is read as a dielectric's, `f0 = ((m - 1) /
+    /// (m + 1))^2`, per channel; its index `m / n` gives the new `f0` (a
+    /// channel of `f0 >= 1` stays 1). `One` is unchanged. `None` for
+    /// `n = 1` or a term that does not change.
+    pub fn relative_to(&self, n: f64) -> Option<Fresnel> {
+        if n == 1.0 || !(n > 0.0) {
+            return None;
+        }
+        match *self {
+            Fresnel::One => None,
+            Fresnel::Dielectric { ior } => Some(Fresnel::Dielectric { ior: ior / n }),
+            Fresnel::Conductor { eta, k } => Some(Fresnel::Conductor {
+                eta: eta / n,
+                k: k / n,
+            }),
+            Fresnel::Schlick { f0 } => {
+                let ch = |f: f64| {
+                    let r = f.clamp(0.0, 1.0).sqrt();
+                    if r >= 1.0 {
+                        return 1.0;
+                    }
+                    let m = (1.0 + r) / (1.0 - r) / n;
+                    ((m - 1.0) / (m + 1.0)).powi(2)
+                };
+                Some(Fresnel::Schlick {
+                    f0: Rgb::new(ch(f0.r), ch(f0.g), ch(f0.b)),
+                })
+            }
+        }
+    }
 }
 
 /// Exact unpolarized dielectric reflectance; `eta = n_t / n_i` for light

@@ -145,6 +145,62 @@ impl Material {
         }
     }
 
+    /// This material seen from inside a medium of index `n` (a surface
+    /// under water) instead of from vacuum: every index of refraction it
+    /// holds divided by `n` ([`crate::Fresnel::relative_to`]), so that
+    /// the scene's `ior`, `eta` and `k` stay the material's own, against
+    /// vacuum. `None` where nothing changes: at `n = 1`, and for models
+    /// without an index (the lobe models, `factored` and `merl`, measured
+    /// in air), `wave` (whose diffraction is computed in air) and the
+    /// media (`subsurface`, `subsurface_brdf`, whose derived profiles
+    /// assume vacuum outside; media do not nest). A mix changes where a
+    /// component does.
+    pub fn relative_to(&self, n: f64) -> Option<Material> {
+        if n == 1.0 || !(n > 0.0) {
+            return None;
+        }
+        match self {
+            Material::Dielectric(d) => Some(Material::Dielectric(Dielectric { ior: d.ior / n })),
+            Material::Conductor(c) => Some(Material::Conductor(Conductor {
+                fresnel: c.fresnel.relative_to(n)?,
+            })),
+            Material::Plastic(p) => Some(Material::Plastic(p.relative_to(n))),
+            Material::Ggx(m) => {
+                let mut m = *m;
+                m.lobe.fresnel = m.lobe.fresnel.relative_to(n)?;
+                Some(Material::Ggx(m))
+            }
+            Material::Beckmann(m) => {
+                let mut m = *m;
+                m.lobe.fresnel = m.lobe.fresnel.relative_to(n)?;
+                Some(Material::Beckmann(m))
+            }
+            Material::CookTorrance(m) => {
+                let mut m = m.clone();
+                m.fresnel = m.fresnel.relative_to(n)?;
+                Some(Material::CookTorrance(m))
+            }
+            Material::Mix(mix) => {
+                let changed: Vec<_> = mix
+                    .components
+                    .iter()
+                    .map(|(c, _)| c.relative_to(n))
+                    .collect();
+                changed.iter().any(Option::is_some).then(|| {
+                    Material::Mix(crate::Mix {
+                        components: mix
+                            .components
+                            .iter()
+                            .zip(changed)
+                            .map(|((c, w), r)| (r.unwrap_or_else(|| c.clone()), *w))
+                            .collect(),
+                    })
+                })
+            }
+            _ => None,
+        }
+    }
+
     /// The participating medium behind the surface, if any.
     pub fn medium(&self) -> Option<&Subsurface> {
         match self {

@@ -73,6 +73,22 @@ impl Plastic {
         }
     }
 
+    /// The same plastic in a medium of index `n`: its coat's index (and
+    /// so its Fresnel terms and internal reflectance) relative to the
+    /// medium, `ior / n`; the coat's roughness unchanged.
+    pub fn relative_to(&self, n: f64) -> Self {
+        let ior = self.ior / n;
+        Self {
+            ior,
+            reflectance: self.reflectance,
+            coat: self.coat.map(|c| MicrofacetReflection {
+                fresnel: Fresnel::Dielectric { ior },
+                ..c
+            }),
+            f_dr_int: crate::fresnel::diffuse_internal(ior),
+        }
+    }
+
     /// The coat's internal diffuse reflectance.
     pub fn f_dr_internal(&self) -> f64 {
         self.f_dr_int

@@ -687,3 +687,128 @@ fn narrowest_lobes_match_their_pdf() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Every model of the suite seen from inside a medium (`relative_to`), at
+/// the index of water and at 1.6, where some indices fall below 1 (a
+/// coat of 1.5 in a denser medium): the glossy ones whose indices change.
+fn models_in_media() -> Vec<(String, Material)> {
+    let mut out = vec![];
+    for n in [1.33, 1.6] {
+        for (name, m) in models() {
+            if let Some(r) = m.relative_to(n) {
+                out.push((format!("{name} in n = {n}"), r));
+            }
+        }
+    }
+    out
+}
+
+/// A surface inside a medium of index `n` meets `n`, not vacuum: at normal
+/// incidence a dielectric's reflectance is `((m - n) / (m + n))^2`, a
+/// conductor's `((eta - n)^2 + k^2) / ((eta + n)^2 + k^2)` (closed forms);
+/// Schlick's `f0` follows its implied index; models without an index, and
+/// `n = 1`, change nothing. The glossy models that change keep their
+/// sampling (chi-square against the pdf), reciprocity and energy bound.
+#[test]
+fn models_seen_from_a_medium_take_its_index() {
+    use isolux_materials::Dielectric;
+    let n = 1.33;
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+    // Dielectric: 1.5 against water, and against vacuum with n = 1.
+    let glass = Material::Dielectric(Dielectric { ior: 1.5 });
+    let Some(Material::Dielectric(d)) = glass.relative_to(n) else {
+        panic!("glass changes")
+    };
+    let r0 = isolux_materials::fresnel::dielectric(1.0, d.ior);
+    assert!(close(r0, ((1.5 - n) / (1.5 + n)).powi(2)), "{r0}");
+    assert!(glass.relative_to(1.0).is_none());
+    // Conductor (gold), per channel.
+    let Some(Material::Conductor(c)) =
+        (Material::Conductor(Conductor { fresnel: gold() })).relative_to(n)
+    else {
+        panic!("gold changes")
+    };
+    let (eta, k) = Metal::by_name("Au").unwrap().rgb();
+    let f = c.fresnel.eval(1.0);
+    for (i, got) in [f.r, f.g, f.b].into_iter().enumerate() {
+        let want = ((eta[i] - n).powi(2) + k[i] * k[i]) / ((eta[i] + n).powi(2) + k[i] * k[i]);
+        assert!(close(got, want), "channel {i}: {got} against {want}");
+    }
+    // Schlick's f0 of glass becomes the f0 of 1.5 against water.
+    let f0 = ((1.5f64 - 1.0) / 2.5).powi(2);
+    let s = Fresnel::Schlick { f0: Rgb::splat(f0) }
+        .relative_to(n)
+        .unwrap();
+    assert!(matches!(s, Fresnel::Schlick { f0 } if close(f0.r, ((1.5 - n) / (1.5 + n)).powi(2))));
+    // A perfect mirror (F = 1, f0 = 1) stays one.
+    assert!(Fresnel::One.relative_to(n).is_none());
+    let one = Fresnel::Schlick { f0: Rgb::WHITE }.relative_to(n).unwrap();
+    assert!(matches!(one, Fresnel::Schlick { f0 } if f0 == Rgb::WHITE));
+    // Models without an index do not change.
+    let diffuse = Material::Diffuse(Diffuse {
+        reflectance: Rgb::splat(0.5),
+    });
+    assert!(diffuse.relative_to(n).is_none());
+    // A smooth plastic's coat against water: its specular reflection at
+    // normal incidence is the Fresnel term of 1.5 against 1.33.
+    let plastic = Material::Plastic(Plastic::new(1.5, Rgb::BLACK, None));
+    let p = plastic.relative_to(n).unwrap();
+    let sp = p.sample(DVec3::Z, 0.0, [0.5, 0.5]).unwrap();
+    assert!(sp.flags.is_specular());
+    let w = sp.f.r * sp.wi.z;
+    assert!(close(w, ((1.5 - n) / (1.5 + n)).powi(2)), "{w}");
+
+    let models = models_in_media();
+    assert!(models.len() >= 10, "{}", models.len());
+    let level = sidak(models.len() * ANGLES.len());
+    let mut rng = Pcg32::new(21, 4);
+    let mut failures = vec![];
+    for (i, (name, m)) in models.iter().enumerate() {
+        for (j, &a) in ANGLES.iter().enumerate() {
+            let wo = wo_at(a);
+            let r = chi2_test(
+                |wi| m.pdf(wo, wi),
+                |rng: &mut Pcg32| {
+                    m.sample(wo, rng.next_f64(), rng.next_2d())
+                        .filter(|s| !s.flags.is_specular())
+                        .map(|s| s.wi)
+                },
+                50_000,
+                32,
+                64,
+                (i * 10 + j) as u64 + 7000,
+            );
+            if !r.passes(level) {
+                failures.push(format!("{name} at {a} deg: {r:?}"));
+            }
+            // Energy: E[f cos / pdf] at most 1 within its error.
+            let k = 20_000;
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..k {
+                if let Some(s) = m.sample(wo, rng.next_f64(), rng.next_2d()) {
+                    let w = s.weight(s.wi.z).max_component();
+                    sum += w;
+                    sum2 += w * w;
+                }
+            }
+            let mean = sum / k as f64;
+            let se = ((sum2 / k as f64 - mean * mean).max(0.0) / k as f64).sqrt();
+            if mean > 1.0 + 4.0 * se + 1e-9 {
+                failures.push(format!("{name} at {a} deg: albedo {mean} +- {se}"));
+            }
+        }
+        // Reciprocity.
+        for _ in 0..500 {
+            let mut a = isolux_core::sampling::uniform_sphere(rng.next_2d());
+            let mut b = isolux_core::sampling::uniform_sphere(rng.next_2d());
+            a.z = a.z.abs();
+            b.z = b.z.abs();
+            let (x, y) = (m.f(a, b), m.f(b, a));
+            if (x.r - y.r).abs() > 1e-5 * x.r.abs().max(y.r.abs()) + 1e-300 {
+                failures.push(format!("{name}: f not reciprocal, {x:?} against {y:?}"));
+                break;
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
