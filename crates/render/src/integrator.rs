@@ -34,7 +34,11 @@
 //! a medium starts its paths in it ([`crate::Scene::medium_at`], found
 //! once per render): under a white sky of radiance 1, a non-absorbing
 //! medium of index `n` around the camera shows `n^2` everywhere, the
-//! radiance of equilibrium in it.
+//! radiance of equilibrium in it. A surface inside a medium (glass or a
+//! metal under water) sees the medium on its outer side: its indices of
+//! refraction count relative to the medium's boundary index
+//! ([`Material::relative_to`], [`Media::material`]), so that a glass of
+//! the water's own index vanishes in it.
 //!
 //! Spawned rays start at the hit point moved by [`Hit::offset`] along the
 //! geometric normal, to the side of the new direction ([`Hit::spawn`]):
@@ -48,7 +52,7 @@ use isolux_core::{sampling::power_heuristic, DVec3, Frame, Pcg32, Ray, Rgb, PI};
 use isolux_geometry::{Culled, Hit};
 use isolux_materials::subsurface::phase::sample_hg_cos;
 use isolux_materials::subsurface_material::SubsurfaceMode;
-use isolux_materials::{Bsdf, BxdfFlags, BxdfModel, Subsurface};
+use isolux_materials::{Bsdf, BxdfFlags, BxdfModel, Material, Subsurface};
 
 /// Maximum scattering and boundary events of one path inside media.
 pub const MAX_MEDIUM_EVENTS: u32 = 100_000;
@@ -321,6 +325,10 @@ pub struct Media<'a> {
     pub camera: Option<(usize, &'a Subsurface)>,
     /// Per point light, the object index of the medium it lies in.
     pub lights: Vec<Option<usize>>,
+    /// Per random-walk medium (its object index), the scene's materials
+    /// seen from inside it ([`Material::relative_to`] its boundary's
+    /// index), `None` where one does not change.
+    pub relative: Vec<(usize, Vec<Option<Material>>)>,
 }
 
 impl<'a> Media<'a> {
@@ -333,7 +341,34 @@ impl<'a> Media<'a> {
                 .iter()
                 .map(|l| scene.medium_at(l.position).map(|(i, _)| i))
                 .collect(),
+            relative: scene
+                .media()
+                .map(|(i, _, m)| {
+                    let n = m.boundary.ior;
+                    (
+                        i,
+                        scene.materials.iter().map(|x| x.relative_to(n)).collect(),
+                    )
+                })
+                .collect(),
         }
+    }
+
+    /// The material of object `obj` for a path inside the medium of
+    /// object `inside` (`None`: outside every medium): a surface in a
+    /// medium sees it on its outer side, so its indices of refraction
+    /// count relative to the medium's.
+    pub fn material<'s>(
+        &'s self,
+        scene: &'s Scene,
+        obj: usize,
+        inside: Option<usize>,
+    ) -> &'s Material {
+        let mi = scene.object_material[obj];
+        inside
+            .and_then(|m| self.relative.iter().find(|(i, _)| *i == m))
+            .and_then(|(_, r)| r[mi].as_ref())
+            .unwrap_or(&scene.materials[mi])
     }
 }
 
@@ -438,9 +473,10 @@ pub fn radiance_culled(
         // angle of one pixel times the distance.
         let footprint =
             (depth == 0).then(|| scene.camera.pixel_footprint(hit.t, scene.film.height));
-        let placed = scene.materials[scene.object_material[obj]]
+        let placed = media
+            .material(scene, obj, inside_obj)
             .at_point(hit.p, footprint, || rng.next_f64());
-        let material: &isolux_materials::Material = &placed;
+        let material: &Material = &placed;
         if depth == 0 {
             first = Some(FirstHit {
                 albedo: material.albedo(),
