@@ -616,7 +616,9 @@ impl GpuMaterials {
     /// pdf]`, `2 res + 2` floats); at `idx[1]`: `n`, the side of the `r(theta_h,
     /// theta_d)` table (0: none), then `ln r` per texel (3 floats each,
     /// row-major, rows `theta_h`). A `subsurface` material keeps its mode
-    /// in `tag.w` (0 dipole, 1 random walk), its per-channel dipoles at
+    /// in `tag.w` (0 dipole, 1 random walk; in random-walk mode `tag.y - 1` is
+    /// the offset of its table of the materials seen from inside it,
+    /// [`GpuMaterials::relative_in_media`]), its per-channel dipoles at
     /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b, then the
     /// scale of the single-scattering term per channel,
     /// `Subsurface::single_scattering_scale`, then the real-time mode's local
@@ -647,7 +649,46 @@ impl GpuMaterials {
                 _ => out.leaf(m).ok_or(i)?,
             };
         }
+        out.relative_in_media(materials)?;
         Ok(out)
+    }
+
+    /// The materials seen from inside each random-walk medium of
+    /// `materials` (a surface under water meets water): for each, a table
+    /// in `data` of one material index per scene material, that
+    /// material's record with its indices relative to the medium's
+    /// (`Material::relative_to`, a record of its own after the others) or
+    /// the material itself where nothing changes. The medium's `tag[1]`
+    /// holds the table's offset + 1 (0: no table); the path tracer's
+    /// `bounce` looks up every hit of a path inside the medium through it.
+    fn relative_in_media(&mut self, materials: &[Material]) -> Result<(), usize> {
+        use isolux_materials::subsurface_material::SubsurfaceMode;
+        for (j, m) in materials.iter().enumerate() {
+            let Material::Subsurface(s) = m else {
+                continue;
+            };
+            if s.mode != SubsurfaceMode::RandomWalk {
+                continue;
+            }
+            let mut table = Vec::with_capacity(materials.len());
+            for (i, x) in materials.iter().enumerate() {
+                let k = match x.relative_to(s.boundary.ior) {
+                    Some(r) => {
+                        let g = match r {
+                            Material::Mix(_) => self.mix(&r),
+                            _ => self.leaf(&r),
+                        };
+                        self.materials.push(g.ok_or(i)?);
+                        self.materials.len() - 1
+                    }
+                    None => i,
+                };
+                table.push(k as f32);
+            }
+            self.materials[j].tag[1] = self.data.len() as u32 + 1;
+            self.data.extend(table);
+        }
+        Ok(())
     }
 
     /// A mix: its flattened leaves as records of their own after the
@@ -1192,6 +1233,41 @@ mod tests {
         );
         assert_eq!(g.data[21], 4096.0);
         assert_eq!(g.data.len(), 21 + 3 * 8194);
+    }
+
+    #[test]
+    fn random_walk_media_list_the_materials_seen_from_inside() {
+        use isolux_materials::subsurface_material::SubsurfaceMode;
+        let medium = |mode| {
+            Material::Subsurface(isolux_materials::Subsurface::new(
+                Rgb::splat(0.1),
+                Rgb::splat(0.01),
+                0.0,
+                1.25,
+                mode,
+            ))
+        };
+        let glass = Material::Dielectric(isolux_materials::Dielectric { ior: 1.5 });
+        let water = medium(SubsurfaceMode::RandomWalk);
+        let g = GpuMaterials::new(&[
+            grey(0.5),
+            water.clone(),
+            glass.clone(),
+            medium(SubsurfaceMode::Dipole),
+        ])
+        .unwrap();
+        // The glass seen from the water: a record of its own, at 1.5 / 1.25.
+        assert_eq!(g.materials.len(), 5);
+        assert_eq!(g.materials[4].tag[0], tag::DIELECTRIC);
+        assert_eq!(g.materials[4].a[0], 1.2);
+        let at = g.materials[1].tag[1] as usize - 1;
+        assert_eq!(g.data[at..at + 4], [0.0, 1.0, 4.0, 3.0]);
+        // Only random-walk media have a table.
+        assert_eq!(g.materials[3].tag[1], 0);
+        // Nothing changes without such a medium.
+        let g = GpuMaterials::new(&[grey(0.5), glass]).unwrap();
+        assert_eq!(g.materials.len(), 2);
+        assert!(g.data.is_empty());
     }
 
     #[test]

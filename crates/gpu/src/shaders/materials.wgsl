@@ -21,6 +21,8 @@
 //   SUBSURFACE   a.x ior (its boundary: the DIELECTRIC's lobes), a.y g,
 //                a.z r_max, a.w 1 - F_dr,ext; b.rgb sigma_s, b.w single
 //                scattering on; c.rgb sigma_a; tag.w 1 for random walk;
+//                tag.y - 1 the table of the materials seen from inside
+//                it (random walk; 0: none; render.wgsl `bounce`);
 //                idx.x dipoles, then the single-scattering scale, then the local
 //                BRDF's R_d and single-scattering albedo (sss_local_brdf);
 //                idx.yzw radial tables (render.wgsl)

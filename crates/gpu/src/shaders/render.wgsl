@@ -746,6 +746,15 @@ fn bounce() -> bool {
         }
         oi = hit_object;
         mi = objects[oi].range.z;
+        // A surface inside a random-walk medium meets the medium: its
+        // record with its indices relative to the medium's, through the
+        // medium's table (tag.y - 1; layout.rs `relative_in_media`).
+        if (SUBSURFACE && path.medium != 0u) {
+            let table = materials[path.medium - 1u].tag.y;
+            if (table != 0u) {
+                mi = u32(material_data[table - 1u + mi]);
+            }
+        }
         m = materials[mi];
         // A surface inside a medium ends the path at max depth like any
         // other; the medium's boundary, met from inside, lets it out.
