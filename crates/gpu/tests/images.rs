@@ -370,7 +370,8 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.8 }
 /// `crates/isolux/tests/analytic.rs`): through an absorbing medium onto a
 /// diffuse floor (shadow rays attenuated), and scattered once or more in
 /// a scattering medium around the camera (next-event estimation at the
-/// scattering events). GPU against CPU within noise.
+/// scattering events), and onto a dipole floor (its exit and entry
+/// points). GPU against CPU within noise.
 #[test]
 fn lamps_in_media_match_the_cpu() {
     let Some(gpu) = common::open("GPU image tests") else {
@@ -393,10 +394,19 @@ fn lamps_in_media_match_the_cpu() {
         }
         src
     };
+    // The floor a dipole medium (the CPU's check against clear water:
+    // `a_dipole_floor_under_water_sees_the_lamp_through_the_water`).
+    let dipole = lamp(0.0, 0.6, true).replace(
+        "type = \"diffuse\"\nreflectance = [0.8, 0.8, 0.8]",
+        "type = \"subsurface\"\nsigma_s = [200.0, 200.0, 200.0]\n\
+         sigma_a = [20.0, 20.0, 20.0]\ng = 0.0\nior = 1.3\nscale = 1.0",
+    );
+    assert!(dipole.contains("sigma_s = [200.0"));
     for (name, src) in [
         ("absorbing, floor", lamp(0.0, 0.6, true)),
         ("scattering", lamp(0.3, 0.2, false)),
         ("scattering, floor", lamp(0.3, 0.2, true)),
+        ("absorbing, dipole floor", dipole),
     ] {
         let mut scene =
             isolux_scene::parse_str(&src, Path::new("lamp.toml"), Path::new(".")).unwrap();

@@ -734,6 +734,64 @@ fn a_lamp_in_an_absorbing_medium_lights_a_floor_through_it() {
     );
 }
 
+/// A dipole medium inside a random-walk one (a marble floor under water)
+/// sees the lamp in the water through the water, at its exit points
+/// (single scattering) and at its entry points alike. The floor's
+/// profile is short (mean free path 1/220, `sigma_tr` 115 per unit), so
+/// each pixel's light is attenuated as a point's: the render in water of
+/// absorption `sigma` equals the render in clear water times `exp(-sigma
+/// (t + r))`, `t` the camera ray's length to the floor and `r` the
+/// lamp's distance (to within 2%, the profile's spread). Before
+/// 2026-12-04 the CPU left the lamp's light on a dipole unattenuated (the
+/// image 3.8 times too bright); the GPU attenuated it already.
+#[test]
+fn a_dipole_floor_under_water_sees_the_lamp_through_the_water() {
+    let sigma = 0.6;
+    let floor = |sigma_a: f64| {
+        test_scene(
+            "lamp-in-medium.toml",
+            &[
+                ("sigma_s = [0.3, 0.3, 0.3]", "sigma_s = [0.0, 0.0, 0.0]"),
+                (
+                    "sigma_a = [0.2, 0.2, 0.2]",
+                    &format!("sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]"),
+                ),
+                (
+                    "type = \"diffuse\"\nreflectance = [0.8, 0.8, 0.8]",
+                    "type = \"subsurface\"\nsigma_s = [200.0, 200.0, 200.0]\n\
+                     sigma_a = [20.0, 20.0, 20.0]\ng = 0.0\nior = 1.3\nscale = 1.0",
+                ),
+                ("max_depth = 1", "max_depth = 2"),
+            ],
+        )
+    };
+    let clear = scene(&floor(1e-9));
+    let absorbing = scene(&floor(sigma));
+    let light = clear.lights[0].position;
+    let w = film_of(&clear, |ray| {
+        if ray.dir.y >= 0.0 {
+            return 0.0;
+        }
+        let t = (-1.0 - ray.origin.y) / ray.dir.y;
+        let r = (light - ray.at(t)).length();
+        (-sigma * (t + r)).exp()
+    });
+    let img = render_with(&clear, 2);
+    let want: Vec<f64> = img
+        .rgb
+        .iter()
+        .zip(&w)
+        .map(|(p, w)| p.iter().map(|&c| c as f64).sum::<f64>() / 3.0 * w)
+        .collect();
+    let (got, want, se) = against(&render_with(&absorbing, 2), &want);
+    eprintln!("dipole floor under water: render {got} +- {se}, clear water attenuated {want}");
+    assert!(want > 0.005, "{want}");
+    assert!(
+        (got - want).abs() < 4.0 * se + 0.02 * want,
+        "render {got} +- {se}, clear water attenuated {want}"
+    );
+}
+
 /// A point light inside a scattering medium glows: along a camera ray,
 /// single scattering gives `int sigma_s exp(-sigma_t t) p(cos) I
 /// exp(-sigma_t r) / r^2 dt` (Henyey-Greenstein `p`, integrated here by

@@ -176,12 +176,14 @@ fn medium_light(
 /// per channel, estimated by light sampling (point lights, environment
 /// map) and one cosine-sampled direction toward the environment, combined
 /// by multiple importance sampling (the cosine sample alone covers a
-/// constant sky).
+/// constant sky). `sigma_t`: the extinction of a random-walk medium around
+/// the object (0: none), attenuating its point lights ([`direct_light`]).
 fn single_scattering_light(
     scene: &Scene,
     m: &Subsurface,
     hit: &Hit,
     wo: DVec3,
+    sigma_t: f64,
     rng: &mut Pcg32,
 ) -> Rgb {
     use isolux_materials::subsurface::phase::single_scattering;
@@ -196,7 +198,7 @@ fn single_scattering_light(
         }
         albedo * single_scattering(wo_l, wl, 1.0, m.g, eta)
     };
-    let mut l = direct_light(scene, hit, 0.0, rng, |wi, _| {
+    let mut l = direct_light(scene, hit, sigma_t, rng, |wi, _| {
         let c = wi.dot(hit.n);
         if c <= 0.0 {
             (Rgb::BLACK, 0.0)
@@ -496,10 +498,14 @@ pub fn radiance_culled(
         };
         let ns = bsdf.normal();
 
-        // Inside a medium (a surface in it), lights in the medium are
-        // seen through it.
+        // Inside a medium (a surface in it, a dipole medium's too), lights
+        // in the medium are seen through it; the medium's own boundary
+        // gathers none.
+        let own_boundary = material
+            .medium()
+            .is_some_and(|m| m.mode == SubsurfaceMode::RandomWalk);
         let sigma_t = match (&inside, path_channel) {
-            (Some(m), Some(c)) if material.medium().is_none() => channel(m.sigma_t(), c),
+            (Some(m), Some(c)) if !own_boundary => channel(m.sigma_t(), c),
             _ => 0.0,
         };
         l += beta
@@ -513,7 +519,7 @@ pub fn radiance_culled(
         // lobe at x_o, estimated here for direct light only.
         if let Some(m) = material.medium() {
             if m.mode == SubsurfaceMode::Dipole && m.single_scattering && wo.dot(hit.n) > 0.0 {
-                l += beta * single_scattering_light(scene, m, &hit, wo, rng);
+                l += beta * single_scattering_light(scene, m, &hit, wo, sigma_t, rng);
             }
         }
         // The environment mirrored by a subsurface boundary, seen from
@@ -562,7 +568,7 @@ pub fn radiance_culled(
                 // At x_i: light arriving through the boundary, weighted by
                 // S_w(wi) = (1 - F(cos_i)) / (c pi).
                 l += beta
-                    * direct_light(scene, &xi, 0.0, rng, |wi, _| {
+                    * direct_light(scene, &xi, sigma_t, rng, |wi, _| {
                         let c = wi.dot(xi.n);
                         if c <= 0.0 {
                             (Rgb::BLACK, 0.0)
