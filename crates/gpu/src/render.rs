@@ -744,15 +744,25 @@ pub fn material_values_fit(
         return Ok(());
     }
     // Only on failure: each material's record on its own.
-    let name = used
+    // None alone: one seen from inside a random-walk medium
+    // (`GpuMaterials::relative_in_media`), its indices divided by the
+    // medium's.
+    let what = used
         .iter()
         .zip(names)
         .find(|(m, _)| {
             GpuMaterials::new(std::slice::from_ref(*m)).is_ok_and(|g| !gpu_material_finite(&g))
         })
-        .map_or_else(|| "?".to_string(), |(_, n)| n.clone());
+        .map_or_else(
+            || {
+                "a material seen from inside a random-walk medium (its indices divided by the \
+                 medium's `ior`)"
+                    .to_string()
+            },
+            |(_, n)| format!("material \"{n}\""),
+        );
     Err(GpuError::Precision(format!(
-        "material \"{name}\" has a parameter beyond the range of the GPU's f32 \
+        "{what} has a parameter beyond the range of the GPU's f32 \
          (magnitude above {:.1e}, or a value derived from it): render without --gpu",
         f32::MAX
     )))
