@@ -1256,12 +1256,16 @@ mod tests {
             medium(SubsurfaceMode::Dipole),
         ])
         .unwrap();
-        // The glass seen from the water: a record of its own, at 1.5 / 1.25.
-        assert_eq!(g.materials.len(), 5);
+        // The glass and the dipole medium seen from the water: records of
+        // their own, at 1.5 / 1.25 and 1.25 / 1.25; the grey and the water
+        // themselves.
+        assert_eq!(g.materials.len(), 6);
         assert_eq!(g.materials[4].tag[0], tag::DIELECTRIC);
         assert_eq!(g.materials[4].a[0], 1.2);
+        assert_eq!(g.materials[5].tag[0], tag::SUBSURFACE);
+        assert_eq!(g.materials[5].a[0], 1.0);
         let at = g.materials[1].tag[1] as usize - 1;
-        assert_eq!(g.data[at..at + 4], [0.0, 1.0, 4.0, 3.0]);
+        assert_eq!(g.data[at..at + 4], [0.0, 1.0, 4.0, 5.0]);
         // Only random-walk media have a table.
         assert_eq!(g.materials[3].tag[1], 0);
         // Nothing changes without such a medium.

@@ -422,7 +422,8 @@ fn lamps_in_media_match_the_cpu() {
 /// Surfaces under water meet water (the CPU's closed-form check in
 /// `crates/isolux/tests/analytic.rs`): the camera in a half-space of water
 /// sees a black plastic wall (`examples/tests/plastic-under-water.toml`),
-/// a rough gold sphere, a glass sphere and a mix of a rough plastic and gold, all
+/// a rough gold sphere, a glass sphere, a mix of a rough plastic and gold
+/// and a dipole marble, all
 /// with their indices relative to the water's (each its own record,
 /// reached through the medium's table). GPU against CPU within noise,
 /// the wall alone against the closed form's mean (0.00626; against
@@ -471,9 +472,21 @@ base = { type = "sphere", center = [-2.2, 0.2, 0.1], radius = 0.2 }
 material = "glass"
 base = { type = "sphere", center = [-2.2, -0.2, -0.1], radius = 0.2 }
 
+[[material]]
+name = "marble"
+type = "subsurface"
+sigma_s = [60.0, 70.0, 80.0]
+sigma_a = [0.5, 1.0, 3.0]
+ior = 1.7
+scale = 1.0
+
 [[object]]
 material = "both"
 base = { type = "sphere", center = [-2.5, 0.0, 0.25], radius = 0.15 }
+
+[[object]]
+material = "marble"
+base = { type = "sphere", center = [-2.4, -0.3, 0.3], radius = 0.15 }
 "#
     );
     scene = isolux_scene::parse_str(&src, Path::new("under-water.toml"), Path::new(".")).unwrap();

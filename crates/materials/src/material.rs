@@ -151,9 +151,10 @@ impl Material {
     /// the scene's `ior`, `eta` and `k` stay the material's own, against
     /// vacuum. `None` where nothing changes: at `n = 1`, and for models
     /// without an index (the lobe models, `factored` and `merl`, measured
-    /// in air), `wave` (whose diffraction is computed in air) and the
-    /// media (`subsurface`, `subsurface_brdf`, whose derived profiles
-    /// assume vacuum outside; media do not nest). A mix changes where a
+    /// in air), `wave` (whose diffraction is computed in air),
+    /// `subsurface_brdf` (its reflectance derived for vacuum outside) and
+    /// random-walk media (media do not nest). A dipole `subsurface` has its
+    /// profile derived anew for the relative index. A mix changes where a
     /// component does.
     pub fn relative_to(&self, n: f64) -> Option<Material> {
         if n == 1.0 || !(n > 0.0) {
@@ -165,6 +166,7 @@ impl Material {
                 fresnel: c.fresnel.relative_to(n)?,
             })),
             Material::Plastic(p) => Some(Material::Plastic(p.relative_to(n))),
+            Material::Subsurface(m) => m.relative_to(n).map(Material::Subsurface),
             Material::Ggx(m) => {
                 let mut m = *m;
                 m.lobe.fresnel = m.lobe.fresnel.relative_to(n)?;

@@ -192,6 +192,25 @@ impl Subsurface {
         }
     }
 
+    /// A dipole medium seen from inside a medium of index `n` (a marble
+    /// under water): the same coefficients behind a boundary of index
+    /// `ior / n`, its profile, tables and single scattering derived anew.
+    /// `None` in random-walk mode (media do not nest) and at `n = 1`.
+    pub fn relative_to(&self, n: f64) -> Option<Subsurface> {
+        if self.mode != SubsurfaceMode::Dipole || n == 1.0 || !(n > 0.0) {
+            return None;
+        }
+        let mut m = Subsurface::new(
+            self.sigma_s,
+            self.sigma_a,
+            self.g,
+            self.boundary.ior / n,
+            self.mode,
+        );
+        m.single_scattering = self.single_scattering;
+        Some(m)
+    }
+
     /// Per channel, the factor on the single-scattering term that keeps
     /// the dipole mode within energy: Jensen's sum `S^(1) + S_d` counts the
     /// lowest scattering orders twice, so with little absorption it

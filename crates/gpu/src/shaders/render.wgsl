@@ -573,8 +573,9 @@ fn sss_axis(fr: Frame, j: u32) -> mat3x3<f32> {
 // lobe S_w as its material: `bounce` gathers light through the boundary
 // there and samples a cosine-weighted continuation. (The choice of
 // transmission, probability 1 - F(cos_o), cancels the factor 1 - F(cos_o)
-// of S.)
-fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
+// of S.) mi: the record of m (the entry lobe's), which may be the
+// medium's as seen from inside a random-walk one.
+fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) -> bool {
     let fr = frame_from_normal(n);
     let c = min(u32(rand() * 3.0), 2u);
     let ua = rand();
@@ -637,7 +638,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material) -> bool {
     path.beta *= w;
     path.o = xp;
     path.entry_n = xn;
-    path.entry_m = objects[oi].range.z;
+    path.entry_m = mi;
     path.entry = true;
     return max3(path.beta) > 0.0;
 }
@@ -824,7 +825,7 @@ fn bounce() -> bool {
         path.env_counted = true;
     }
     if (is_medium && m.tag.w == 0u && transmitted) {
-        return sss_dipole_bounce(oi, p, ng, m);
+        return sss_dipole_bounce(oi, p, ng, m, mi);
     }
     let wi = to_world(fr, s.wi);
     var beta = path.beta * s.f * (abs(s.wi.z) / s.pdf);
