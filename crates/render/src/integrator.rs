@@ -327,9 +327,10 @@ pub struct Media<'a> {
     pub camera: Option<(usize, &'a Subsurface)>,
     /// Per point light, the object index of the medium it lies in.
     pub lights: Vec<Option<usize>>,
-    /// Per random-walk medium (its object index), the scene's materials
-    /// seen from inside it ([`Material::relative_to`] its boundary's
-    /// index), `None` where one does not change.
+    /// Per random-walk medium (its material's index, once however many
+    /// objects share it), the scene's materials seen from inside it
+    /// ([`Material::relative_to`] its boundary's index), `None` where one
+    /// does not change.
     pub relative: Vec<(usize, Vec<Option<Material>>)>,
 }
 
@@ -344,13 +345,16 @@ impl<'a> Media<'a> {
                 .map(|l| scene.medium_at(l.position).map(|(i, _)| i))
                 .collect(),
             relative: scene
-                .media()
-                .map(|(i, _, m)| {
-                    let n = m.boundary.ior;
-                    (
-                        i,
-                        scene.materials.iter().map(|x| x.relative_to(n)).collect(),
-                    )
+                .materials
+                .iter()
+                .enumerate()
+                .filter_map(|(j, m)| match m {
+                    Material::Subsurface(m) if m.mode == SubsurfaceMode::RandomWalk => {
+                        let n = m.boundary.ior;
+                        let seen = scene.materials.iter().map(|x| x.relative_to(n));
+                        Some((j, seen.collect()))
+                    }
+                    _ => None,
                 })
                 .collect(),
         }
@@ -368,7 +372,8 @@ impl<'a> Media<'a> {
     ) -> &'s Material {
         let mi = scene.object_material[obj];
         inside
-            .and_then(|m| self.relative.iter().find(|(i, _)| *i == m))
+            .map(|m| scene.object_material[m])
+            .and_then(|m| self.relative.iter().find(|(j, _)| *j == m))
             .and_then(|(_, r)| r[mi].as_ref())
             .unwrap_or(&scene.materials[mi])
     }
