@@ -618,7 +618,7 @@ impl GpuMaterials {
     /// row-major, rows `theta_h`). A `subsurface` material keeps its mode
     /// in `tag.w` (0 dipole, 1 random walk; in random-walk mode `tag.y - 1` is
     /// the offset of its table of the materials seen from inside it,
-    /// [`GpuMaterials::relative_in_media`]), its per-channel dipoles at
+    /// `GpuMaterials::relative_in_media`), its per-channel dipoles at
     /// `idx[0]` (`sigma_tr, z_r, z_v, alpha'` for r, g, b, then the
     /// scale of the single-scattering term per channel,
     /// `Subsurface::single_scattering_scale`, then the real-time mode's local
@@ -1045,9 +1045,10 @@ pub struct GpuParams {
     /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
     /// render.wgsl).
     pub layers: [u32; 4],
-    /// `[1 + material of the random-walk medium the camera is in (0:
-    /// none), 0, 0, 0]`: where camera paths start
-    /// (`isolux_render::Scene::medium_at`).
+    /// `[the random-walk media the camera is in, 0, 0, 0]`: `1 +` the
+    /// material of the innermost in the low 16 bits, of the one around it
+    /// in the high 16 (0: none), where camera paths start
+    /// (`isolux_render::Scene::media_at`).
     pub camera: [u32; 4],
 }
 

@@ -831,14 +831,58 @@ pub struct GpuFrame {
     media: Vec<(isolux_geometry::Object, u32)>,
 }
 
-/// `1 +` the material of the first of `media` that holds `at`, 0 for none
-/// (`isolux_render::Scene::medium_at`): `GpuParams::camera`, and each
-/// light's `position.w`.
+/// The random-walk media that hold `at`, as the kernels' `path.medium`
+/// packs them: `1 +` the material of the innermost in the low 16 bits,
+/// of the one around it in the high 16 (0: none). `media` are in the
+/// order they nest (`isolux_render::Scene::media_nested`, outermost
+/// first), so the innermost is the last that holds `at`. For
+/// `GpuParams::camera`; each light's `position.w` takes the low half
+/// ([`innermost`]). Deeper nesting is refused before ([`nested_too_deep`]).
 fn medium_of(media: &[(isolux_geometry::Object, u32)], at: glam::DVec3) -> u32 {
     media
         .iter()
-        .find_map(|(o, m)| o.contains(at).then_some(*m))
-        .unwrap_or(0)
+        .filter(|(o, _)| o.contains(at))
+        .fold(0, |packed, (_, m)| (packed << 16) | *m)
+}
+
+/// The innermost medium of a packed [`medium_of`].
+fn innermost(packed: u32) -> u32 {
+    packed & 0xffff
+}
+
+/// Three random-walk media of `scene` whose bounding boxes overlap (the
+/// GPU's paths follow two nested media, a marble under water, and not a
+/// third), or a medium whose material index does not fit the kernels'
+/// 16 bits: why `--gpu` refuses the scene.
+pub fn nested_too_deep(scene: &Scene) -> Option<String> {
+    let media: Vec<_> = scene.media_nested();
+    if let Some((i, ..)) = media
+        .iter()
+        .find(|(i, ..)| scene.object_material[*i] + 1 >= 0xffff)
+    {
+        return Some(format!(
+            "object[{i}]: a random-walk medium whose material comes after the first 65534, \
+             which the GPU's kernels cannot name: render without --gpu"
+        ));
+    }
+    let boxes: Vec<_> = media.iter().map(|(i, o, _)| (*i, o.bbox())).collect();
+    let meet = |a: &isolux_core::Aabb, b: &isolux_core::Aabb| !a.intersection(b).is_empty();
+    for (x, (i, a)) in boxes.iter().enumerate() {
+        let around: Vec<_> = boxes[x + 1..].iter().filter(|(_, b)| meet(a, b)).collect();
+        for (y, (j, b)) in around.iter().enumerate() {
+            if let Some((k, _)) = around[y + 1..].iter().find(|(_, c)| meet(b, c)) {
+                let mut ids = [*i, *j, *k];
+                ids.sort();
+                return Some(format!(
+                    "objects {}, {} and {}: random-walk media whose bounding boxes overlap, \
+                     so that a path could be inside all three; the GPU follows media nested \
+                     two deep (a marble under water), not three: render without --gpu",
+                    ids[0], ids[1], ids[2]
+                ));
+            }
+        }
+    }
+    None
 }
 
 /// Texels with their density in `(u, v)` (`w`), and the CDFs: the marginal
@@ -1008,6 +1052,9 @@ impl Gpu {
         if let Some(why) = f32_shortfall(scene) {
             return Err(GpuError::Precision(why));
         }
+        if let Some(why) = nested_too_deep(scene) {
+            return Err(GpuError::Setup(why));
+        }
         let film = scene.film;
         if let Some(why) = film.problem() {
             return Err(GpuError::Setup(why.to_string()));
@@ -1040,8 +1087,10 @@ impl Gpu {
             .collect();
         let materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
         let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
+        // In the order they nest, outermost first (`medium_of`).
         let media: Vec<_> = scene
-            .media()
+            .media_nested()
+            .into_iter()
             .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
             .collect();
         let lights: Vec<GpuLight> = scene
@@ -1052,7 +1101,7 @@ impl Gpu {
                 // lies in (0: none), whose scattering events gather it.
                 position: {
                     let [x, y, z, _] = v4(l.position - at);
-                    [x, y, z, medium_of(&media, l.position) as f32]
+                    [x, y, z, innermost(medium_of(&media, l.position)) as f32]
                 },
                 intensity: [
                     l.intensity.r as f32,

@@ -613,6 +613,101 @@ fn a_camera_inside_a_random_walk_medium_sees_it_on_the_gpu() {
     );
 }
 
+/// Media nest on the GPU as on the CPU (`media_nest` in
+/// `crates/isolux/tests/analytic.rs`): the camera inside a sphere of
+/// index 1.5 inside a sphere of scattering water (1.33) under a white sky
+/// sees `1.5^2`, every path bringing exactly `3 n^2` in its channel, in
+/// the wavefront and the megakernel; in the water, `1.33^2`. A jelly in
+/// the water seen from it renders the CPU's image within noise. A third
+/// medium overlapping both is refused by name.
+#[test]
+fn media_nest_on_the_gpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let water = r#"
+[[material]]
+name = "water"
+type = "subsurface"
+sigma_s = [0.5, 0.7, 0.9]
+sigma_a = [0.0, 0.0, 0.0]
+g = 0.0
+ior = 1.33
+scale = 1.0
+mode = "random_walk"
+
+[[object]]
+material = "water"
+base = { type = "sphere", center = [0.0, 0.0, 0.2], radius = 3.0 }
+"#;
+    let src = common::test_scene_text("medium-around-camera.toml");
+    let at = src.find("[[material]]").unwrap();
+    let nested = format!("{}{water}\n{}", &src[..at], &src[at..]);
+    for (camera, n) in [("[0.1, -0.2, 0.3]", 1.5), ("[0.1, -0.2, 2.0]", 1.33)] {
+        let text = nested.replace("[0.1, -0.2, 0.3]", camera);
+        let scene =
+            isolux_scene::parse_str(&text, Path::new("nested.toml"), Path::new(".")).unwrap();
+        let mut frame = gpu.prepare(&scene).unwrap();
+        for wavefront in [true, false] {
+            frame.set_wavefront(wavefront);
+            frame.reset(&gpu);
+            frame.run(&gpu, 8);
+            let (img, stats) = frame.image(&gpu).unwrap();
+            assert_eq!(stats.rejected_samples, 0);
+            let want = 3.0 * n * n;
+            for p in &img.rgb {
+                let sum = p.iter().map(|&v| v as f64).sum::<f64>();
+                assert!(
+                    (sum - want).abs() < 1e-4 * want,
+                    "camera at {camera}, wavefront {wavefront}: {p:?}"
+                );
+            }
+        }
+    }
+    // A jelly in clear water, seen from the water, with a lamp and a
+    // floor (examples/tests/lamp-in-medium.toml, the water of index 1.33).
+    let jelly = common::test_scene_text("lamp-in-medium.toml")
+        .replace("sigma_s = [0.3, 0.3, 0.3]", "sigma_s = [0.0, 0.0, 0.0]")
+        .replace("sigma_a = [0.2, 0.2, 0.2]", "sigma_a = [0.02, 0.02, 0.02]")
+        .replace("ior = 1.0", "ior = 1.33")
+        + r#"
+[[material]]
+name = "jelly"
+type = "subsurface"
+sigma_s = [3.0, 4.0, 5.0]
+sigma_a = [0.5, 0.3, 0.2]
+g = 0.3
+ior = 1.9
+scale = 1.0
+mode = "random_walk"
+
+[[object]]
+material = "jelly"
+base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
+"#;
+    let mut scene =
+        isolux_scene::parse_str(&jelly, Path::new("jelly.toml"), Path::new(".")).unwrap();
+    (scene.film.width, scene.film.height, scene.film.spp) = (48, 36, 64);
+    scene.integrator.max_depth = 8;
+    let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "jelly under water");
+    assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
+    assert!((mg - mc).abs() <= 0.03 * mc, "{mg} vs {mc}");
+    // Three deep: refused.
+    let third = format!(
+        "{nested}{}",
+        r#"
+[[object]]
+material = "water"
+base = { type = "sphere", center = [0.3, 0.0, 0.0], radius = 0.5 }
+"#
+    );
+    let scene = isolux_scene::parse_str(&third, Path::new("third.toml"), Path::new(".")).unwrap();
+    let Err(e) = gpu.prepare(&scene) else {
+        panic!("three nested media accepted")
+    };
+    assert!(e.to_string().contains("nested"), "{e}");
+}
+
 /// The random walk at many samples (`--ignored`: minutes on Mesa 22.3's
 /// lavapipe, CI's driver, whose loop miscompile loses some of these long
 /// paths, docs/gpu.md): the image means of `SEEDS` renders on each side

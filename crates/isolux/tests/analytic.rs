@@ -582,6 +582,51 @@ fn a_camera_inside_a_random_walk_medium_sees_it() {
     assert!(outside.medium_at(outside.camera.position).is_none());
 }
 
+/// Media nest: the camera inside the sphere of index 1.5 of
+/// `medium-around-camera.toml`, itself inside a scattering sphere of
+/// water (index 1.33, radius 3, listed first), under a white sky, starts
+/// in both (`Scene::media_at`, outermost first: the water's box is the
+/// larger) and sees the equilibrium radiance of the inner medium, `1.5^2`:
+/// each path brings exactly `3 n^2` in its channel, as without the water
+/// (closed form; the eta scalings of the two boundaries telescope). A
+/// camera outside the inner sphere, in the water, sees `1.33^2`.
+#[test]
+fn media_nest() {
+    let water = r#"
+[[material]]
+name = "water"
+type = "subsurface"
+sigma_s = [0.5, 0.7, 0.9]
+sigma_a = [0.0, 0.0, 0.0]
+g = 0.0
+ior = 1.33
+scale = 1.0
+mode = "random_walk"
+
+[[object]]
+material = "water"
+base = { type = "sphere", center = [0.0, 0.0, 0.2], radius = 3.0 }
+"#;
+    let src = test_scene("medium-around-camera.toml", &[]);
+    let at = src.find("[[material]]").unwrap();
+    let nested = format!("{}{water}\n{}", &src[..at], &src[at..]);
+    for (camera, n) in [("[0.1, -0.2, 0.3]", 1.5), ("[0.1, -0.2, 2.0]", 1.33)] {
+        let s = scene(&nested.replace("[0.1, -0.2, 0.3]", camera));
+        let media = s.media_at(s.camera.position);
+        let ids: Vec<usize> = media.iter().map(|(i, _)| *i).collect();
+        assert_eq!(ids, if n == 1.5 { vec![0, 1] } else { vec![0] });
+        let img = render_with(&s, 2);
+        let want = 3.0 * n * n;
+        for p in &img.rgb {
+            let sum = p.iter().map(|&v| v as f64).sum::<f64>();
+            assert!(
+                (sum - want).abs() < 1e-5 * want,
+                "camera at {camera}: {p:?}"
+            );
+        }
+    }
+}
+
 /// The text of `examples/tests/<name>` with each `(from, to)` replaced.
 fn test_scene(name: &str, edits: &[(&str, &str)]) -> String {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/tests/");
@@ -734,19 +779,21 @@ fn a_lamp_in_an_absorbing_medium_lights_a_floor_through_it() {
     );
 }
 
-/// Only relative indices of refraction matter: a scene wholly inside a
-/// medium of index `n` (camera, lamp and objects in a sphere of radius 50
-/// under a black sky) renders as the same scene in a medium of index 1
-/// with every index divided by `n`: glass, a plastic coat, a gold GGX
-/// (`eta`, `k`) and a dipole marble floor. Image means agree within four
-/// standard errors of their difference (separate seeds; measured 0.12658
-/// against 0.12651 +- 0.00053). With the surfaces' indices taken against
-/// vacuum (before 2026-12-04) the second came out 15% darker (0.1072),
-/// and 17% with the marble's alone (0.1051).
+/// Only relative indices of refraction matter: a scene wholly inside
+/// clear water of index `n` (camera, lamp and objects in a sphere of
+/// radius 50 under a black sky) renders as the same scene in vacuum with
+/// every index divided by `n` (the water's surface too, a glass shell of
+/// index `1 / n`): glass, a plastic coat, a gold GGX (`eta`,
+/// `k`), a dipole marble floor and a random-walk jelly, which under water
+/// is a medium inside a medium. Image means agree within four standard
+/// errors of their difference (separate seeds). With the surfaces'
+/// indices taken against vacuum (before 2026-12-04, without the jelly)
+/// the image in water came out 15% darker (0.1072 against 0.1266), and
+/// 17% with the marble's alone (0.1051).
 #[test]
 fn only_relative_indices_of_refraction_matter() {
     let scene_in = |n: f64, seed: u64| {
-        let src = format!(
+        let mut src = format!(
             r#"
 [camera]
 position = [0.0, 0.4, 2.5]
@@ -766,14 +813,6 @@ radiance = [0.0, 0.0, 0.0]
 type = "point"
 position = [0.8, 1.2, 0.9]
 intensity = [12.0, 12.0, 12.0]
-[[material]]
-name = "water"
-type = "subsurface"
-sigma_s = [0.02, 0.02, 0.02]
-sigma_a = [0.05, 0.05, 0.05]
-ior = {n}
-scale = 1.0
-mode = "random_walk"
 [[material]]
 name = "glass"
 type = "dielectric"
@@ -797,9 +836,18 @@ sigma_s = [60.0, 70.0, 80.0]
 sigma_a = [0.5, 1.0, 3.0]
 ior = {marble}
 scale = 1.0
+[[material]]
+name = "jelly"
+type = "subsurface"
+sigma_s = [3.0, 4.0, 5.0]
+sigma_a = [0.5, 0.3, 0.2]
+g = 0.3
+ior = {jelly}
+scale = 1.0
+mode = "random_walk"
 [[object]]
-material = "water"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
+material = "jelly"
+base = {{ type = "sphere", center = [0.15, 0.0, 0.3], radius = 0.3 }}
 [[object]]
 material = "marble"
 base = {{ type = "plane", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }}
@@ -817,6 +865,7 @@ base = {{ type = "sphere", center = [0.7, -0.7, 0.1], radius = 0.3 }}
             glass = 1.5 * n,
             coat = 1.6 * n,
             marble = 1.3 * n,
+            jelly = 1.4 * n,
             er = 0.18 * n,
             eg = 0.42 * n,
             eb = 1.37 * n,
@@ -824,6 +873,41 @@ base = {{ type = "sphere", center = [0.7, -0.7, 0.1], radius = 0.3 }}
             kg = 2.35 * n,
             kb = 1.77 * n,
         );
+        if n == 1.0 {
+            // The water's surface seen from vacuum scaled by 1 / 1.33: a
+            // shell of index 1 / 1.33 against the sky (its internal
+            // reflection sends about 2% of the light back).
+            src += &format!(
+                r#"
+[[material]]
+name = "shell"
+type = "dielectric"
+ior = {}
+[[object]]
+material = "shell"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
+"#,
+                1.0 / 1.33
+            );
+        } else {
+            // Clear water around it all (a medium must absorb or scatter:
+            // 1e-6 per unit, 1e-5 along the longest paths).
+            src += &format!(
+                r#"
+[[material]]
+name = "water"
+type = "subsurface"
+sigma_s = [0.0, 0.0, 0.0]
+sigma_a = [1e-6, 1e-6, 1e-6]
+ior = {n}
+scale = 1.0
+mode = "random_walk"
+[[object]]
+material = "water"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 50.0 }}
+"#
+            );
+        }
         scene(&src)
     };
     let a = render_with(&scene_in(1.0, 1), 2);

@@ -151,11 +151,11 @@ impl Material {
     /// the scene's `ior`, `eta` and `k` stay the material's own, against
     /// vacuum. `None` where nothing changes: at `n = 1`, and for models
     /// without an index (the lobe models, `factored` and `merl`, measured
-    /// in air), `wave` (whose diffraction is computed in air),
-    /// `subsurface_brdf` (its reflectance derived for vacuum outside) and
-    /// random-walk media (media do not nest). A dipole `subsurface` has its
-    /// profile derived anew for the relative index. A mix changes where a
-    /// component does.
+    /// in air), `wave` (whose diffraction is computed in air) and
+    /// `subsurface_brdf` (its reflectance derived for vacuum outside). A
+    /// `subsurface` medium has its boundary (and its dipole profile)
+    /// derived anew for the relative index: media nest. A mix changes
+    /// where a component does.
     pub fn relative_to(&self, n: f64) -> Option<Material> {
         if n == 1.0 || !(n > 0.0) {
             return None;

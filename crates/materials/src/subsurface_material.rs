@@ -192,12 +192,12 @@ impl Subsurface {
         }
     }
 
-    /// A dipole medium seen from inside a medium of index `n` (a marble
-    /// under water): the same coefficients behind a boundary of index
-    /// `ior / n`, its profile, tables and single scattering derived anew.
-    /// `None` in random-walk mode (media do not nest) and at `n = 1`.
+    /// The medium seen from inside a medium of index `n` (a marble under
+    /// water): the same coefficients behind a boundary of index `ior / n`,
+    /// its dipole profile, tables and single scattering derived anew.
+    /// `None` at `n = 1`.
     pub fn relative_to(&self, n: f64) -> Option<Subsurface> {
-        if self.mode != SubsurfaceMode::Dipole || n == 1.0 || !(n > 0.0) {
+        if n == 1.0 || !(n > 0.0) {
             return None;
         }
         let mut m = Subsurface::new(

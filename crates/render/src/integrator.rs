@@ -30,9 +30,11 @@
 //! is the price). Events inside a medium (scattering, meeting its
 //! boundary) do not count toward `max_depth`; a path is cut after 100,000
 //! of them. A bounce on another surface inside a medium counts toward it,
-//! as anywhere. Media do not nest. A camera inside
-//! a medium starts its paths in it ([`crate::Scene::medium_at`], found
-//! once per render): under a white sky of radiance 1, a non-absorbing
+//! as anywhere. Media nest (a marble under water, [`MediumStack`]): a path
+//! crossing the boundary of a medium it is in leaves it, and else enters
+//! it inside the ones it is in. A camera inside media starts its paths in
+//! them ([`crate::Scene::media_at`], found once per render, outermost
+//! first): under a white sky of radiance 1, a non-absorbing
 //! medium of index `n` around the camera shows `n^2` everywhere, the
 //! radiance of equilibrium in it. A surface inside a medium (glass or a
 //! metal under water) sees the medium on its outer side: its indices of
@@ -323,8 +325,9 @@ fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
 /// `medium_light`: the others lie behind the medium's boundary).
 #[derive(Clone, Debug, Default)]
 pub struct Media<'a> {
-    /// The object index and medium the camera is in.
-    pub camera: Option<(usize, &'a Subsurface)>,
+    /// The object indices and media the camera is in, outermost first
+    /// ([`Scene::media_at`]).
+    pub camera: Vec<(usize, &'a Subsurface)>,
     /// Per point light, the object index of the medium it lies in.
     pub lights: Vec<Option<usize>>,
     /// Per random-walk medium (its material's index, once however many
@@ -338,7 +341,7 @@ impl<'a> Media<'a> {
     /// The media of `scene` for paths from `origin`.
     pub fn new(scene: &'a Scene, origin: DVec3) -> Self {
         Media {
-            camera: scene.medium_at(origin),
+            camera: scene.media_at(origin),
             lights: scene
                 .lights
                 .iter()
@@ -360,10 +363,10 @@ impl<'a> Media<'a> {
         }
     }
 
-    /// The material of object `obj` for a path inside the medium of
+    /// The material of object `obj` seen from inside the medium of
     /// object `inside` (`None`: outside every medium): a surface in a
     /// medium sees it on its outer side, so its indices of refraction
-    /// count relative to the medium's.
+    /// count relative to the medium's ([`MediumStack::outside_of`]).
     pub fn material<'s>(
         &'s self,
         scene: &'s Scene,
@@ -379,9 +382,68 @@ impl<'a> Media<'a> {
     }
 }
 
+/// The deepest nesting of random-walk media a path follows (a path
+/// entering a ninth ends there).
+pub const MAX_NESTED_MEDIA: usize = 8;
+
+/// The random-walk media a path is in, outermost first, by object index:
+/// media nest (a marble under water). Entering a medium's object pushes
+/// it; crossing the boundary of one the path is in takes it out.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MediumStack {
+    ids: [usize; MAX_NESTED_MEDIA],
+    len: usize,
+}
+
+impl MediumStack {
+    /// The innermost medium (the one the path travels in).
+    pub fn top(&self) -> Option<usize> {
+        self.len.checked_sub(1).map(|k| self.ids[k])
+    }
+
+    /// Whether the path is inside no medium.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Whether the path is inside object `obj`'s medium.
+    pub fn contains(&self, obj: usize) -> bool {
+        self.ids[..self.len].contains(&obj)
+    }
+
+    /// Enters `obj`'s medium; `false` when already [`MAX_NESTED_MEDIA`]
+    /// deep.
+    pub fn push(&mut self, obj: usize) -> bool {
+        if self.len == MAX_NESTED_MEDIA {
+            return false;
+        }
+        self.ids[self.len] = obj;
+        self.len += 1;
+        true
+    }
+
+    /// Leaves `obj`'s medium (the innermost, unless media overlap).
+    pub fn remove(&mut self, obj: usize) {
+        if let Some(k) = self.ids[..self.len].iter().rposition(|&i| i == obj) {
+            self.ids.copy_within(k + 1..self.len, k);
+            self.len -= 1;
+        }
+    }
+
+    /// The medium on the outer side of object `obj`'s surface for this
+    /// path: the innermost one, or where `obj` is itself the innermost
+    /// (the path leaving it), the one around it.
+    pub fn outside_of(&self, obj: usize) -> Option<usize> {
+        match self.top() {
+            Some(t) if t == obj => self.len.checked_sub(2).map(|k| self.ids[k]),
+            t => t,
+        }
+    }
+}
+
 /// Radiance arriving along `ray` (from the camera), and the first hit. A
-/// ray starting inside a random-walk medium starts in it
-/// ([`crate::Scene::medium_at`]).
+/// ray starting inside random-walk media starts in them
+/// ([`crate::Scene::media_at`]).
 pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Pcg32) -> (Rgb, Option<FirstHit>) {
     radiance_culled(scene, ray, None, &Media::new(scene, ray.origin), rng)
 }
@@ -409,12 +471,14 @@ pub fn radiance_culled(
     let max_depth = scene.integrator.max_depth;
     let mut depth = 0u32;
     let mut eta_scale = 1.0;
-    // The medium the path is in, and the colour channel it carries.
-    let mut inside: Option<Subsurface> = media.camera.map(|(_, m)| m.clone());
-    // The object of that medium.
-    let mut inside_obj = media.camera.map(|(i, _)| i);
+    // The media the path is in, and the colour channel it carries.
+    let mut stack = MediumStack::default();
+    for &(i, _) in &media.camera {
+        stack.push(i);
+    }
+    let medium_of = |obj: usize| scene.materials[scene.object_material[obj]].medium();
     let mut path_channel: Option<usize> = None;
-    if inside.is_some() {
+    if !stack.is_empty() {
         let (c, one) = pick_channel(beta, rng);
         (path_channel, beta) = (Some(c), one);
     }
@@ -424,8 +488,9 @@ pub fn radiance_culled(
     let mut env_counted = false;
     loop {
         // Free flight inside a medium limits the search for the surface.
+        let inside = stack.top().and_then(medium_of);
         let mut t_max = f64::INFINITY;
-        if let (Some(m), Some(c)) = (&inside, path_channel) {
+        if let (Some(m), Some(c)) = (inside, path_channel) {
             let st = channel(m.sigma_t(), c);
             if st > 0.0 {
                 t_max = -(1.0 - rng.next_f64()).ln() / st;
@@ -435,7 +500,7 @@ pub fn radiance_culled(
             Some(culled) => scene.geometry.intersect_culled(&ray, 0.0, t_max, culled),
             None => scene.geometry.intersect(&ray, 0.0, t_max),
         };
-        if let (None, Some(m), Some(c)) = (found, &inside, path_channel) {
+        if let (None, Some(m), Some(c)) = (found, inside, path_channel) {
             if t_max.is_finite() {
                 // Scattering event inside the medium.
                 medium_events += 1;
@@ -447,8 +512,8 @@ pub fn radiance_culled(
                 let p = ray.at(t_max);
                 // Point lights in the medium, by next-event estimation
                 // (the environment lies behind the medium's boundary).
-                let lights =
-                    |k: usize| inside_obj.is_some() && media.lights.get(k) == Some(&inside_obj);
+                let top = stack.top();
+                let lights = |k: usize| top.is_some() && media.lights.get(k) == Some(&top);
                 l += beta * medium_light(scene, p, ray.dir, m.g, st, lights);
                 match russian_roulette(beta, eta_scale, rng) {
                     Some(b) => beta = b,
@@ -480,9 +545,10 @@ pub fn radiance_culled(
         // angle of one pixel times the distance.
         let footprint =
             (depth == 0).then(|| scene.camera.pixel_footprint(hit.t, scene.film.height));
-        let placed = media
-            .material(scene, obj, inside_obj)
-            .at_point(hit.p, footprint, || rng.next_f64());
+        let placed =
+            media
+                .material(scene, obj, stack.outside_of(obj))
+                .at_point(hit.p, footprint, || rng.next_f64());
         let material: &Material = &placed;
         if depth == 0 {
             first = Some(FirstHit {
@@ -493,7 +559,7 @@ pub fn radiance_culled(
         }
         // A surface inside a medium ends the path at `max_depth` like any
         // other; the medium's own boundary, met from inside, lets it out.
-        if depth >= max_depth && (inside.is_none() || material.medium().is_none()) {
+        if depth >= max_depth && (stack.is_empty() || material.medium().is_none()) {
             break;
         }
         let wo = -ray.dir;
@@ -509,7 +575,7 @@ pub fn radiance_culled(
         let own_boundary = material
             .medium()
             .is_some_and(|m| m.mode == SubsurfaceMode::RandomWalk);
-        let sigma_t = match (&inside, path_channel) {
+        let sigma_t = match (inside, path_channel) {
             (Some(m), Some(c)) if !own_boundary => channel(m.sigma_t(), c),
             _ => 0.0,
         };
@@ -601,19 +667,18 @@ pub fn radiance_culled(
         }
         beta *= s.weight(s.wi.dot(ns));
         eta_scale *= s.eta * s.eta;
-        // Crossing a medium's boundary enters or leaves it.
-        if s.flags.contains(BxdfFlags::TRANSMISSION) {
-            if let Some(m) = material.medium() {
-                if inside.is_some() {
-                    inside = None;
-                    inside_obj = None;
-                } else {
-                    if path_channel.is_none() {
-                        let (c, one) = pick_channel(beta, rng);
-                        (path_channel, beta) = (Some(c), one);
-                    }
-                    inside = Some(m.clone());
-                    inside_obj = Some(obj);
+        // Crossing a medium's boundary leaves it if the path is inside
+        // it, and else enters it (inside the media it is in: they nest).
+        if s.flags.contains(BxdfFlags::TRANSMISSION) && material.medium().is_some() {
+            if stack.contains(obj) {
+                stack.remove(obj);
+            } else {
+                if path_channel.is_none() {
+                    let (c, one) = pick_channel(beta, rng);
+                    (path_channel, beta) = (Some(c), one);
+                }
+                if !stack.push(obj) {
+                    break;
                 }
             }
         }
@@ -627,7 +692,7 @@ pub fn radiance_culled(
         // inside) are medium events; a bounce on any other surface counts
         // toward the depth, also inside a medium.
         if material.medium().is_some()
-            && (inside.is_some() || s.flags.contains(BxdfFlags::TRANSMISSION))
+            && (!stack.is_empty() || s.flags.contains(BxdfFlags::TRANSMISSION))
         {
             medium_events += 1;
             if medium_events > MAX_MEDIUM_EVENTS {

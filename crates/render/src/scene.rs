@@ -180,18 +180,40 @@ impl Scene {
             .collect()
     }
 
-    /// The first object (in file order) whose material is a random-walk
-    /// medium (`subsurface` in `random_walk` mode) and whose inside holds
-    /// `p`, with that medium: where a path from `p` starts. The integrator
-    /// starts camera paths there ([`crate::integrator::radiance`]), so
-    /// that a camera inside a medium (under water, inside a block of
-    /// marble) sees it scatter and absorb. Media do not nest: inside two
-    /// overlapping ones, the path starts in the first. (A camera inside a
-    /// dipole medium or any other solid needs nothing: those are
-    /// surfaces.)
+    /// The innermost random-walk medium (`subsurface` in `random_walk`
+    /// mode) whose inside holds `p`, with its object index
+    /// ([`Scene::media_at`]): the medium a point light at `p` lies in.
     pub fn medium_at(&self, p: DVec3) -> Option<(usize, &Subsurface)> {
-        self.media()
-            .find_map(|(i, o, m)| o.contains(p).then_some((i, m)))
+        self.media_at(p).pop()
+    }
+
+    /// The random-walk media whose inside holds `p`, outermost first, with
+    /// their object indices: where a path from `p` starts. The integrator
+    /// starts camera paths inside all of them
+    /// ([`crate::integrator::radiance`]), so that a camera inside a medium
+    /// (under water, inside a jellyfish under water) sees it scatter and
+    /// absorb. Media nest: one inside another (a marble under water) is
+    /// ordered by the volume of its bounding box, larger first (an
+    /// unbounded one, a sea, outermost), ties in file order. Media that
+    /// overlap without nesting are ordered so too, which the physics
+    /// leaves undefined. (A camera inside a dipole medium or any other
+    /// solid needs nothing: those are surfaces.)
+    pub fn media_at(&self, p: DVec3) -> Vec<(usize, &Subsurface)> {
+        self.media_nested()
+            .into_iter()
+            .filter(|(_, o, _)| o.contains(p))
+            .map(|(i, _, m)| (i, m))
+            .collect()
+    }
+
+    /// [`Scene::media`] in the order they nest ([`Scene::media_at`]): by
+    /// the volume of their bounding boxes, larger first, ties in file
+    /// order.
+    pub fn media_nested(&self) -> Vec<(usize, &Object, &Subsurface)> {
+        let mut all: Vec<_> = self.media().collect();
+        // Stable: equal volumes keep file order.
+        all.sort_by(|a, b| box_volume(b.1).total_cmp(&box_volume(a.1)));
+        all
     }
 
     /// The objects whose material is a random-walk medium (`subsurface`
@@ -207,5 +229,21 @@ impl Scene {
                 Material::Subsurface(m) if m.mode == SubsurfaceMode::RandomWalk => Some((i, o, m)),
                 _ => None,
             })
+    }
+}
+
+/// The volume of `o`'s bounding box (infinite for an unbounded object; a
+/// box of no extent, 0): the order in which media nest.
+fn box_volume(o: &Object) -> f64 {
+    let b = o.bbox();
+    if b.is_empty() {
+        return 0.0;
+    }
+    let d = b.max - b.min;
+    let v = d.x * d.y * d.z;
+    if v.is_nan() {
+        f64::INFINITY
+    } else {
+        v
     }
 }

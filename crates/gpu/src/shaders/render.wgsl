@@ -356,7 +356,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             // A surface inside a medium sees the lights in it through it
             // (a light outside is occluded by the medium's boundary).
             if (SUBSURFACE && path.medium != 0u && m.tag.x != MAT_SUBSURFACE) {
-                let pm = materials[path.medium - 1u];
+                let pm = materials[medium_top() - 1u];
                 rad *= exp(-(pm.b.rgb + pm.c.rgb)[path.channel] * t_max);
             }
             if (first) {
@@ -445,9 +445,11 @@ struct Path {
     prev_pdf: f32, // < 0: camera ray or delta lobe
     eta_scale: f32,
     depth: u32,
-    // Subsurface media (random walk): the material the path is inside
-    // plus one (0: none), the colour channel it carries (3: all), the
-    // scattering events and boundary crossings so far.
+    // Subsurface media (random walk): the media the path is inside, each
+    // as 1 + its material (0: none), the innermost in the low 16 bits and
+    // the one around it in the high 16 (`medium_top`); the colour channel
+    // it carries (3: all), the scattering events and boundary crossings
+    // so far.
     medium: u32,
     channel: u32,
     events: u32,
@@ -463,6 +465,11 @@ struct Path {
 }
 
 var<private> path: Path;
+
+// 1 + the material of the innermost medium the path is in (0: none).
+fn medium_top() -> u32 {
+    return path.medium & 0xffffu;
+}
 
 // ---- Subsurface scattering (integrator.rs) ---------------------------------
 //
@@ -653,7 +660,7 @@ fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32, st: f32) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
         let light = lights[i];
-        if (u32(light.position.w) != path.medium) {
+        if (u32(light.position.w) != medium_top()) {
             continue;
         }
         let dl = light.position.xyz - p;
@@ -678,7 +685,7 @@ fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
     if (path.events > MAX_MEDIUM_EVENTS) {
         return false;
     }
-    let mm = materials[path.medium - 1u];
+    let mm = materials[medium_top() - 1u];
     let scattered = path.beta * (mm.b.rgb[path.channel] / st);
     path.l += scattered * medium_light(p, d, mm.a.y, st);
     let beta = roulette(scattered);
@@ -725,7 +732,7 @@ fn bounce() -> bool {
         var t_max = 3.0e38;
         var st = 0.0;
         if (SUBSURFACE && path.medium != 0u) {
-            let mm = materials[path.medium - 1u];
+            let mm = materials[medium_top() - 1u];
             st = (mm.b.rgb + mm.c.rgb)[path.channel];
             if (st > 0.0) {
                 t_max = -log(1.0 - rand()) / st;
@@ -749,11 +756,19 @@ fn bounce() -> bool {
         mi = objects[oi].range.z;
         // A surface inside a random-walk medium meets the medium: its
         // record with its indices relative to the medium's, through the
-        // medium's table (tag.y - 1; layout.rs `relative_in_media`).
+        // medium's table (tag.y - 1; layout.rs `relative_in_media`). The
+        // boundary of the innermost medium, met from inside, meets the
+        // medium around it (integrator.rs `MediumStack::outside_of`).
         if (SUBSURFACE && path.medium != 0u) {
-            let table = materials[path.medium - 1u].tag.y;
-            if (table != 0u) {
-                mi = u32(material_data[table - 1u + mi]);
+            var seen = medium_top();
+            if (seen == mi + 1u) {
+                seen = path.medium >> 16u;
+            }
+            if (seen != 0u) {
+                let table = materials[seen - 1u].tag.y;
+                if (table != 0u) {
+                    mi = u32(material_data[table - 1u + mi]);
+                }
             }
         }
         m = materials[mi];
@@ -830,16 +845,25 @@ fn bounce() -> bool {
     let wi = to_world(fr, s.wi);
     var beta = path.beta * s.f * (abs(s.wi.z) / s.pdf);
     path.eta_scale *= s.eta * s.eta;
-    // Crossing a medium's boundary enters or leaves it; the first entry
-    // picks the colour channel the path carries from then on.
+    // Crossing a medium's boundary leaves it if the path is inside it,
+    // and else enters it, inside the one the path is in (media nest two
+    // deep: `path.medium`); the first entry picks the colour channel the
+    // path carries from then on.
     if (is_medium && transmitted) {
-        if (path.medium != 0u) {
-            path.medium = 0u;
+        let id = objects[oi].range.z + 1u;
+        if (medium_top() == id) {
+            path.medium = path.medium >> 16u;
+        } else if ((path.medium >> 16u) == id) {
+            path.medium = medium_top();
         } else {
             if (path.channel > 2u) {
                 beta = pick_channel(beta);
             }
-            path.medium = mi + 1u;
+            // A third medium: refused before (render.rs `nested_too_deep`).
+            if (path.medium > 0xffffu) {
+                return false;
+            }
+            path.medium = (path.medium << 16u) | id;
         }
     }
     path.prev_pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
