@@ -164,7 +164,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(p) = scene.film.problem() {
         bail!("{}", by_flag(&p));
     }
-    for why in scene.rough_wave_materials() {
+    for why in scene
+        .rough_wave_materials()
+        .into_iter()
+        .chain(scene.lights_outside_the_cameras_media())
+    {
         eprintln!("isolux: warning: {}: {why}", a.scene.display());
     }
     let threads = match a.threads {

@@ -571,3 +571,41 @@ fn sss_media_and_profile() {
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("unknown medium \"jelly\" (valid: apple,"));
 }
+
+/// A point light outside the random-walk medium around the camera (the
+/// sun above a camera under water) lights nothing the camera sees in the
+/// medium directly: `render` warns, naming the light and the medium's
+/// object, and renders. A lamp in the water (the example as it is) draws
+/// no warning.
+#[test]
+fn a_light_outside_the_cameras_medium_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/underwater.toml"
+    );
+    let src = std::fs::read_to_string(example).unwrap();
+    let lamp = "position = [0.3, -1.0, 1.2]";
+    assert!(src.contains(lamp));
+    for (light, warned) in [(lamp, false), ("position = [0.3, 2.0, 1.2]", true)] {
+        let scene = write_scene(dir.path(), &src.replace(lamp, light));
+        let out = dir.path().join("out.png");
+        let o = isolux()
+            .args([
+                "render", "--spp", "1", "--width", "16", "--height", "12", "-o",
+            ])
+            .arg(&out)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(out.exists());
+        assert_eq!(
+            err.contains("warning")
+                && err.contains("light[0] lies outside the random-walk medium of object[0]"),
+            warned,
+            "{err}"
+        );
+    }
+}

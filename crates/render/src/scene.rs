@@ -180,6 +180,35 @@ impl Scene {
             .collect()
     }
 
+    /// Warnings for point lights outside a random-walk medium that holds
+    /// the camera (the sun above a camera under water): a point light
+    /// reaches no point inside a medium from outside it, since shadow
+    /// rays cannot bend through its boundary (a smooth dielectric; even
+    /// at `ior = 1` it occludes them), so such a light shows in the image
+    /// only by way of surfaces outside the medium that paths reach. Each
+    /// names the light and the medium's object.
+    pub fn lights_outside_the_cameras_media(&self) -> Vec<String> {
+        let around = self.media_at(self.camera.position);
+        let mut out = Vec::new();
+        for (k, light) in self.lights.iter().enumerate() {
+            let held = self.media_at(light.position);
+            if let Some((i, _)) = around
+                .iter()
+                .find(|(i, _)| !held.iter().any(|(j, _)| j == i))
+            {
+                out.push(format!(
+                    "light[{k}] lies outside the random-walk medium of object[{i}], which \
+                     holds the camera: a point light reaches nothing inside a medium from \
+                     outside it (shadow rays cannot bend through its boundary), so it lights \
+                     what the camera sees there only by way of surfaces outside the medium; \
+                     light the medium with the environment (its paths do refract), or a \
+                     point light inside it (docs/subsurface.md)"
+                ));
+            }
+        }
+        out
+    }
+
     /// The innermost random-walk medium (`subsurface` in `random_walk`
     /// mode) whose inside holds `p`, with its object index
     /// ([`Scene::media_at`]): the medium a point light at `p` lies in.
