@@ -1045,10 +1045,12 @@ pub struct GpuParams {
     /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
     /// render.wgsl).
     pub layers: [u32; 4],
-    /// `[the random-walk media the camera is in, 0, 0, 0]`: `1 +` the
-    /// material of the innermost in the low 16 bits, of the one around it
-    /// in the high 16 (0: none), where camera paths start
-    /// (`isolux_render::Scene::media_at`).
+    /// `[the random-walk media the camera is in, null boundaries, 0, 0]`:
+    /// `1 +` the material of the innermost in the low 16 bits, of the one
+    /// around it in the high 16 (0: none), where camera paths start
+    /// (`isolux_render::Scene::media_at`); 1 where the scene may hold null
+    /// boundaries, which point lights' shadow rays pass
+    /// (`isolux_render::Scene::may_have_null_boundaries`).
     pub camera: [u32; 4],
 }
 
@@ -1257,16 +1259,19 @@ mod tests {
             medium(SubsurfaceMode::Dipole),
         ])
         .unwrap();
-        // The glass and the dipole medium seen from the water: records of
-        // their own, at 1.5 / 1.25 and 1.25 / 1.25; the grey and the water
-        // themselves.
-        assert_eq!(g.materials.len(), 6);
-        assert_eq!(g.materials[4].tag[0], tag::DIELECTRIC);
-        assert_eq!(g.materials[4].a[0], 1.2);
-        assert_eq!(g.materials[5].tag[0], tag::SUBSURFACE);
-        assert_eq!(g.materials[5].a[0], 1.0);
+        // The water (another object of it: a medium in the medium), the
+        // glass and the dipole medium seen from the water: records of
+        // their own, at 1.25 / 1.25, 1.5 / 1.25 and 1.25 / 1.25; the grey
+        // itself.
+        assert_eq!(g.materials.len(), 7);
+        assert_eq!(g.materials[4].tag[0], tag::SUBSURFACE);
+        assert_eq!(g.materials[4].a[0], 1.0);
+        assert_eq!(g.materials[5].tag[0], tag::DIELECTRIC);
+        assert_eq!(g.materials[5].a[0], 1.2);
+        assert_eq!(g.materials[6].tag[0], tag::SUBSURFACE);
+        assert_eq!(g.materials[6].a[0], 1.0);
         let at = g.materials[1].tag[1] as usize - 1;
-        assert_eq!(g.data[at..at + 4], [0.0, 1.0, 4.0, 5.0]);
+        assert_eq!(g.data[at..at + 4], [0.0, 4.0, 5.0, 6.0]);
         // Only random-walk media have a table.
         assert_eq!(g.materials[3].tag[1], 0);
         // Nothing changes without such a medium.

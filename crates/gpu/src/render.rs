@@ -1151,7 +1151,12 @@ impl Gpu {
             env_size,
             wave: [0; 4],
             layers: [0; 4],
-            camera: [medium_of(&media, scene.camera.position), 0, 0, 0],
+            camera: [
+                medium_of(&media, scene.camera.position),
+                scene.may_have_null_boundaries() as u32,
+                0,
+                0,
+            ],
         };
 
         let limit = self.binding_limit();

@@ -496,6 +496,43 @@ base = { type = "sphere", center = [-2.4, -0.3, 0.3], radius = 0.15 }
     assert!((mg - mc).abs() <= 0.03 * mc, "{mg} vs {mc}");
 }
 
+/// A lamp outside fog of index 1 (`examples/tests/fog-lamp-outside.toml`;
+/// the CPU's closed forms in `crates/isolux/tests/analytic.rs`): its
+/// shadow rays pass the fog's boundary, which bends no ray, attenuated
+/// inside it, onto the floor and at the fog's scattering events. GPU
+/// against CPU within noise, and the floor's mean against the closed
+/// form's (0.19617).
+#[test]
+fn lamps_through_fog_match_the_cpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let floor = common::test_scene_text("fog-lamp-outside.toml");
+    let scene = isolux_scene::parse_str(&floor, Path::new("fog.toml"), Path::new(".")).unwrap();
+    let m = image_mean(&gpu_image(&gpu, &scene));
+    eprintln!("floor through fog: GPU {m}");
+    assert!((m - 0.19617).abs() < 0.002, "{m}");
+    let mut glow = floor
+        .replace("sigma_s = [0.0, 0.0, 0.0]", "sigma_s = [0.3, 0.3, 0.3]")
+        .replace("sigma_a = [0.8, 0.8, 0.8]", "sigma_a = [0.2, 0.2, 0.2]")
+        .replace("max_depth = 1", "max_depth = 8");
+    glow.truncate(glow.find("\n# floor\n").unwrap());
+    for (name, src) in [
+        (
+            "fog with its floor",
+            floor.replace("max_depth = 1", "max_depth = 4"),
+        ),
+        ("glowing fog", glow),
+    ] {
+        let mut scene =
+            isolux_scene::parse_str(&src, Path::new("fog.toml"), Path::new(".")).unwrap();
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
+        assert!(mc > 0.001, "{name}: {mc}");
+        assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    }
+}
+
 /// A sphere of two `wave` leaves (the GPU places one per hit, chosen by
 /// weight: docs/gpu.md, "Inside a `mix`") renders the CPU's image in
 /// expectation: per channel, the mean difference over the sphere's

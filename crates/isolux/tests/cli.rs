@@ -576,7 +576,8 @@ fn sss_media_and_profile() {
 /// sun above a camera under water) lights nothing the camera sees in the
 /// medium directly: `render` warns, naming the light and the medium's
 /// object, and renders. A lamp in the water (the example as it is) draws
-/// no warning.
+/// no warning, nor does the sun above water of index 1 (a null boundary,
+/// which shadow rays pass).
 #[test]
 fn a_light_outside_the_cameras_medium_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
@@ -587,7 +588,14 @@ fn a_light_outside_the_cameras_medium_is_warned_about() {
     let src = std::fs::read_to_string(example).unwrap();
     let lamp = "position = [0.3, -1.0, 1.2]";
     assert!(src.contains(lamp));
-    for (light, warned) in [(lamp, false), ("position = [0.3, 2.0, 1.2]", true)] {
+    let sun = "position = [0.3, 2.0, 1.2]";
+    let index_1 = src.replace("ior = 1.33", "ior = 1.0");
+    assert_ne!(index_1, src);
+    for (src, light, warned) in [
+        (&src, lamp, false),
+        (&src, sun, true),
+        (&index_1, sun, false),
+    ] {
         let scene = write_scene(dir.path(), &src.replace(lamp, light));
         let out = dir.path().join("out.png");
         let o = isolux()

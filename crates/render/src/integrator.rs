@@ -96,30 +96,32 @@ pub struct FirstHit {
 /// the environment map with multiple importance sampling against the
 /// scattering density. `f_cos_pdf(wi, need_pdf)` returns `f |cos|` and (when
 /// `need_pdf`) the density with which the path would continue toward `wi`.
-/// `sigma_t`: the extinction of the medium around `p` in the path's
-/// channel (0 outside media); a light reached unoccluded from inside a
-/// medium lies in it, and its light is attenuated by `exp(-sigma_t d)`
-/// (the environment never is reached so: the medium's boundary occludes
-/// it).
+/// `stack`: the media the path is in at `p`; a point light's shadow ray
+/// is attenuated by them and passes through null boundaries
+/// ([`light_transmittance`]). The environment is never reached from inside
+/// a medium: its boundary occludes it, and a path that crosses a null
+/// boundary reaches the environment as a specular continuation (weight 1),
+/// so the two strategies still sum to one.
 fn direct_light(
     scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
     hit: &Hit,
-    sigma_t: f64,
     rng: &mut Pcg32,
     f_cos_pdf: impl Fn(DVec3, bool) -> (Rgb, f64),
 ) -> Rgb {
     let mut l = Rgb::BLACK;
     for light in &scene.lights {
         let origin = hit.spawn(light.position - hit.p);
-        let Some((wi, dist, dist2)) = light.toward(origin) else {
+        let Some((wi, _, dist2)) = light.toward(origin) else {
             continue;
         };
         let (fc, _) = f_cos_pdf(wi, false);
         if fc.is_black() {
             continue;
         }
-        if !scene.geometry.occluded(&Ray::new(origin, wi), 0.0, dist) {
-            l += fc * light.intensity * ((-sigma_t * dist).exp() / dist2);
+        if let Some(tr) = light_transmittance(scene, media, stack, origin, light.position) {
+            l += fc * light.intensity * tr / dist2;
         }
     }
     let env = &scene.environment;
@@ -141,33 +143,92 @@ fn direct_light(
     l
 }
 
+/// The transmittance from `origin`, on a path inside the media `stack`,
+/// to a point light at `light`; `None` where a surface is in the way.
+/// Each medium's segment attenuates by `exp(-sigma_t d)` per channel. A
+/// *null boundary* (a random-walk medium whose index equals the index on
+/// its other side: fog of index 1 in air, a jelly of the water's index in
+/// water) bends no ray, so the shadow ray passes through it, into or out
+/// of its medium ([`Media::null_boundaries`]); every other surface
+/// occludes.
+fn light_transmittance(
+    scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
+    origin: DVec3,
+    light: DVec3,
+) -> Option<Rgb> {
+    let medium_of = |obj: usize| scene.materials[scene.object_material[obj]].medium();
+    let extinction = |stack: &MediumStack, d: f64| match stack.top().and_then(medium_of) {
+        Some(m) => {
+            let st = m.sigma_t();
+            Rgb::new((-st.r * d).exp(), (-st.g * d).exp(), (-st.b * d).exp())
+        }
+        None => Rgb::WHITE,
+    };
+    let (mut o, mut stack) = (origin, *stack);
+    let mut tr = Rgb::WHITE;
+    for _ in 0..MAX_NESTED_MEDIA * 8 {
+        let to = light - o;
+        let dist = to.length();
+        if !(dist > 0.0) {
+            return Some(tr);
+        }
+        let ray = Ray::new(o, to / dist);
+        if !media.null_boundaries {
+            return (!scene.geometry.occluded(&ray, 0.0, dist))
+                .then(|| tr * extinction(&stack, dist));
+        }
+        let Some((obj, hit)) = scene.geometry.intersect(&ray, 0.0, dist) else {
+            return Some(tr * extinction(&stack, dist));
+        };
+        let m = medium_of(obj).filter(|m| m.mode == SubsurfaceMode::RandomWalk)?;
+        let outside = stack
+            .outside_of(obj)
+            .and_then(medium_of)
+            .map_or(1.0, |o| o.boundary.ior);
+        if m.boundary.ior != outside {
+            return None;
+        }
+        tr *= extinction(&stack, hit.t);
+        if stack.contains(obj) {
+            stack.remove(obj);
+        } else if !stack.push(obj) {
+            return None;
+        }
+        o = hit.spawn(ray.dir);
+    }
+    None
+}
+
 /// Light from the point lights that reach `p`, a scattering event inside
-/// a medium (extinction `sigma_t` in the path's channel, phase
-/// Henyey-Greenstein with `g`) on a path travelling along `dir`: `I
-/// p(wl . dir) exp(-sigma_t d) / d^2` per unoccluded light at distance `d`
-/// in direction `wl`, of the lights `inside(k)` says lie in the medium
-/// (one outside is occluded by its boundary: no next-event estimation
-/// through a delta interface, and no shadow ray is traced to find that
-/// out).
+/// the media `stack` (phase Henyey-Greenstein with `g`) on a path
+/// travelling along `dir`: `I p(wl . dir) T / d^2` per light at distance
+/// `d` in direction `wl` with transmittance `T` ([`light_transmittance`]).
+/// Without null boundaries only the lights of the innermost medium are
+/// tried (one outside it is occluded by its boundary: no next-event
+/// estimation through a delta interface, and no shadow ray is traced to
+/// find that out).
 fn medium_light(
     scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
     p: DVec3,
     dir: DVec3,
     g: f64,
-    sigma_t: f64,
-    inside: impl Fn(usize) -> bool,
 ) -> Rgb {
     let mut l = Rgb::BLACK;
+    let top = stack.top();
     for (k, light) in scene.lights.iter().enumerate() {
-        if !inside(k) {
+        if !media.null_boundaries && (top.is_none() || media.lights.get(k) != Some(&top)) {
             continue;
         }
-        let Some((wl, dist, dist2)) = light.toward(p) else {
+        let Some((wl, _, dist2)) = light.toward(p) else {
             continue;
         };
-        if !scene.geometry.occluded(&Ray::new(p, wl), 0.0, dist) {
+        if let Some(tr) = light_transmittance(scene, media, stack, p, light.position) {
             let phase = isolux_materials::subsurface::phase::hg(wl.dot(dir), g);
-            l += light.intensity * (phase * (-sigma_t * dist).exp() / dist2);
+            l += light.intensity * tr * (phase / dist2);
         }
     }
     l
@@ -178,14 +239,15 @@ fn medium_light(
 /// per channel, estimated by light sampling (point lights, environment
 /// map) and one cosine-sampled direction toward the environment, combined
 /// by multiple importance sampling (the cosine sample alone covers a
-/// constant sky). `sigma_t`: the extinction of a random-walk medium around
-/// the object (0: none), attenuating its point lights ([`direct_light`]).
+/// constant sky). `stack`: the random-walk media around the object, which
+/// attenuate its point lights ([`direct_light`]).
 fn single_scattering_light(
     scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
     m: &Subsurface,
     hit: &Hit,
     wo: DVec3,
-    sigma_t: f64,
     rng: &mut Pcg32,
 ) -> Rgb {
     use isolux_materials::subsurface::phase::single_scattering;
@@ -200,7 +262,7 @@ fn single_scattering_light(
         }
         albedo * single_scattering(wo_l, wl, 1.0, m.g, eta)
     };
-    let mut l = direct_light(scene, hit, sigma_t, rng, |wi, _| {
+    let mut l = direct_light(scene, media, stack, hit, rng, |wi, _| {
         let c = wi.dot(hit.n);
         if c <= 0.0 {
             (Rgb::BLACK, 0.0)
@@ -335,6 +397,12 @@ pub struct Media<'a> {
     /// ([`Material::relative_to`] its boundary's index), `None` where one
     /// does not change.
     pub relative: Vec<(usize, Vec<Option<Material>>)>,
+    /// Whether the scene may hold a *null boundary*
+    /// ([`Scene::may_have_null_boundaries`]): point lights' shadow rays
+    /// pass through them (`light_transmittance`); without any, a shadow
+    /// ray stops at the first surface, and scattering events try only the
+    /// lights of their own medium.
+    pub null_boundaries: bool,
 }
 
 impl<'a> Media<'a> {
@@ -360,6 +428,7 @@ impl<'a> Media<'a> {
                     _ => None,
                 })
                 .collect(),
+            null_boundaries: scene.may_have_null_boundaries(),
         }
     }
 
@@ -510,11 +579,9 @@ pub fn radiance_culled(
                 let st = channel(m.sigma_t(), c);
                 beta *= channel(m.sigma_s, c) / st;
                 let p = ray.at(t_max);
-                // Point lights in the medium, by next-event estimation
-                // (the environment lies behind the medium's boundary).
-                let top = stack.top();
-                let lights = |k: usize| top.is_some() && media.lights.get(k) == Some(&top);
-                l += beta * medium_light(scene, p, ray.dir, m.g, st, lights);
+                // Point lights, by next-event estimation (the environment
+                // lies behind the medium's boundary).
+                l += beta * medium_light(scene, media, &stack, p, ray.dir, m.g);
                 match russian_roulette(beta, eta_scale, rng) {
                     Some(b) => beta = b,
                     None => break,
@@ -569,18 +636,11 @@ pub fn radiance_culled(
         };
         let ns = bsdf.normal();
 
-        // Inside a medium (a surface in it, a dipole medium's too), lights
-        // in the medium are seen through it; the medium's own boundary
-        // gathers none.
-        let own_boundary = material
-            .medium()
-            .is_some_and(|m| m.mode == SubsurfaceMode::RandomWalk);
-        let sigma_t = match (inside, path_channel) {
-            (Some(m), Some(c)) if !own_boundary => channel(m.sigma_t(), c),
-            _ => 0.0,
-        };
+        // Inside media (a surface in them, a dipole medium's too), lights
+        // are seen through them (a medium's own boundary, a delta
+        // interface, gathers none).
         l += beta
-            * direct_light(scene, &hit, sigma_t, rng, |wi, need_pdf| {
+            * direct_light(scene, media, &stack, &hit, rng, |wi, need_pdf| {
                 // The density only weighs environment samples (MIS); point
                 // lights skip it (costly for wave-optics materials).
                 let pdf = if need_pdf { bsdf.pdf(wo, wi) } else { 0.0 };
@@ -590,7 +650,7 @@ pub fn radiance_culled(
         // lobe at x_o, estimated here for direct light only.
         if let Some(m) = material.medium() {
             if m.mode == SubsurfaceMode::Dipole && m.single_scattering && wo.dot(hit.n) > 0.0 {
-                l += beta * single_scattering_light(scene, m, &hit, wo, sigma_t, rng);
+                l += beta * single_scattering_light(scene, media, &stack, m, &hit, wo, rng);
             }
         }
         // The environment mirrored by a subsurface boundary, seen from
@@ -639,7 +699,7 @@ pub fn radiance_culled(
                 // At x_i: light arriving through the boundary, weighted by
                 // S_w(wi) = (1 - F(cos_i)) / (c pi).
                 l += beta
-                    * direct_light(scene, &xi, sigma_t, rng, |wi, _| {
+                    * direct_light(scene, media, &stack, &xi, rng, |wi, _| {
                         let c = wi.dot(xi.n);
                         if c <= 0.0 {
                             (Rgb::BLACK, 0.0)

@@ -183,18 +183,27 @@ impl Scene {
     /// Warnings for point lights outside a random-walk medium that holds
     /// the camera (the sun above a camera under water): a point light
     /// reaches no point inside a medium from outside it, since shadow
-    /// rays cannot bend through its boundary (a smooth dielectric; even
-    /// at `ior = 1` it occludes them), so such a light shows in the image
-    /// only by way of surfaces outside the medium that paths reach. Each
-    /// names the light and the medium's object.
+    /// rays cannot bend through its boundary (a smooth dielectric), so
+    /// such a light shows in the image only by way of surfaces outside
+    /// the medium that paths reach. A null boundary (fog of index 1 in
+    /// air) passes shadow rays and draws no warning. Each names the light
+    /// and the medium's object.
     pub fn lights_outside_the_cameras_media(&self) -> Vec<String> {
         let around = self.media_at(self.camera.position);
+        // A medium's boundary is null (it passes shadow rays) where its
+        // index is that of the medium around it.
+        let null = |k: usize| {
+            let outside = k.checked_sub(1).map_or(1.0, |o| around[o].1.boundary.ior);
+            around[k].1.boundary.ior == outside
+        };
         let mut out = Vec::new();
         for (k, light) in self.lights.iter().enumerate() {
             let held = self.media_at(light.position);
             if let Some((i, _)) = around
                 .iter()
-                .find(|(i, _)| !held.iter().any(|(j, _)| j == i))
+                .enumerate()
+                .find(|&(m, (i, _))| !null(m) && !held.iter().any(|(j, _)| j == i))
+                .map(|(_, x)| x)
             {
                 out.push(format!(
                     "light[{k}] lies outside the random-walk medium of object[{i}], which \
@@ -207,6 +216,27 @@ impl Scene {
             }
         }
         out
+    }
+
+    /// Whether the scene may hold a *null boundary*: a random-walk medium
+    /// of index 1 (fog in air), or two random-walk materials of the same
+    /// index (one may lie in the other). Crossing one bends no ray, so
+    /// point lights' shadow rays pass through them, on both back ends;
+    /// without any, a shadow ray stops at the first surface.
+    pub fn may_have_null_boundaries(&self) -> bool {
+        let iors: Vec<f64> = self
+            .materials
+            .iter()
+            .filter_map(|m| match m {
+                Material::Subsurface(m) if m.mode == SubsurfaceMode::RandomWalk => {
+                    Some(m.boundary.ior)
+                }
+                _ => None,
+            })
+            .collect();
+        iors.iter()
+            .enumerate()
+            .any(|(k, &n)| n == 1.0 || iors[..k].contains(&n))
     }
 
     /// The innermost random-walk medium (`subsurface` in `random_walk`

@@ -353,12 +353,6 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             t_max = sqrt(dist2);
             wi = d / t_max;
             rad = light.intensity.rgb / dist2;
-            // A surface inside a medium sees the lights in it through it
-            // (a light outside is occluded by the medium's boundary).
-            if (SUBSURFACE && path.medium != 0u && m.tag.x != MAT_SUBSURFACE) {
-                let pm = materials[medium_top() - 1u];
-                rad *= exp(-(pm.b.rgb + pm.c.rgb)[path.channel] * t_max);
-            }
             if (first) {
                 // Occluded: no need to shade it.
                 if (((shadow_lights >> i) & 1u) == 0u) {
@@ -425,9 +419,13 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         // !occluded(..)`: naga emits a call inside an expression
         // unconditionally, and RADV kept the intersection there, 160 ->
         // 188 VGPRs before scheduling.)
+        // A point light's shadow ray is attenuated by the media the path
+        // is in and passes null boundaries (`shadow_transmittance`).
         var lit = true;
         if (!first) {
-            lit = !occluded(origin, wi, t_max);
+            let tr = shadow_transmittance(origin, wi, t_max, i < n_lights);
+            rad *= tr;
+            lit = max3(tr) > 0.0;
         }
         if (lit) {
             l += fc * rad;
@@ -656,11 +654,12 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
 // exp(-st r) / r^2 per unoccluded light of the medium's material
 // (`position.w`, layout.rs `GpuLight`); a light outside the medium is
 // occluded by its boundary, and no shadow ray is traced to it.
-fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32, st: f32) -> vec3<f32> {
+fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
         let light = lights[i];
-        if (u32(light.position.w) != medium_top()) {
+        // Without null boundaries only the medium's own lights.
+        if (params.camera.y == 0u && u32(light.position.w) != medium_top()) {
             continue;
         }
         let dl = light.position.xyz - p;
@@ -670,11 +669,83 @@ fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32, st: f32) -> vec3<f32> {
         }
         let dist = sqrt(dist2);
         let wl = dl / dist;
-        if (!occluded(p, wl, dist)) {
-            l += light.intensity.rgb * (hg_phase(dot(wl, d), g) * exp(-st * dist) / dist2);
-        }
+        let tr = shadow_transmittance(p, wl, dist, true);
+        l += light.intensity.rgb * tr * (hg_phase(dot(wl, d), g) / dist2);
     }
     return l;
+}
+
+// Extinction over a distance t in the innermost of the packed media med
+// (`path.medium`'s packing), per channel.
+fn medium_extinction(med: u32, t: f32) -> vec3<f32> {
+    if (!SUBSURFACE || (med & 0xffffu) == 0u) {
+        return vec3<f32>(1.0);
+    }
+    let mm = materials[(med & 0xffffu) - 1u];
+    return exp(-(mm.b.rgb + mm.c.rgb) * t);
+}
+
+// The transmittance of a shadow ray from o along d to distance t_max
+// (integrator.rs `light_transmittance`), 0 where a surface is in the way.
+// Toward a point light (`light`) it is attenuated by the media the path
+// is in and, in a scene with null boundaries (`params.camera.y`: a
+// random-walk medium whose index equals the index on its other side,
+// fog of index 1), passes through them into or out of their media; the
+// environment's rays stop at every surface. One call site of the
+// intersection, in the loop (docs/gpu.md, "One call site per switch").
+fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) -> vec3<f32> {
+    if (!SUBSURFACE) {
+        return select(vec3<f32>(0.0), vec3<f32>(1.0), !occluded(o0, d, t_max));
+    }
+    let through = light && params.camera.y != 0u;
+    let goal = o0 + t_max * d;
+    var o = o0;
+    var left = t_max;
+    var med = select(0u, path.medium, light);
+    var tr = vec3<f32>(1.0);
+    for (var k = 0u; k < 16u; k++) {
+        let h = scene_first_hit(o, d, 0.0, left, params.counts.x, !through);
+        if (h.x < 0.0) {
+            return tr * medium_extinction(med, left);
+        }
+        if (!through) {
+            return vec3<f32>(0.0);
+        }
+        // A null boundary: a random-walk medium of the index outside it.
+        let mi = objects[hit_object].range.z;
+        let mm = materials[mi];
+        if (mm.tag.x != MAT_SUBSURFACE || mm.tag.w != 1u) {
+            return vec3<f32>(0.0);
+        }
+        let id = mi + 1u;
+        var outside = med & 0xffffu;
+        if (outside == id) {
+            outside = med >> 16u;
+        }
+        var n_out = 1.0;
+        if (outside != 0u) {
+            n_out = materials[outside - 1u].a.x;
+        }
+        if (mm.a.x != n_out) {
+            return vec3<f32>(0.0);
+        }
+        tr *= medium_extinction(med, h.x);
+        if ((med & 0xffffu) == id) {
+            med = med >> 16u;
+        } else if ((med >> 16u) == id) {
+            med = med & 0xffffu;
+        } else if (med > 0xffffu) {
+            return vec3<f32>(0.0);
+        } else {
+            med = (med << 16u) | id;
+        }
+        o = offset_origin(o + h.x * d, h.yzw, d);
+        left = dot(goal - o, d);
+        if (!(left > 0.0)) {
+            return tr;
+        }
+    }
+    return vec3<f32>(0.0);
 }
 
 // A scattering event at p inside the medium (random walk): albedo of the
@@ -687,7 +758,7 @@ fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
     }
     let mm = materials[medium_top() - 1u];
     let scattered = path.beta * (mm.b.rgb[path.channel] / st);
-    path.l += scattered * medium_light(p, d, mm.a.y, st);
+    path.l += scattered * medium_light(p, d, mm.a.y);
     let beta = roulette(scattered);
     if (!(max3(beta) > 0.0)) {
         return false;
