@@ -176,6 +176,8 @@ fn translucent_scenes_match_the_cpu_within_noise() {
         ("translucent-random-walk.toml", 16),
         // The camera inside the medium.
         ("underwater.toml", 16),
+        // The camera in fog, a lamp outside it (a null boundary).
+        ("fog.toml", 16),
     ] {
         let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());
@@ -654,7 +656,8 @@ fn a_camera_inside_a_random_walk_medium_sees_it_on_the_gpu() {
 /// `crates/isolux/tests/analytic.rs`): the camera inside a sphere of
 /// index 1.5 inside a sphere of scattering water (1.33) under a white sky
 /// sees `1.5^2`, every path bringing exactly `3 n^2` in its channel, in
-/// the wavefront and the megakernel; in the water, `1.33^2`. A jelly in
+/// the wavefront and the megakernel; in the water, `1.33^2`; inside a grey
+/// medium, which carries every channel, `1.5^2` in each. A jelly in
 /// the water seen from it renders the CPU's image within noise. A third
 /// medium overlapping both is refused by name.
 #[test]
@@ -699,6 +702,14 @@ base = { type = "sphere", center = [0.0, 0.0, 0.2], radius = 3.0 }
                     "camera at {camera}, wavefront {wavefront}: {p:?}"
                 );
             }
+        }
+    }
+    // A grey medium carries every channel: each is 1.5^2 exactly.
+    let grey = src.replace("sigma_s = [2.0, 1.0, 0.5]", "sigma_s = [1.0, 1.0, 1.0]");
+    let scene = isolux_scene::parse_str(&grey, Path::new("grey.toml"), Path::new(".")).unwrap();
+    for p in &gpu_image(&gpu, &scene).rgb {
+        for &v in p {
+            assert!((v as f64 - 2.25).abs() < 1e-4, "grey medium: {p:?}");
         }
     }
     // A jelly in clear water, seen from the water, with a lamp and a

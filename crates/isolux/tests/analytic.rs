@@ -627,6 +627,24 @@ base = { type = "sphere", center = [0.0, 0.0, 0.2], radius = 3.0 }
     }
 }
 
+/// A grey medium (fog: the same coefficients in every channel) carries
+/// all three channels on every path instead of choosing one: with the
+/// camera inside a non-absorbing grey sphere of index 1.5 under a white
+/// sky, every pixel shows exactly `1.5^2` in each channel (closed form;
+/// choosing a channel, a pixel's three values only summed to `3 n^2`).
+#[test]
+fn grey_media_carry_every_channel() {
+    let s = scene(&test_scene(
+        "medium-around-camera.toml",
+        &[("sigma_s = [2.0, 1.0, 0.5]", "sigma_s = [1.0, 1.0, 1.0]")],
+    ));
+    for p in &render_with(&s, 2).rgb {
+        for &v in p {
+            assert!((v as f64 - 2.25).abs() < 1e-5, "{p:?}");
+        }
+    }
+}
+
 /// The text of `examples/tests/<name>` with each `(from, to)` replaced.
 fn test_scene(name: &str, edits: &[(&str, &str)]) -> String {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/tests/");

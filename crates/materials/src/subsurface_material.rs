@@ -288,6 +288,14 @@ impl Subsurface {
     pub fn sigma_t(&self) -> Rgb {
         self.sigma_s + self.sigma_a
     }
+
+    /// Whether the medium scatters and absorbs every colour channel alike
+    /// (grey fog, smoke): a random walk through it then carries all
+    /// three channels at once, without choosing one.
+    pub fn is_grey(&self) -> bool {
+        let (s, a) = (self.sigma_s, self.sigma_a);
+        s.r == s.g && s.g == s.b && a.r == a.g && a.g == a.b
+    }
 }
 
 impl BxdfModel for Subsurface {

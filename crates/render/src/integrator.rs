@@ -25,9 +25,11 @@
 //! environment and lights outside lie behind its boundary, a delta
 //! interface, and arrive by the sampled paths alone), one that reaches
 //! the surface meets the boundary's Fresnel reflection and refraction. The
-//! coefficients differ per colour channel, so the first entry picks one
-//! channel uniformly and carries it with weight 3 (unbiased; colour noise
-//! is the price). Events inside a medium (scattering, meeting its
+//! coefficients differ per colour channel, so the first entry into a
+//! chromatic medium picks one channel uniformly and carries it with
+//! weight 3 (unbiased; colour noise is the price); a grey medium (fog,
+//! smoke) is the same in every channel, and paths carry all three
+//! through it. Events inside a medium (scattering, meeting its
 //! boundary) do not count toward `max_depth`; a path is cut after 100,000
 //! of them. A bounce on another surface inside a medium counts toward it,
 //! as anywhere. Media nest (a marble under water, [`MediumStack`]): a path
@@ -546,8 +548,10 @@ pub fn radiance_culled(
         stack.push(i);
     }
     let medium_of = |obj: usize| scene.materials[scene.object_material[obj]].medium();
+    // One colour channel from the first chromatic medium on (grey media
+    // carry all three: their flights and albedos are the same in each).
     let mut path_channel: Option<usize> = None;
-    if !stack.is_empty() {
+    if media.camera.iter().any(|(_, m)| !m.is_grey()) {
         let (c, one) = pick_channel(beta, rng);
         (path_channel, beta) = (Some(c), one);
     }
@@ -559,8 +563,8 @@ pub fn radiance_culled(
         // Free flight inside a medium limits the search for the surface.
         let inside = stack.top().and_then(medium_of);
         let mut t_max = f64::INFINITY;
-        if let (Some(m), Some(c)) = (inside, path_channel) {
-            let st = channel(m.sigma_t(), c);
+        if let Some(m) = inside {
+            let st = channel(m.sigma_t(), path_channel.unwrap_or(0));
             if st > 0.0 {
                 t_max = -(1.0 - rng.next_f64()).ln() / st;
             }
@@ -569,8 +573,9 @@ pub fn radiance_culled(
             Some(culled) => scene.geometry.intersect_culled(&ray, 0.0, t_max, culled),
             None => scene.geometry.intersect(&ray, 0.0, t_max),
         };
-        if let (None, Some(m), Some(c)) = (found, inside, path_channel) {
+        if let (None, Some(m)) = (found, inside) {
             if t_max.is_finite() {
+                let c = path_channel.unwrap_or(0);
                 // Scattering event inside the medium.
                 medium_events += 1;
                 if medium_events > MAX_MEDIUM_EVENTS {
@@ -733,7 +738,7 @@ pub fn radiance_culled(
             if stack.contains(obj) {
                 stack.remove(obj);
             } else {
-                if path_channel.is_none() {
+                if path_channel.is_none() && material.medium().is_some_and(|m| !m.is_grey()) {
                     let (c, one) = pick_channel(beta, rng);
                     (path_channel, beta) = (Some(c), one);
                 }

@@ -757,7 +757,7 @@ fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
         return false;
     }
     let mm = materials[medium_top() - 1u];
-    let scattered = path.beta * (mm.b.rgb[path.channel] / st);
+    let scattered = path.beta * (mm.b.rgb[min(path.channel, 2u)] / st);
     path.l += scattered * medium_light(p, d, mm.a.y);
     let beta = roulette(scattered);
     if (!(max3(beta) > 0.0)) {
@@ -804,7 +804,7 @@ fn bounce() -> bool {
         var st = 0.0;
         if (SUBSURFACE && path.medium != 0u) {
             let mm = materials[medium_top() - 1u];
-            st = (mm.b.rgb + mm.c.rgb)[path.channel];
+            st = (mm.b.rgb + mm.c.rgb)[min(path.channel, 2u)];
             if (st > 0.0) {
                 t_max = -log(1.0 - rand()) / st;
             }
@@ -927,7 +927,7 @@ fn bounce() -> bool {
         } else if ((path.medium >> 16u) == id) {
             path.medium = medium_top();
         } else {
-            if (path.channel > 2u) {
+            if (path.channel > 2u && !grey_medium(m)) {
                 beta = pick_channel(beta);
             }
             // A third medium: refused before (render.rs `nested_too_deep`).
@@ -978,14 +978,25 @@ fn pick_channel(beta: vec3<f32>) -> vec3<f32> {
     return one;
 }
 
+// Whether medium m scatters and absorbs every channel alike (grey fog):
+// paths carry all three channels through it (`path.channel` 3), as on the
+// CPU (`Subsurface::is_grey`).
+fn grey_medium(m: Material) -> bool {
+    return all(m.b.rgb == m.b.rrr) && all(m.c.rgb == m.c.rrr);
+}
+
 // A camera path from o along d, in `path`.
-// A camera inside a random-walk medium starts in it, carrying one colour
-// channel (integrator.rs).
+// A camera inside random-walk media starts in them, carrying one colour
+// channel if one of them is chromatic (integrator.rs).
 fn start_path(o: vec3<f32>, d: vec3<f32>) {
     path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
     if (SUBSURFACE && params.camera.x != 0u) {
         path.medium = params.camera.x;
-        path.beta = pick_channel(path.beta);
+        let outer = params.camera.x >> 16u;
+        if (!grey_medium(materials[(params.camera.x & 0xffffu) - 1u])
+            || (outer != 0u && !grey_medium(materials[outer - 1u]))) {
+            path.beta = pick_channel(path.beta);
+        }
     }
 }
 
