@@ -665,24 +665,8 @@ fn media_nest_on_the_gpu() {
     let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
-    let water = r#"
-[[material]]
-name = "water"
-type = "subsurface"
-sigma_s = [0.5, 0.7, 0.9]
-sigma_a = [0.0, 0.0, 0.0]
-g = 0.0
-ior = 1.33
-scale = 1.0
-mode = "random_walk"
-
-[[object]]
-material = "water"
-base = { type = "sphere", center = [0.0, 0.0, 0.2], radius = 3.0 }
-"#;
     let src = common::test_scene_text("medium-around-camera.toml");
-    let at = src.find("[[material]]").unwrap();
-    let nested = format!("{}{water}\n{}", &src[..at], &src[at..]);
+    let nested = common::test_scene_text("nested-media.toml");
     for (camera, n) in [("[0.1, -0.2, 0.3]", 1.5), ("[0.1, -0.2, 2.0]", 1.33)] {
         let text = nested.replace("[0.1, -0.2, 0.3]", camera);
         let scene =

@@ -592,24 +592,7 @@ fn a_camera_inside_a_random_walk_medium_sees_it() {
 /// camera outside the inner sphere, in the water, sees `1.33^2`.
 #[test]
 fn media_nest() {
-    let water = r#"
-[[material]]
-name = "water"
-type = "subsurface"
-sigma_s = [0.5, 0.7, 0.9]
-sigma_a = [0.0, 0.0, 0.0]
-g = 0.0
-ior = 1.33
-scale = 1.0
-mode = "random_walk"
-
-[[object]]
-material = "water"
-base = { type = "sphere", center = [0.0, 0.0, 0.2], radius = 3.0 }
-"#;
-    let src = test_scene("medium-around-camera.toml", &[]);
-    let at = src.find("[[material]]").unwrap();
-    let nested = format!("{}{water}\n{}", &src[..at], &src[at..]);
+    let nested = test_scene("nested-media.toml", &[]);
     for (camera, n) in [("[0.1, -0.2, 0.3]", 1.5), ("[0.1, -0.2, 2.0]", 1.33)] {
         let s = scene(&nested.replace("[0.1, -0.2, 0.3]", camera));
         let media = s.media_at(s.camera.position);
