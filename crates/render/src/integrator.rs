@@ -383,10 +383,12 @@ fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
     (!beta.is_black()).then_some(beta)
 }
 
-/// What the paths of a render share about the random-walk media: the one
-/// around the camera ([`crate::Scene::medium_at`]), and the one each
-/// point light lies in (scattering events gather only those lights,
-/// `medium_light`: the others lie behind the medium's boundary).
+/// What the paths of a render share about the random-walk media: those
+/// around the camera ([`crate::Scene::media_at`]), the innermost each
+/// point light lies in (without null boundaries, scattering events
+/// gather only those lights, `medium_light`: the others lie behind the
+/// medium's boundary), the materials seen from inside each, and whether
+/// null boundaries may occur.
 #[derive(Clone, Debug, Default)]
 pub struct Media<'a> {
     /// The object indices and media the camera is in, outermost first
