@@ -373,7 +373,12 @@ base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.8 }
 /// diffuse floor (shadow rays attenuated), and scattered once or more in
 /// a scattering medium around the camera (next-event estimation at the
 /// scattering events), and onto a dipole floor (its exit and entry
-/// points). GPU against CPU within noise.
+/// points). GPU against CPU within noise, at 128 spp: scattering events
+/// near the lamp make rare bright samples (`I / r^2`), and since grey
+/// media carry every channel, Russian roulette ends more of the paths
+/// (their throughput is no longer the one channel's 3x), so 32 spp left
+/// CPU renders of two seeds 4% apart (measured over 16 seeds at 32 spp:
+/// CPU 0.1928 +- 0.001, GPU 0.1952 with one seed's firefly at 0.249).
 #[test]
 fn lamps_in_media_match_the_cpu() {
     let Some(gpu) = common::open("GPU image tests") else {
@@ -412,7 +417,7 @@ fn lamps_in_media_match_the_cpu() {
     ] {
         let mut scene =
             isolux_scene::parse_str(&src, Path::new("lamp.toml"), Path::new(".")).unwrap();
-        (scene.film.width, scene.film.height, scene.film.spp) = (96, 64, 32);
+        (scene.film.width, scene.film.height, scene.film.spp) = (96, 64, 128);
         scene.integrator.max_depth = 4;
         let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
         assert!(mc > 0.01, "{name}: {mc}");
