@@ -1237,7 +1237,10 @@ impl Gpu {
         // No layers until a run needs them (the wavefront never does).
         let layers = self.output("sample layers (none yet)", 16);
         let bind = self.frame_bind_group(&buffers, &layers);
-        let needed = Features::of(&materials.materials).fit_to(&geo, scene.lights.len());
+        let needed = Features {
+            null_boundaries: scene.may_have_null_boundaries(),
+            ..Features::of(&materials.materials).fit_to(&geo, scene.lights.len())
+        };
         let random_walk = materials
             .materials
             .iter()

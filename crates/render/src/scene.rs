@@ -219,24 +219,22 @@ impl Scene {
     }
 
     /// Whether the scene may hold a *null boundary*: a random-walk medium
-    /// of index 1 (fog in air), or two random-walk materials of the same
-    /// index (one may lie in the other). Crossing one bends no ray, so
-    /// point lights' shadow rays pass through them, on both back ends;
-    /// without any, a shadow ray stops at the first surface.
+    /// of index 1 (fog in air), or two random-walk objects of the same
+    /// index whose bounding boxes overlap (one may lie in the other).
+    /// Crossing one bends no ray, so point lights' shadow rays pass
+    /// through them, on both back ends; without any, a shadow ray stops
+    /// at the first surface (and the GPU compiles no loop for them).
     pub fn may_have_null_boundaries(&self) -> bool {
-        let iors: Vec<f64> = self
-            .materials
-            .iter()
-            .filter_map(|m| match m {
-                Material::Subsurface(m) if m.mode == SubsurfaceMode::RandomWalk => {
-                    Some(m.boundary.ior)
-                }
-                _ => None,
-            })
+        let media: Vec<_> = self
+            .media()
+            .map(|(_, o, m)| (m.boundary.ior, o.bbox()))
             .collect();
-        iors.iter()
-            .enumerate()
-            .any(|(k, &n)| n == 1.0 || iors[..k].contains(&n))
+        media.iter().enumerate().any(|(k, (n, b))| {
+            *n == 1.0
+                || media[..k]
+                    .iter()
+                    .any(|(m, c)| m == n && !b.intersection(c).is_empty())
+        })
     }
 
     /// The innermost random-walk medium (`subsurface` in `random_walk`

@@ -694,8 +694,13 @@ fn medium_extinction(med: u32, t: f32) -> vec3<f32> {
 // environment's rays stop at every surface. One call site of the
 // intersection, in the loop (docs/gpu.md, "One call site per switch").
 fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) -> vec3<f32> {
-    if (!SUBSURFACE) {
-        return select(vec3<f32>(0.0), vec3<f32>(1.0), !occluded(o0, d, t_max));
+    // Kernels for scenes without null boundaries (`NULL_BOUNDARIES`, lib.rs
+    // `Features::null_boundaries`): one occlusion test, no loop.
+    if (!SUBSURFACE || !NULL_BOUNDARIES) {
+        if (occluded(o0, d, t_max)) {
+            return vec3<f32>(0.0);
+        }
+        return medium_extinction(select(0u, path.medium, light), t_max);
     }
     let through = light && params.camera.y != 0u;
     let goal = o0 + t_max * d;
