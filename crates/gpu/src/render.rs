@@ -1087,6 +1087,7 @@ impl Gpu {
             .collect();
         let materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
         let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
+        let null_boundaries = scene.may_have_null_boundaries();
         // In the order they nest, outermost first (`medium_of`).
         let media: Vec<_> = scene
             .media_nested()
@@ -1153,7 +1154,7 @@ impl Gpu {
             layers: [0; 4],
             camera: [
                 medium_of(&media, scene.camera.position),
-                scene.may_have_null_boundaries() as u32,
+                null_boundaries as u32,
                 0,
                 0,
             ],
@@ -1238,7 +1239,7 @@ impl Gpu {
         let layers = self.output("sample layers (none yet)", 16);
         let bind = self.frame_bind_group(&buffers, &layers);
         let needed = Features {
-            null_boundaries: scene.may_have_null_boundaries(),
+            null_boundaries,
             ..Features::of(&materials.materials).fit_to(&geo, scene.lights.len())
         };
         let random_walk = materials

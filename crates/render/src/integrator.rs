@@ -69,6 +69,11 @@ fn channel(c: Rgb, i: usize) -> f64 {
     }
 }
 
+/// The medium behind object `obj`'s surface (its material's), if any.
+fn object_medium(scene: &Scene, obj: usize) -> Option<&Subsurface> {
+    scene.materials[scene.object_material[obj]].medium()
+}
+
 /// The colour channel a path carries through media from its first one
 /// on, chosen uniformly, and the throughput `beta` in that channel alone,
 /// weighted 3 (unbiased).
@@ -160,7 +165,7 @@ fn light_transmittance(
     origin: DVec3,
     light: DVec3,
 ) -> Option<Rgb> {
-    let medium_of = |obj: usize| scene.materials[scene.object_material[obj]].medium();
+    let medium_of = |obj: usize| object_medium(scene, obj);
     let extinction = |stack: &MediumStack, d: f64| match stack.top().and_then(medium_of) {
         Some(m) => {
             let st = m.sigma_t();
@@ -193,11 +198,7 @@ fn light_transmittance(
             return None;
         }
         tr *= extinction(&stack, hit.t);
-        if stack.contains(obj) {
-            stack.remove(obj);
-        } else if !stack.push(obj) {
-            return None;
-        }
+        stack.cross(obj)?;
         o = hit.spawn(ray.dir);
     }
     None
@@ -503,6 +504,18 @@ impl MediumStack {
         }
     }
 
+    /// Crosses the boundary of object `obj`'s medium: out of it if the
+    /// path is in it, else into it. `Some(true)` when it entered, `None`
+    /// when it would enter a medium beyond [`MAX_NESTED_MEDIA`].
+    pub fn cross(&mut self, obj: usize) -> Option<bool> {
+        if self.contains(obj) {
+            self.remove(obj);
+            Some(false)
+        } else {
+            self.push(obj).then_some(true)
+        }
+    }
+
     /// The medium on the outer side of object `obj`'s surface for this
     /// path: the innermost one, or where `obj` is itself the innermost
     /// (the path leaving it), the one around it.
@@ -549,7 +562,7 @@ pub fn radiance_culled(
     for &(i, _) in &media.camera {
         stack.push(i);
     }
-    let medium_of = |obj: usize| scene.materials[scene.object_material[obj]].medium();
+    let medium_of = |obj: usize| object_medium(scene, obj);
     // One colour channel from the first chromatic medium on (grey media
     // carry all three: their flights and albedos are the same in each).
     let mut path_channel: Option<usize> = None;
@@ -737,16 +750,13 @@ pub fn radiance_culled(
         // Crossing a medium's boundary leaves it if the path is inside
         // it, and else enters it (inside the media it is in: they nest).
         if s.flags.contains(BxdfFlags::TRANSMISSION) && material.medium().is_some() {
-            if stack.contains(obj) {
-                stack.remove(obj);
-            } else {
-                if path_channel.is_none() && material.medium().is_some_and(|m| !m.is_grey()) {
-                    let (c, one) = pick_channel(beta, rng);
-                    (path_channel, beta) = (Some(c), one);
-                }
-                if !stack.push(obj) {
-                    break;
-                }
+            let Some(entered) = stack.cross(obj) else {
+                break;
+            };
+            if entered && path_channel.is_none() && material.medium().is_some_and(|m| !m.is_grey())
+            {
+                let (c, one) = pick_channel(beta, rng);
+                (path_channel, beta) = (Some(c), one);
             }
         }
         prev_pdf = if s.flags.is_specular() {

@@ -648,12 +648,13 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
     return max3(path.beta) > 0.0;
 }
 
-// Light from the point lights that reach p, a scattering event inside a
-// medium (extinction st in the path's channel, Henyey-Greenstein g) on a
-// path travelling along d (integrator.rs `medium_light`): I p(wl . d)
-// exp(-st r) / r^2 per unoccluded light of the medium's material
-// (`position.w`, layout.rs `GpuLight`); a light outside the medium is
-// occluded by its boundary, and no shadow ray is traced to it.
+// Light from the point lights that reach p, a scattering event inside the
+// path's media (Henyey-Greenstein g) on a path travelling along d
+// (integrator.rs `medium_light`): I p(wl . d) T / r^2 per light, T its
+// `shadow_transmittance`. Without null boundaries only the lights of the
+// innermost medium's material are tried (`position.w`, layout.rs
+// `GpuLight`): one outside it is occluded by its boundary, and no shadow
+// ray is traced to it.
 fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
@@ -673,6 +674,35 @@ fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32) -> vec3<f32> {
         l += light.intensity.rgb * tr * (hg_phase(dot(wl, d), g) / dist2);
     }
     return l;
+}
+
+// The medium on the outer side of the surface of medium id (1 + its
+// material) for a path in the packed media med (integrator.rs
+// `MediumStack::outside_of`): the innermost, or where id is the innermost
+// (the path leaving it) the one around it.
+fn medium_outside(med: u32, id: u32) -> u32 {
+    if ((med & 0xffffu) == id) {
+        return med >> 16u;
+    }
+    return med & 0xffffu;
+}
+
+// The packed media med after crossing the boundary of medium id
+// (integrator.rs `MediumStack::cross`): out of it if med holds it, else
+// into it; MEDIA_TOO_DEEP for a third (refused before the render,
+// render.rs `nested_too_deep`).
+const MEDIA_TOO_DEEP: u32 = 0xffffffffu;
+fn medium_crossed(med: u32, id: u32) -> u32 {
+    if ((med & 0xffffu) == id) {
+        return med >> 16u;
+    }
+    if ((med >> 16u) == id) {
+        return med & 0xffffu;
+    }
+    if (med > 0xffffu) {
+        return MEDIA_TOO_DEEP;
+    }
+    return (med << 16u) | id;
 }
 
 // Extinction over a distance t in the innermost of the packed media med
@@ -723,10 +753,7 @@ fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) ->
             return vec3<f32>(0.0);
         }
         let id = mi + 1u;
-        var outside = med & 0xffffu;
-        if (outside == id) {
-            outside = med >> 16u;
-        }
+        let outside = medium_outside(med, id);
         var n_out = 1.0;
         if (outside != 0u) {
             n_out = materials[outside - 1u].a.x;
@@ -735,14 +762,9 @@ fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) ->
             return vec3<f32>(0.0);
         }
         tr *= medium_extinction(med, h.x);
-        if ((med & 0xffffu) == id) {
-            med = med >> 16u;
-        } else if ((med >> 16u) == id) {
-            med = med & 0xffffu;
-        } else if (med > 0xffffu) {
+        med = medium_crossed(med, id);
+        if (med == MEDIA_TOO_DEEP) {
             return vec3<f32>(0.0);
-        } else {
-            med = (med << 16u) | id;
         }
         o = offset_origin(o + h.x * d, h.yzw, d);
         left = dot(goal - o, d);
@@ -836,10 +858,7 @@ fn bounce() -> bool {
         // boundary of the innermost medium, met from inside, meets the
         // medium around it (integrator.rs `MediumStack::outside_of`).
         if (SUBSURFACE && path.medium != 0u) {
-            var seen = medium_top();
-            if (seen == mi + 1u) {
-                seen = path.medium >> 16u;
-            }
+            let seen = medium_outside(path.medium, mi + 1u);
             if (seen != 0u) {
                 let table = materials[seen - 1u].tag.y;
                 if (table != 0u) {
@@ -927,20 +946,14 @@ fn bounce() -> bool {
     // path carries from then on.
     if (is_medium && transmitted) {
         let id = objects[oi].range.z + 1u;
-        if (medium_top() == id) {
-            path.medium = path.medium >> 16u;
-        } else if ((path.medium >> 16u) == id) {
-            path.medium = medium_top();
-        } else {
-            if (path.channel > 2u && !grey_medium(m)) {
-                beta = pick_channel(beta);
-            }
-            // A third medium: refused before (render.rs `nested_too_deep`).
-            if (path.medium > 0xffffu) {
-                return false;
-            }
-            path.medium = (path.medium << 16u) | id;
+        let next = medium_crossed(path.medium, id);
+        if (next == MEDIA_TOO_DEEP) {
+            return false;
         }
+        if ((next & 0xffffu) == id && path.channel > 2u && !grey_medium(m)) {
+            beta = pick_channel(beta);
+        }
+        path.medium = next;
     }
     path.prev_pdf = select(s.pdf, -1.0, (s.flags & FLAG_SPECULAR) != 0u);
     path.o = offset_origin(p, ng, wi);
