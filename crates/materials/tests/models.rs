@@ -275,8 +275,14 @@ fn wo_at(theta_deg: f64) -> DVec3 {
 
 const ANGLES: [f64; 4] = [0.0, 30.0, 60.0, 85.0];
 
-fn chi2_all(samples: usize) {
-    let models = models();
+/// The chi-square test of sampling against the pdf of every model at
+/// every angle of [`ANGLES`] (Sidak-corrected over them all), seeds from
+/// `seed0`: the failures.
+fn chi2_failures<N: std::fmt::Display>(
+    models: &[(N, Material)],
+    samples: usize,
+    seed0: u64,
+) -> Vec<String> {
     let level = sidak(models.len() * ANGLES.len());
     let mut failures = vec![];
     for (i, (name, m)) in models.iter().enumerate() {
@@ -292,14 +298,54 @@ fn chi2_all(samples: usize) {
                 samples,
                 32,
                 64,
-                (i * 10 + j) as u64,
+                (i * 10 + j) as u64 + seed0,
             );
             if !r.passes(level) {
                 failures.push(format!("{name} at {a} deg: {r:?}"));
             }
         }
     }
+    failures
+}
+
+fn chi2_all(samples: usize) {
+    let failures = chi2_failures(&models(), samples, 0);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The directional albedo `E[f cos / pdf]` (the largest channel) of `m`
+/// toward `wo` from `n` samples, and its standard error.
+fn sampled_albedo(m: &Material, wo: DVec3, n: usize, rng: &mut Pcg32) -> (f64, f64) {
+    let (mut sum, mut sum2) = (0.0, 0.0);
+    for _ in 0..n {
+        if let Some(s) = m.sample(wo, rng.next_f64(), rng.next_2d()) {
+            let w = s.weight(s.wi.z).max_component();
+            sum += w;
+            sum2 += w * w;
+        }
+    }
+    let mean = sum / n as f64;
+    let se = ((sum2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
+    (mean, se)
+}
+
+/// The first of `pairs` random direction pairs on the upper hemisphere
+/// where `f(a, b)` and `f(b, a)` of `m` differ (relative 1e-5, any
+/// channel), as a message.
+fn reciprocity_failure(name: &str, m: &Material, pairs: usize, rng: &mut Pcg32) -> Option<String> {
+    for _ in 0..pairs {
+        let mut a = isolux_core::sampling::uniform_sphere(rng.next_2d());
+        let mut b = isolux_core::sampling::uniform_sphere(rng.next_2d());
+        a.z = a.z.abs();
+        b.z = b.z.abs();
+        let (x, y) = (m.f(a, b), m.f(b, a));
+        for (u, v) in [(x.r, y.r), (x.g, y.g), (x.b, y.b)] {
+            if (u - v).abs() > 1e-5 * u.abs().max(v.abs()) + 1e-300 {
+                return Some(format!("{name}: {x:?} vs {y:?}"));
+            }
+        }
+    }
+    None
 }
 
 #[test]
@@ -346,18 +392,8 @@ fn reciprocity() {
     // All models here are reciprocal (microfacet F depends on wo.m = wi.m).
     let mut rng = Pcg32::new(8, 8);
     for (name, m) in models() {
-        for _ in 0..2000 {
-            let mut a = isolux_core::sampling::uniform_sphere(rng.next_2d());
-            let mut b = isolux_core::sampling::uniform_sphere(rng.next_2d());
-            a.z = a.z.abs();
-            b.z = b.z.abs();
-            let (x, y) = (m.f(a, b), m.f(b, a));
-            for (u, v) in [(x.r, y.r), (x.g, y.g), (x.b, y.b)] {
-                assert!(
-                    (u - v).abs() <= 1e-5 * u.abs().max(v.abs()) + 1e-300,
-                    "{name}: {x:?} vs {y:?}"
-                );
-            }
+        if let Some(why) = reciprocity_failure(name, &m, 2000, &mut rng) {
+            panic!("{why}");
         }
     }
 }
@@ -371,17 +407,7 @@ fn directional_albedo_never_exceeds_one() {
     for (name, m) in models() {
         for k in 0..10 {
             let wo = wo_at(k as f64 * 9.5);
-            let n = 40_000;
-            let (mut sum, mut sum2) = (0.0, 0.0);
-            for _ in 0..n {
-                if let Some(s) = m.sample(wo, rng.next_f64(), rng.next_2d()) {
-                    let w = s.weight(s.wi.z).max_component();
-                    sum += w;
-                    sum2 += w * w;
-                }
-            }
-            let mean = sum / n as f64;
-            let se = ((sum2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
+            let (mean, se) = sampled_albedo(&m, wo, 40_000, &mut rng);
             assert!(
                 mean <= 1.0 + 4.0 * se + 1e-9,
                 "{name} at wo {wo:?}: albedo {mean} +- {se}"
@@ -760,55 +786,17 @@ fn models_seen_from_a_medium_take_its_index() {
 
     let models = models_in_media();
     assert!(models.len() >= 10, "{}", models.len());
-    let level = sidak(models.len() * ANGLES.len());
+    let mut failures = chi2_failures(&models, 50_000, 7000);
     let mut rng = Pcg32::new(21, 4);
-    let mut failures = vec![];
-    for (i, (name, m)) in models.iter().enumerate() {
-        for (j, &a) in ANGLES.iter().enumerate() {
-            let wo = wo_at(a);
-            let r = chi2_test(
-                |wi| m.pdf(wo, wi),
-                |rng: &mut Pcg32| {
-                    m.sample(wo, rng.next_f64(), rng.next_2d())
-                        .filter(|s| !s.flags.is_specular())
-                        .map(|s| s.wi)
-                },
-                50_000,
-                32,
-                64,
-                (i * 10 + j) as u64 + 7000,
-            );
-            if !r.passes(level) {
-                failures.push(format!("{name} at {a} deg: {r:?}"));
-            }
-            // Energy: E[f cos / pdf] at most 1 within its error.
-            let k = 20_000;
-            let (mut sum, mut sum2) = (0.0, 0.0);
-            for _ in 0..k {
-                if let Some(s) = m.sample(wo, rng.next_f64(), rng.next_2d()) {
-                    let w = s.weight(s.wi.z).max_component();
-                    sum += w;
-                    sum2 += w * w;
-                }
-            }
-            let mean = sum / k as f64;
-            let se = ((sum2 / k as f64 - mean * mean).max(0.0) / k as f64).sqrt();
+    for (name, m) in &models {
+        // Energy: E[f cos / pdf] at most 1 within its error.
+        for a in ANGLES {
+            let (mean, se) = sampled_albedo(m, wo_at(a), 20_000, &mut rng);
             if mean > 1.0 + 4.0 * se + 1e-9 {
                 failures.push(format!("{name} at {a} deg: albedo {mean} +- {se}"));
             }
         }
-        // Reciprocity.
-        for _ in 0..500 {
-            let mut a = isolux_core::sampling::uniform_sphere(rng.next_2d());
-            let mut b = isolux_core::sampling::uniform_sphere(rng.next_2d());
-            a.z = a.z.abs();
-            b.z = b.z.abs();
-            let (x, y) = (m.f(a, b), m.f(b, a));
-            if (x.r - y.r).abs() > 1e-5 * x.r.abs().max(y.r.abs()) + 1e-300 {
-                failures.push(format!("{name}: f not reciprocal, {x:?} against {y:?}"));
-                break;
-            }
-        }
+        failures.extend(reciprocity_failure(name, m, 500, &mut rng));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
