@@ -1045,12 +1045,15 @@ pub struct GpuParams {
     /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
     /// render.wgsl).
     pub layers: [u32; 4],
-    /// `[the random-walk media the camera is in, null boundaries, 0, 0]`:
-    /// `1 +` the material of the innermost in the low 16 bits, of the one
-    /// around it in the high 16 (0: none), where camera paths start
-    /// (`isolux_render::Scene::media_at`); 1 where the scene may hold null
-    /// boundaries, which point lights' shadow rays pass
-    /// (`isolux_render::Scene::may_have_null_boundaries`).
+    /// `[the random-walk media the camera is in, null boundaries,
+    /// equiangular sampling, 0]`: `1 +` the material of the innermost in
+    /// the low 16 bits, of the one around it in the high 16 (0: none),
+    /// where camera paths start (`isolux_render::Scene::media_at`); 1
+    /// where the scene may hold null boundaries, which point lights'
+    /// shadow rays pass (`isolux_render::Scene::may_have_null_boundaries`);
+    /// 1 where flights through media sample their point lights'
+    /// light by equiangular sampling too
+    /// (`isolux_render::MediumLightSampling::Equiangular`).
     pub camera: [u32; 4],
 }
 

@@ -6,7 +6,7 @@
 use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
 use crate::{Features, Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
 use isolux_core::{Aovs, Image, Rgb, PI};
-use isolux_render::{Camera, Environment, RenderStats, Scene};
+use isolux_render::{Camera, Environment, MediumLightSampling, RenderStats, Scene};
 use wgpu::util::DeviceExt;
 
 /// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
@@ -1155,7 +1155,7 @@ impl Gpu {
             camera: [
                 medium_of(&media, scene.camera.position),
                 null_boundaries as u32,
-                0,
+                (scene.integrator.medium_lights == MediumLightSampling::Equiangular) as u32,
                 0,
             ],
         };

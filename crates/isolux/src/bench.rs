@@ -296,7 +296,11 @@ fn sss(size: u32) -> Result<()> {
             height: size,
             spp,
         },
-        integrator: IntegratorSettings { max_depth: 8, seed },
+        integrator: IntegratorSettings {
+            max_depth: 8,
+            seed,
+            ..Default::default()
+        },
         lights: vec![],
         environment: env.clone(),
         materials: vec![Material::Subsurface(Subsurface::new(

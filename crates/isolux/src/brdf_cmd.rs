@@ -493,6 +493,7 @@ pub fn lit_sphere(name: String, m: Material, size: u32, spp: u32) -> Result<isol
         integrator: IntegratorSettings {
             max_depth: 8,
             seed: 0,
+            ..Default::default()
         },
         lights: vec![PointLight {
             position: DVec3::new(3.0, 3.5, 4.0),

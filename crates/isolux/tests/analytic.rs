@@ -4,7 +4,7 @@
 //! pinhole formula written out again), so a camera bug cannot hide itself.
 
 use isolux_core::{DVec3, Image};
-use isolux_render::{render, RenderOptions, Scene};
+use isolux_render::{render, MediumLightSampling, RenderOptions, Scene};
 use std::path::Path;
 
 fn scene(src: &str) -> Scene {
@@ -1109,29 +1109,8 @@ fn a_lamp_outside_fog_makes_it_glow() {
 #[test]
 fn a_lamp_in_a_scattering_medium_glows_by_single_scattering() {
     let (ss, sa, g) = (0.02, 0.98, 0.5);
-    let st = ss + sa;
     let s = lamp_in_medium(ss, sa, false);
-    let light = s.lights[0].position;
-    let hg = |c: f64| {
-        let d = 1.0 + g * g - 2.0 * g * c;
-        (1.0 - g * g) / (4.0 * std::f64::consts::PI * d * d.sqrt())
-    };
-    let want = film_of(&s, |ray| {
-        let (n, t_end) = (4000, 40.0);
-        let h = t_end / n as f64;
-        let f = |t: f64| {
-            let p = ray.at(t);
-            let d = light - p;
-            let r2 = d.length_squared();
-            let r = r2.sqrt();
-            ss * (-st * t).exp() * hg(d.dot(ray.dir) / r) * 20.0 * (-st * r).exp() / r2
-        };
-        let mut sum = f(0.0) + f(t_end);
-        for k in 1..n {
-            sum += f(k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
-        }
-        sum * h / 3.0
-    });
+    let want = single_scattered_glow(&s, ss, ss + sa, g);
     let (got, want, se) = against(&render_with(&s, 2), &want);
     eprintln!("lamp in scattering medium: render {got} +- {se}, single scattering {want}");
     assert!(want > 1e-3, "{want}");
@@ -1139,6 +1118,112 @@ fn a_lamp_in_a_scattering_medium_glows_by_single_scattering() {
         got > want - 4.0 * se && got < 1.03 * want + 4.0 * se,
         "render {got} +- {se}, single scattering {want}"
     );
+}
+
+/// Per pixel of `s` (a lamp of intensity 20 in a medium around the camera,
+/// `lamp_in_medium` without floor), the lamp's light scattered once into
+/// the camera: `int sigma_s exp(-sigma_t t) p(cos) I exp(-sigma_t r) / r^2
+/// dt` along each camera ray to the medium's boundary (Henyey-Greenstein
+/// `p`). Simpson's rule in the angle `theta` under which the lamp sees
+/// the ray's point (`t = delta + D tan theta`, `dt / r^2 = dtheta / D`),
+/// where the integrand is smooth however close the ray passes the lamp.
+fn single_scattered_glow(s: &Scene, ss: f64, st: f64, g: f64) -> Vec<f64> {
+    let light = s.lights[0].position;
+    let hg = |c: f64| {
+        let d = 1.0 + g * g - 2.0 * g * c;
+        (1.0 - g * g) / (4.0 * std::f64::consts::PI * d * d.sqrt())
+    };
+    film_of(s, |ray| {
+        let to = light - ray.origin;
+        let delta = to.dot(ray.dir);
+        let dd = (to - delta * ray.dir).length();
+        // The sphere of radius 50 about the origin holds the camera.
+        let (o, d) = (ray.origin, ray.dir);
+        let b = o.dot(d);
+        let t_end = -b + (b * b - o.length_squared() + 2500.0).sqrt();
+        let (a, e) = ((-delta / dd).atan(), ((t_end - delta) / dd).atan());
+        let n = 4000;
+        let h = (e - a) / n as f64;
+        let f = |theta: f64| {
+            let t = delta + dd * theta.tan();
+            let r = dd / theta.cos();
+            let cos = (light - ray.at(t)).dot(ray.dir) / r;
+            ss * (-st * t).exp() * hg(cos) * 20.0 * (-st * r).exp() / dd
+        };
+        let mut sum = f(a) + f(e);
+        for k in 1..n {
+            sum += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+        }
+        sum * h / 3.0
+    })
+}
+
+/// Equiangular sampling of a lamp's light along the flights through a
+/// medium (`medium_light_sampling = "equiangular"`, the default) against
+/// next-event estimation at the free flights' scattering points alone
+/// (`"distance"`), on the lamp of `lamp-in-medium.toml` at albedo 0.02,
+/// turned into view: both agree with the single-scattering integral (plus
+/// at most 5% of higher orders), and the equiangular film's noise (the
+/// standard error of its mean against the reference, over pixels) is at
+/// least 2 times smaller at the same samples (measured: 3.5 times). The
+/// distance strategy's `1 / d^2` at scattering points near the lamp gives
+/// its estimate unbounded variance.
+#[test]
+fn equiangular_sampling_quiets_a_lamps_glow() {
+    // The file's phase function; albedo 0.02.
+    let (ss, sa, g) = (0.02, 0.98, 0.5);
+    let mut src = test_scene(
+        "lamp-in-medium.toml",
+        &[
+            (
+                "sigma_s = [0.3, 0.3, 0.3]",
+                &format!("sigma_s = [{ss}, {ss}, {ss}]"),
+            ),
+            (
+                "sigma_a = [0.2, 0.2, 0.2]",
+                &format!("sigma_a = [{sa}, {sa}, {sa}]"),
+            ),
+            ("look_at = [0.0, -0.6, 0.0]", "look_at = [0.6, 0.8, -0.4]"),
+        ],
+    );
+    src.truncate(src.find("\n# floor\n").unwrap());
+    let mut s = scene(&src);
+    s.film.spp = 16;
+    let want = single_scattered_glow(&s, ss, ss + sa, g);
+    // The pixels whose rays pass within 0.05 of the lamp are left out: the
+    // reference's 16 points per pixel do not resolve its `1 / D` there.
+    let light = s.lights[0].position;
+    let near = film_of(&s, |ray| {
+        let to = light - ray.origin;
+        (to - to.dot(ray.dir) * ray.dir).length()
+    });
+    let keep: Vec<usize> = (0..want.len()).filter(|&i| near[i] > 0.05).collect();
+    assert!(keep.len() < want.len() && keep.len() + 10 > want.len());
+
+    let mut noise = Vec::new();
+    for strategy in [
+        MediumLightSampling::Distance,
+        MediumLightSampling::Equiangular,
+    ] {
+        s.integrator.medium_lights = strategy;
+        let img = render_with(&s, 2);
+        let d: Vec<f64> = keep
+            .iter()
+            .map(|&i| img.rgb[i].iter().map(|&c| c as f64).sum::<f64>() / 3.0 - want[i])
+            .collect();
+        let n = d.len() as f64;
+        let md = d.iter().sum::<f64>() / n;
+        let se = (d.iter().map(|x| (x - md).powi(2)).sum::<f64>() / n / n).sqrt();
+        let want = keep.iter().map(|&i| want[i]).sum::<f64>() / n;
+        let got = want + md;
+        eprintln!("{strategy:?}: render {got} +- {se}, single scattering {want}");
+        assert!(
+            got > want - 4.0 * se && got < 1.05 * want + 4.0 * se,
+            "{strategy:?}: render {got} +- {se}, single scattering {want}"
+        );
+        noise.push(se);
+    }
+    assert!(noise[1] * 2.0 < noise[0], "standard errors {noise:?}");
 }
 
 #[test]

@@ -22,4 +22,4 @@ pub use camera::{Camera, CameraRig};
 pub use environment::{EnvMap, Environment};
 pub use light::PointLight;
 pub use render::{render, RenderError, RenderOptions, RenderStats};
-pub use scene::{FilmProblem, FilmSettings, IntegratorSettings, Scene};
+pub use scene::{FilmProblem, FilmSettings, IntegratorSettings, MediumLightSampling, Scene};

@@ -15,7 +15,8 @@ use isolux_materials::{
 };
 use isolux_materials::{HeidrichSeidel, Plastic, Subsurface, SubsurfaceBrdf, Ward};
 use isolux_render::{
-    Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, PointLight, Scene,
+    Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, MediumLightSampling, PointLight,
+    Scene,
 };
 use std::path::Path;
 
@@ -282,8 +283,14 @@ fn film(t: &Table) -> Result<FilmSettings> {
 }
 
 fn integrator(t: &Table) -> Result<IntegratorSettings> {
-    t.allow(&["max_depth", "seed"])?;
+    t.allow(&["max_depth", "seed", "medium_light_sampling"])?;
     let mut s = IntegratorSettings::default();
+    if let Some(v) = t.get("medium_light_sampling") {
+        s.medium_lights = match v.choice(&["equiangular", "distance"])? {
+            "distance" => MediumLightSampling::Distance,
+            _ => MediumLightSampling::Equiangular,
+        };
+    }
     if let Some(v) = t.get("max_depth") {
         s.max_depth = v.uint(0, IntegratorSettings::MAX_DEPTH as u64)? as u32;
     }

@@ -648,30 +648,101 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
     return max3(path.beta) > 0.0;
 }
 
-// Light from the point lights that reach p, a scattering event inside the
-// path's media (Henyey-Greenstein g) on a path travelling along d
-// (integrator.rs `medium_light`): I p(wl . d) T / r^2 per light, T its
-// `shadow_transmittance`. Without null boundaries only the lights of the
-// innermost medium's material are tried (`position.w`, layout.rs
-// `GpuLight`): one outside it is occluded by its boundary, and no shadow
-// ray is traced to it.
-fn medium_light(p: vec3<f32>, d: vec3<f32>, g: f32) -> vec3<f32> {
+// Whether scattering events in the path's media try point light i
+// (integrator.rs `medium_lights`): every light in a scene with null
+// boundaries, else only the lights of the innermost medium's material
+// (`position.w`, layout.rs `GpuLight`): one outside it is occluded by
+// its boundary, and no shadow ray is traced to it.
+fn medium_tries(i: u32) -> bool {
+    return params.camera.y != 0u || u32(lights[i].position.w) == medium_top();
+}
+
+// Equiangular sampling toward point c on the segment [0, t_end) of the
+// ray o + t d (core sampling.rs `Equiangular`, Kulla and Fajardo 2012):
+// `(delta, D, theta_a, theta_b)`, with D = 0 where c lies on the ray's
+// line and the density is not defined.
+fn equiangular(o: vec3<f32>, d: vec3<f32>, t_end: f32, c: vec3<f32>) -> vec4<f32> {
+    let to = c - o;
+    let delta = dot(to, d);
+    let dd = length(to - delta * d);
+    if (!(t_end > 0.0) || !(dd > 1e-6 * length(to))) {
+        return vec4<f32>(0.0);
+    }
+    let ta = atan2(-delta, dd);
+    let tb = atan2(t_end - delta, dd);
+    if (!(tb > ta)) {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(delta, dd, ta, tb);
+}
+
+fn equiangular_pdf(e: vec4<f32>, t: f32) -> f32 {
+    let x = t - e.x;
+    return e.y / ((e.w - e.z) * (e.y * e.y + x * x));
+}
+
+// The point lights' light scattered toward the path along its flight
+// from o along d through the innermost medium (extinction st, scattering
+// ss, Henyey-Greenstein g in the path's channel), which meets the next
+// surface at t_end, per unit of the path's throughput at o (integrator.rs
+// `medium_light` and `equiangular_light`): where `scatter`, next-event
+// estimation at the flight's scattering point t, `ss / st I p T / r^2`
+// per light; where `equi` (`params.camera.z`, scene key
+// `medium_light_sampling`), one equiangular sample per light along the
+// flight, `ss exp(-st t') I p T / r^2 / pdf(t')`, the two weighted by
+// the power heuristic. One call site of `shadow_transmittance` (docs/gpu.md,
+// "One call site per switch").
+fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32, g: f32,
+                equi: bool, scatter: bool) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
+        if (!medium_tries(i)) {
+            continue;
+        }
         let light = lights[i];
-        // Without null boundaries only the medium's own lights.
-        if (params.camera.y == 0u && u32(light.position.w) != medium_top()) {
-            continue;
+        var e = vec4<f32>(0.0);
+        if (equi) {
+            e = equiangular(o, d, t_end, light.position.xyz);
         }
-        let dl = light.position.xyz - p;
-        let dist2 = dot(dl, dl);
-        if (!(dist2 > 0.0)) {
-            continue;
+        // k = 0: the equiangular sample; k = 1: the scattering point.
+        for (var k = 0u; k < 2u; k++) {
+            var tk = t;
+            var w = 0.0;
+            if (k == 0u) {
+                let u = rand();
+                if (e.y == 0.0) {
+                    continue;
+                }
+                tk = e.x + e.y * tan(e.z + u * (e.w - e.z));
+                let pdf = equiangular_pdf(e, tk);
+                if (!(tk >= 0.0 && tk < t_end) || !(pdf > 0.0) || !finite(pdf)) {
+                    continue;
+                }
+                let tr = exp(-st * tk);
+                w = ss * tr * power_heuristic(pdf, st * tr) / pdf;
+            } else {
+                if (!scatter) {
+                    continue;
+                }
+                w = ss / st;
+                if (e.y != 0.0) {
+                    w *= power_heuristic(st * exp(-st * t), equiangular_pdf(e, t));
+                }
+            }
+            if (!(w > 0.0) || !finite(w)) {
+                continue;
+            }
+            let p = o + tk * d;
+            let dl = light.position.xyz - p;
+            let dist2 = dot(dl, dl);
+            if (!(dist2 > 0.0)) {
+                continue;
+            }
+            let dist = sqrt(dist2);
+            let wl = dl / dist;
+            let tr = shadow_transmittance(p, wl, dist, true);
+            l += light.intensity.rgb * tr * (w * hg_phase(dot(wl, d), g) / dist2);
         }
-        let dist = sqrt(dist2);
-        let wl = dl / dist;
-        let tr = shadow_transmittance(p, wl, dist, true);
-        l += light.intensity.rgb * tr * (hg_phase(dot(wl, d), g) / dist2);
     }
     return l;
 }
@@ -776,8 +847,8 @@ fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) ->
 }
 
 // A scattering event at p inside the medium (random walk): albedo of the
-// path's channel, the point lights in the medium (`medium_light`),
-// roulette, a Henyey-Greenstein direction about d.
+// path's channel, roulette, a Henyey-Greenstein direction about d (its
+// point lights were gathered by `bounce`'s `medium_light`).
 fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
     path.events += 1u;
     if (path.events > MAX_MEDIUM_EVENTS) {
@@ -785,7 +856,6 @@ fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
     }
     let mm = materials[medium_top() - 1u];
     let scattered = path.beta * (mm.b.rgb[min(path.channel, 2u)] / st);
-    path.l += scattered * medium_light(p, d, mm.a.y);
     let beta = roulette(scattered);
     if (!(max3(beta) > 0.0)) {
         return false;
@@ -826,19 +896,38 @@ fn bounce() -> bool {
     } else {
         let o = path.o;
         let d = path.d;
-        // Free flight inside a medium limits the search for the surface.
+        // Free flight inside a medium limits the search for the surface,
+        // unless equiangular sampling of its lights needs the whole flight
+        // (`params.camera.z`, integrator.rs `MediumLightSampling`).
         var t_max = 3.0e38;
         var st = 0.0;
+        var equi = false;
+        var any_lights = false;
         if (SUBSURFACE && path.medium != 0u) {
             let mm = materials[medium_top() - 1u];
             st = (mm.b.rgb + mm.c.rgb)[min(path.channel, 2u)];
             if (st > 0.0) {
                 t_max = -log(1.0 - rand()) / st;
+                for (var i = 0u; i < params.counts.y; i++) {
+                    any_lights = any_lights || medium_tries(i);
+                }
+                equi = any_lights && params.camera.z != 0u;
             }
         }
-        let h = scene_hit(o, d, t_max);
-        if (SUBSURFACE && h.x < 0.0 && t_max < 3.0e38) {
-            return medium_scatter(o + t_max * d, d, st);
+        let h = scene_hit(o, d, select(t_max, 3.0e38, equi));
+        if (SUBSURFACE && t_max < 3.0e38) {
+            let t_end = select(3.0e38, h.x, h.x >= 0.0);
+            let scatter = t_max < t_end;
+            if (any_lights && (equi || scatter)) {
+                let hit = hit_object;
+                let mm = materials[medium_top() - 1u];
+                let ss = mm.b.rgb[min(path.channel, 2u)];
+                path.l += path.beta * medium_light(o, d, t_max, t_end, st, ss, mm.a.y, equi, scatter);
+                hit_object = hit;
+            }
+            if (scatter) {
+                return medium_scatter(o + t_max * d, d, st);
+            }
         }
         if (h.x < 0.0) {
             var w = 1.0;
