@@ -298,7 +298,7 @@ fn medium_light(
     let (p, dir) = (flight.ray.at(t), flight.ray.dir);
     let mut l = Rgb::BLACK;
     for light in medium_lights(scene, media, stack) {
-        let w = match flight.equiangular(light).filter(|_| equiangular) {
+        let w = match equiangular.then(|| flight.equiangular(light)).flatten() {
             Some(e) => power_heuristic(flight.density(t), e.pdf(t)),
             None => 1.0,
         };
