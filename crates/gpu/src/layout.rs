@@ -999,7 +999,7 @@ impl GpuMaterials {
 }
 
 /// A point light. WGSL: `struct Light { position: vec4<f32>, intensity:
-/// vec4<f32> }`.
+/// vec4<f32>, plane: vec4<f32> }`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
@@ -1007,8 +1007,15 @@ pub struct GpuLight {
     /// light lies in (0: none; `medium_light` in render.wgsl gathers a
     /// light only at scattering events in its medium).
     pub position: [f32; 4],
-    /// `[r, g, b, 0]` (W/sr).
+    /// `[r, g, b, f]` (W/sr): `f` 1 + the material of the random-walk
+    /// medium bounded by a plane whose inside the light reaches through
+    /// the plane by refraction (0: none; `refraction` in render.wgsl,
+    /// `isolux_render` `Scene::flat_boundary`).
     pub intensity: [f32; 4],
+    /// That medium's plane: `[nx, ny, nz, offset]`, the outward unit
+    /// normal and `n . p` on the plane (in the frame's rebased
+    /// coordinates).
+    pub plane: [f32; 4],
 }
 
 /// The render kernel's parameter block (a read-only storage buffer, see
@@ -1486,7 +1493,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuRay>(), 32);
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
-        assert_eq!(std::mem::size_of::<GpuLight>(), 32);
+        assert_eq!(std::mem::size_of::<GpuLight>(), 48);
         assert_eq!(std::mem::size_of::<GpuParams>(), 192);
         assert_eq!(std::mem::size_of::<GpuQuery>(), 80);
         assert_eq!(std::mem::size_of::<GpuAnswer>(), 48);

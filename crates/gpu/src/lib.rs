@@ -25,9 +25,10 @@ pub mod layout;
 mod render;
 
 pub use render::{
-    f32_ill_conditioned, f32_shortfall, mix_of_waves, rebase_point, replace_unsupported,
-    thin_object_warning, unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio,
-    BumpCondition, GpuFrame, ScaleRatio, F32_CONDITION_LIMIT, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
+    f32_ill_conditioned, f32_shortfall, mix_of_waves, rebase_point, refracted_media,
+    replace_unsupported, thin_object_warning, unsupported_material, wave_count,
+    worst_bump_condition, worst_scale_ratio, BumpCondition, GpuFrame, ScaleRatio,
+    F32_CONDITION_LIMIT, F32_VALUE_LIMIT, MAX_SCALE_RATIO,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
@@ -300,6 +301,11 @@ pub struct Features {
     /// nearest hits is left out (lavapipe: the dipole example's path
     /// tracer 1.15x slower with it).
     pub null_boundaries: bool,
+    /// Point lights above a random-walk medium bounded by a plane (the
+    /// sun above the sea) lighting its inside by refraction through the
+    /// plane (`REFRACTION` in the WGSL; `refraction` in `render.wgsl`,
+    /// [`refracted_media`]).
+    pub refraction: bool,
 }
 
 impl Features {
@@ -311,6 +317,7 @@ impl Features {
         many_lights: true,
         tiles: true,
         null_boundaries: true,
+        refraction: true,
     };
     /// No material code at all (what the AOV kernel reaches) and no
     /// candidate list.
@@ -320,6 +327,7 @@ impl Features {
         many_lights: false,
         tiles: false,
         null_boundaries: false,
+        refraction: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
@@ -338,6 +346,7 @@ impl Features {
             many_lights: true,
             tiles: true,
             null_boundaries: true,
+            refraction: true,
         }
     }
 
@@ -374,6 +383,7 @@ impl Features {
             && (self.list || !needed.list)
             && (self.many_lights || !needed.many_lights)
             && (self.null_boundaries || !needed.null_boundaries)
+            && (self.refraction || !needed.refraction)
     }
 
     /// The part of `self` that an entry point of the render module
@@ -421,13 +431,18 @@ impl std::fmt::Display for Features {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE};
         if *self != Features::ALL
-            && (self.list || self.many_lights || self.tiles || self.null_boundaries)
+            && (self.list
+                || self.many_lights
+                || self.tiles
+                || self.null_boundaries
+                || self.refraction)
         {
             let models = Features {
                 list: false,
                 many_lights: false,
                 tiles: false,
                 null_boundaries: false,
+                refraction: false,
                 ..*self
             };
             write!(f, "{models}")?;
@@ -442,6 +457,9 @@ impl std::fmt::Display for Features {
             }
             if self.null_boundaries {
                 f.write_str(", null boundaries")?;
+            }
+            if self.refraction {
+                f.write_str(", refracted lights")?;
             }
             return Ok(());
         }
@@ -502,6 +520,7 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
             "const NULL_BOUNDARIES: bool = {};\n",
             features.null_boundaries
         )
+        + &format!("const REFRACTION: bool = {};\n", features.refraction)
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -1269,6 +1288,7 @@ mod tests {
             many_lights: list,
             tiles: !list,
             null_boundaries: list,
+            refraction: list,
         };
         let mut sets = vec![Features::NONE, Features::ALL];
         sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, false)));
@@ -1314,6 +1334,7 @@ mod tests {
             models: 1 << tag::DIFFUSE | 1 << tag::DIELECTRIC,
             tiles: false,
             null_boundaries: false,
+            refraction: false,
             ..Features::ALL
         };
         assert_eq!(
@@ -1358,7 +1379,8 @@ mod tests {
         }]);
         assert_eq!(
             sss.to_string(),
-            "subsurface, candidate list, many lights, tile lists, null boundaries"
+            "subsurface, candidate list, many lights, tile lists, null boundaries, \
+             refracted lights"
         );
         // Kernels with the null boundaries' loop cover those without.
         let plain = Features {
@@ -1366,6 +1388,12 @@ mod tests {
             ..sss
         };
         assert!(sss.covers(plain) && !plain.covers(sss));
+        // And kernels with refracted lights those without.
+        let unrefracted = Features {
+            refraction: false,
+            ..sss
+        };
+        assert!(sss.covers(unrefracted) && !unrefracted.covers(sss));
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
         // The real-time mode shades a medium with its local BRDF.
         let rt = sss.reached_by("realtime");
@@ -1377,7 +1405,8 @@ mod tests {
         };
         assert_eq!(
             many.to_string(),
-            "17 models with wave, candidate list, many lights, tile lists, null boundaries"
+            "17 models with wave, candidate list, many lights, tile lists, null boundaries, \
+             refracted lights"
         );
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.

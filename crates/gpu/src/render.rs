@@ -850,6 +850,56 @@ fn innermost(packed: u32) -> u32 {
     packed & 0xffff
 }
 
+/// Per point light of `scene`, the random-walk medium bounded by an
+/// unbounded plane that the light lies above (its object and plane,
+/// `Scene::flat_boundary`), whose inside it reaches by refraction
+/// through the plane (`refraction` in render.wgsl, as on the CPU);
+/// `Err` with why `--gpu` refuses the scene where the GPU cannot tell
+/// the medium from the path's (its media are materials, not objects:
+/// the medium's material also on another object; a light above two such
+/// media) or the plane has `bounds`.
+pub fn refracted_media(
+    scene: &Scene,
+) -> Result<Vec<Option<(usize, isolux_render::FlatBoundary)>>, String> {
+    let flat: Vec<_> = scene
+        .media()
+        .filter_map(|(i, _, _)| scene.flat_boundary(i).map(|b| (i, b)))
+        .collect();
+    let fix = "render without --gpu";
+    let mut out = Vec::new();
+    for (k, l) in scene.lights.iter().enumerate() {
+        let above: Vec<_> = flat
+            .iter()
+            .filter(|(_, b)| b.normal.dot(l.position) > b.offset)
+            .collect();
+        match above[..] {
+            [] => out.push(None),
+            [&(i, b)] => {
+                let mi = scene.object_material[i];
+                if let Some(j) = (0..scene.object_material.len())
+                    .find(|&j| j != i && scene.object_material[j] == mi)
+                {
+                    return Err(format!(
+                        "light[{k}] reaches the medium of object[{i}] through its flat surface,                          and object[{j}] has the same material: the GPU follows media by                          material and cannot tell them apart; give object[{i}] a material of                          its own, or {fix}"
+                    ));
+                }
+                if b.bbox.is_finite() || b.bbox.min.is_finite() || b.bbox.max.is_finite() {
+                    return Err(format!(
+                        "light[{k}] reaches the medium of object[{i}] through its flat surface,                          which has bounds: the GPU refracts point lights through unbounded                          planes only; {fix}"
+                    ));
+                }
+                out.push(Some((i, b)));
+            }
+            [&(i, _), &(j, _), ..] => {
+                return Err(format!(
+                    "light[{k}] lies above the flat surfaces of two random-walk media                      (object[{i}] and object[{j}]): the GPU refracts a point light into one;                      {fix}"
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Three random-walk media of `scene` whose bounding boxes overlap (the
 /// GPU's paths follow two nested media, a marble under water, and not a
 /// third), or a medium whose material index does not fit the kernels'
@@ -1094,10 +1144,12 @@ impl Gpu {
             .into_iter()
             .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
             .collect();
+        let refracted = refracted_media(scene).map_err(GpuError::Setup)?;
         let lights: Vec<GpuLight> = scene
             .lights
             .iter()
-            .map(|l| GpuLight {
+            .zip(&refracted)
+            .map(|(l, r)| GpuLight {
                 // w: 1 + the material of the random-walk medium the light
                 // lies in (0: none), whose scattering events gather it.
                 position: {
@@ -1108,8 +1160,12 @@ impl Gpu {
                     l.intensity.r as f32,
                     l.intensity.g as f32,
                     l.intensity.b as f32,
-                    0.0,
+                    r.map_or(0, |(i, _)| scene.object_material[i] + 1) as f32,
                 ],
+                plane: r.map_or([0.0; 4], |(_, b)| {
+                    let [x, y, z, _] = v4(b.normal);
+                    [x, y, z, (b.offset - b.normal.dot(at)) as f32]
+                }),
             })
             .collect();
         let (env_kind, env_rgb, env_size, texels, cdf) = match &scene.environment {
@@ -1240,6 +1296,7 @@ impl Gpu {
         let bind = self.frame_bind_group(&buffers, &layers);
         let needed = Features {
             null_boundaries,
+            refraction: refracted.iter().any(Option::is_some),
             ..Features::of(&materials.materials).fit_to(&geo, scene.lights.len())
         };
         let random_walk = materials

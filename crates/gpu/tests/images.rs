@@ -501,6 +501,75 @@ fn equiangular_sampling_quiets_lamps_on_the_gpu() {
     assert!(rms[0] * 2.0 < rms[1], "noise {rms:?}");
 }
 
+/// A lamp above water lights the floor and the water under the flat
+/// surface by refraction (`examples/tests/sun-above-water.toml`; the
+/// CPU's closed forms in `crates/isolux/tests/analytic.rs`): GPU against
+/// CPU within noise, the floor's mean against the closed form's
+/// (0.041059), and the lit water's.
+#[test]
+fn lamps_above_water_match_the_cpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let floor = common::test_scene_text("sun-above-water.toml");
+    let scene = isolux_scene::parse_str(&floor, Path::new("sun.toml"), Path::new(".")).unwrap();
+    let m = image_mean(&gpu_image(&gpu, &scene));
+    eprintln!("floor under water: GPU {m}");
+    assert!((m - 0.041059).abs() < 0.02 * 0.041059, "{m}");
+    let mut water = floor
+        .replace("sigma_s = [0.0, 0.0, 0.0]", "sigma_s = [0.1, 0.1, 0.1]")
+        .replace("sigma_a = [0.3, 0.3, 0.3]", "sigma_a = [0.2, 0.2, 0.2]")
+        .replace("max_depth = 1", "max_depth = 4");
+    water.truncate(water.find("\n# floor\n").unwrap());
+    for (name, src) in [
+        (
+            "floor under water",
+            floor.replace("max_depth = 1", "max_depth = 4"),
+        ),
+        ("water under a lamp", water),
+    ] {
+        let mut scene =
+            isolux_scene::parse_str(&src, Path::new("sun.toml"), Path::new(".")).unwrap();
+        let (diff, noise, mg, mc) = compare(&gpu, &mut scene, name);
+        assert!(mc > 0.001, "{name}: {mc}");
+        assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    }
+}
+
+/// What the GPU cannot follow of lamps above flat water is refused by
+/// name before a render (`refracted_media`; no adapter needed): the
+/// water's material on a second object (the GPU's media are materials), a
+/// plane with `bounds`, a lamp above two flat media. The plain scene
+/// passes, with the lamp refracted into the water, object 0.
+#[test]
+fn refracted_lights_the_gpu_cannot_follow_are_refused() {
+    let src = common::test_scene_text("sun-above-water.toml");
+    let parse =
+        |s: &str| isolux_scene::parse_str(s, Path::new("sun.toml"), Path::new(".")).unwrap();
+    let ok = isolux_gpu::refracted_media(&parse(&src)).unwrap();
+    assert_eq!(
+        ok.iter().map(|r| r.map(|(i, _)| i)).collect::<Vec<_>>(),
+        [Some(0)]
+    );
+    let water = "[[object]]\nmaterial = \"water\"\nbase = { type = \"plane\", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }\n";
+    assert!(src.contains(water));
+    let drop = "[[object]]\nmaterial = \"water\"\nbase = { type = \"sphere\", center = [5.0, -5.0, 0.0], radius = 1.0 }\n";
+    let shared = src.replace(water, &format!("{water}\n{drop}"));
+    let why = isolux_gpu::refracted_media(&parse(&shared)).unwrap_err();
+    assert!(why.contains("object[1] has the same material"), "{why}");
+    let bounded = src.replace(
+        water,
+        &format!("{water}bounds = {{ min = [-5.0, -10.0, -5.0], max = [5.0, 1.0, 5.0] }}\n"),
+    );
+    let why = isolux_gpu::refracted_media(&parse(&bounded)).unwrap_err();
+    assert!(why.contains("has bounds"), "{why}");
+    let pool = "[[material]]\nname = \"pool\"\ntype = \"subsurface\"\nsigma_s = [0.0, 0.0, 0.0]\nsigma_a = [0.1, 0.1, 0.1]\nior = 1.2\nmode = \"random_walk\"\n\n[[object]]\nmaterial = \"pool\"\nbase = { type = \"plane\", point = [0.0, -20.0, 0.0], normal = [0.0, 1.0, 0.0] }\n";
+    let two = format!("{src}\n{pool}");
+    let why = isolux_gpu::refracted_media(&parse(&two)).unwrap_err();
+    assert!(why.contains("two random-walk media"), "{why}");
+}
+
 /// Surfaces under water meet water (the CPU's closed-form check in
 /// `crates/isolux/tests/analytic.rs`): the camera in a half-space of water
 /// sees a black plastic wall (`examples/tests/plastic-under-water.toml`),

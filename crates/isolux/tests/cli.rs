@@ -573,11 +573,12 @@ fn sss_media_and_profile() {
 }
 
 /// A point light outside the random-walk medium around the camera (the
-/// sun above a camera under water) lights nothing the camera sees in the
-/// medium directly: `render` warns, naming the light and the medium's
-/// object, and renders. A lamp in the water (the example as it is) draws
-/// no warning, nor does the sun above water of index 1 (a null boundary,
-/// which shadow rays pass).
+/// sun above a camera in a drop of water) lights nothing the camera sees
+/// in the medium directly: `render` warns, naming the light and the
+/// medium's object, and renders. A lamp in the water (the example as it
+/// is) draws no warning, nor does the sun above water of index 1 (a null
+/// boundary, which shadow rays pass), nor the sun above the example's
+/// flat water (refracted through its surface, since 2026-12-04).
 #[test]
 fn a_light_outside_the_cameras_medium_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
@@ -591,9 +592,16 @@ fn a_light_outside_the_cameras_medium_is_warned_about() {
     let sun = "position = [0.3, 2.0, 1.2]";
     let index_1 = src.replace("ior = 1.33", "ior = 1.0");
     assert_ne!(index_1, src);
+    let plane = "base = { type = \"plane\", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }";
+    let drop = src.replace(
+        plane,
+        "base = { type = \"sphere\", center = [0.0, -50.0, 0.0], radius = 50.0 }",
+    );
+    assert_ne!(drop, src);
     for (src, light, warned) in [
         (&src, lamp, false),
-        (&src, sun, true),
+        (&drop, sun, true),
+        (&src, sun, false),
         (&index_1, sun, false),
     ] {
         let scene = write_scene(dir.path(), &src.replace(lamp, light));

@@ -54,6 +54,7 @@
 //! self-intersection without hiding any feature thicker than that, however
 //! far from the world origin the scene lies.
 
+use crate::scene::FlatBoundary;
 use crate::{MediumLightSampling, PointLight, Scene};
 use isolux_core::sampling::{power_heuristic, Equiangular};
 use isolux_core::{DVec3, Frame, Pcg32, Ray, Rgb, PI};
@@ -135,6 +136,21 @@ fn direct_light(
             l += fc * light.intensity * tr / dist2;
         }
     }
+    // Point lights behind the flat boundary of the medium around `p`.
+    if !media.flat.is_empty() {
+        for (k, light) in scene.lights.iter().enumerate() {
+            let Some(r) = refraction(scene, media, stack, k, hit.p) else {
+                continue;
+            };
+            let (fc, _) = f_cos_pdf(r.wi, false);
+            if fc.is_black() {
+                continue;
+            }
+            if let Some(e) = refracted_irradiance(scene, media, stack, &r, light, hit.spawn(r.wi)) {
+                l += fc * e;
+            }
+        }
+    }
     let env = &scene.environment;
     if env.is_sampled() {
         if let Some(s) = env.sample(rng.next_2d()) {
@@ -206,6 +222,151 @@ fn light_transmittance(
         o = hit.spawn(ray.dir);
     }
     None
+}
+
+/// A point light's connection into a medium through its flat boundary:
+/// the direction `wi` from the point inside toward the crossing point
+/// `c` on the plane, the distance `inside` to it, and `factor`, the
+/// Fresnel transmittance times the refracted inverse square law ([`refraction`]).
+#[derive(Clone, Copy, Debug)]
+struct Refraction {
+    obj: usize,
+    wi: DVec3,
+    inside: f64,
+    c: DVec3,
+    normal: DVec3,
+    factor: f64,
+}
+
+/// The path from point light `k` of `scene` to `p`, a point inside the
+/// innermost medium of `stack`, where that medium is bounded by a plane
+/// (`Media::flat`) and the light lies in the medium just outside it, of
+/// another index (a sun above water): the point lights of a medium
+/// behind a smooth plane reach it by refraction, which a shadow ray
+/// cannot find but a solve can. The crossing point `c` obeys Snell's law,
+/// `n2 sin theta_2 = n1 sin theta_1` (inside, outside), found by bisection
+/// along the line between the feet of `p` and the light (the mismatch is
+/// monotone in it). The light's irradiance at `p`, normal to the refracted
+/// ray, is `I T(theta_1) G` with the Fresnel transmittance `T` and
+///
+/// `G = sin theta_1 / (R cos theta_2 dR/dtheta_1)`,
+/// `R = h1 tan theta_1 + h2 tan theta_2`,
+/// `dR/dtheta_1 = h1 / cos^2 theta_1 + h2 / cos^2 theta_2 (n1 cos theta_1) / (n2 cos theta_2)`,
+///
+/// the flux `I T dw_1` of the light's cone spread over the area it lights
+/// at depth `h2` (`h1` the light's height above the plane): `1 / r^2` when
+/// `n1 = n2`, and `1 / (h1 + h2 n1 / n2)^2` straight below the light.
+/// Attenuation and occlusion are left to [`refracted_irradiance`].
+fn refraction(
+    scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
+    k: usize,
+    p: DVec3,
+) -> Option<Refraction> {
+    let obj = stack.top()?;
+    let b = media.flat.iter().find(|(o, _)| *o == obj)?.1;
+    let outside = stack.outside_of(obj);
+    if media.lights.get(k) != Some(&outside) {
+        return None;
+    }
+    let n2 = object_medium(scene, obj)?.boundary.ior;
+    let n1 = outside
+        .and_then(|o| object_medium(scene, o))
+        .map_or(1.0, |m| m.boundary.ior);
+    if n1 == n2 {
+        return None;
+    }
+    let light = scene.lights[k].position;
+    let n = b.normal;
+    let (h1, h2) = (n.dot(light) - b.offset, b.offset - n.dot(p));
+    if !(h1 > 0.0) || !(h2 >= 0.0) {
+        return None;
+    }
+    let u = (light - p) - n.dot(light - p) * n;
+    let d = u.length();
+    let along = if d > 0.0 { u / d } else { DVec3::ZERO };
+    // s: the crossing's distance from the foot of p along the feet's line.
+    let mismatch = |s: f64| {
+        n2 * s / (s * s + h2 * h2).sqrt() - n1 * (d - s) / ((d - s) * (d - s) + h1 * h1).sqrt()
+    };
+    let (mut lo, mut hi) = (0.0, d);
+    for _ in 0..64 {
+        let mid = 0.5 * (lo + hi);
+        if mismatch(mid) < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let s = 0.5 * (lo + hi);
+    let c = p + s * along + h2 * n;
+    let tol = 1e-9 * (1.0 + c.abs().max_element());
+    if (c.cmplt(b.bbox.min - tol) | c.cmpgt(b.bbox.max + tol)).any() {
+        return None;
+    }
+    let (l1, l2) = (
+        ((d - s) * (d - s) + h1 * h1).sqrt(),
+        (s * s + h2 * h2).sqrt(),
+    );
+    if !(l2 > 0.0) {
+        return None;
+    }
+    let (cos1, sin1, cos2) = (h1 / l1, (d - s) / l1, h2 / l2);
+    let g = if d <= 1e-12 * (h1 + h2) {
+        1.0 / (h1 + h2 * n1 / n2).powi(2)
+    } else {
+        let dr = h1 / (cos1 * cos1) + h2 / (cos2 * cos2) * (n1 * cos1) / (n2 * cos2);
+        sin1 / (d * cos2 * dr)
+    };
+    let t = 1.0 - isolux_materials::fresnel::dielectric(cos1, n2 / n1);
+    let factor = t * g;
+    (factor > 0.0 && factor.is_finite()).then(|| Refraction {
+        obj,
+        wi: (c - p) / l2,
+        inside: l2,
+        c,
+        normal: n,
+        factor,
+    })
+}
+
+/// The irradiance of point light `light` arriving along a [`Refraction`]
+/// at a point inside the media `stack` (normal to the refracted ray, per
+/// channel): `I T G` attenuated by the medium along `inside` and by what
+/// lies beyond the boundary ([`light_transmittance`] from `c`); `None`
+/// where a surface other than the boundary lies before `c` (the ray from
+/// `origin`, the point spawned off its surface) or one occludes the light
+/// beyond it.
+fn refracted_irradiance(
+    scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
+    r: &Refraction,
+    light: &PointLight,
+    origin: DVec3,
+) -> Option<Rgb> {
+    let to_c = (r.c - origin).length();
+    if let Some((obj, _)) =
+        scene
+            .geometry
+            .intersect(&Ray::new(origin, r.wi), 0.0, to_c * (1.0 + 1e-6))
+    {
+        if obj != r.obj {
+            return None;
+        }
+    }
+    let st = object_medium(scene, r.obj)?.sigma_t();
+    let inside = Rgb::new(
+        (-st.r * r.inside).exp(),
+        (-st.g * r.inside).exp(),
+        (-st.b * r.inside).exp(),
+    );
+    let mut after = *stack;
+    after.cross(r.obj)?;
+    let out = r.c + r.normal * (1e-7 * (1.0 + r.c.abs().max_element()));
+    let beyond = light_transmittance(scene, media, &after, out, light.position)?;
+    Some(light.intensity * inside * beyond * r.factor)
 }
 
 /// The point lights that scattering events inside the media `stack` try.
@@ -304,6 +465,17 @@ fn medium_light(
         };
         if w > 0.0 {
             l += light_scattered_at(scene, media, stack, light, p, dir, flight.g) * w;
+        }
+    }
+    // Point lights behind the medium's flat boundary.
+    if !media.flat.is_empty() {
+        for (k, light) in scene.lights.iter().enumerate() {
+            let Some(r) = refraction(scene, media, stack, k, p) else {
+                continue;
+            };
+            if let Some(e) = refracted_irradiance(scene, media, stack, &r, light, p) {
+                l += e * isolux_materials::subsurface::phase::hg(r.wi.dot(dir), flight.g);
+            }
         }
     }
     l
@@ -513,6 +685,10 @@ pub struct Media<'a> {
     /// ray stops at the first surface, and scattering events try only the
     /// lights of their own medium.
     pub null_boundaries: bool,
+    /// The random-walk media bounded by a plane, by object index, with
+    /// their planes ([`Scene::flat_boundary`]): point lights outside them
+    /// reach inside through the plane by refraction ([`refraction`]).
+    pub flat: Vec<(usize, FlatBoundary)>,
 }
 
 impl<'a> Media<'a> {
@@ -539,6 +715,10 @@ impl<'a> Media<'a> {
                 })
                 .collect(),
             null_boundaries: scene.may_have_null_boundaries(),
+            flat: scene
+                .media()
+                .filter_map(|(i, _, _)| scene.flat_boundary(i).map(|b| (i, b)))
+                .collect(),
         }
     }
 
@@ -913,4 +1093,83 @@ pub fn radiance_culled(
         }
     }
     (l, first)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use isolux_geometry::{Aggregate, Object, Quadric};
+
+    /// The refracted inverse square law conserves the light's flux: a
+    /// point light of intensity 1 at height `h1` above a half-space of
+    /// index 1.33 delivers to the plane at depth `h2` the flux its lower
+    /// hemisphere sends through the surface, `2 pi int T(theta) sin theta
+    /// dtheta` (integrated here by Simpson's rule against the Fresnel
+    /// transmittance), whatever the depth: the irradiance `I T G cos
+    /// theta_2` integrated over the plane (in the angle `a` of the point
+    /// seen from straight above it, `R = h2 tan a`) agrees within 1e-4.
+    #[test]
+    fn refraction_conserves_the_lights_flux() {
+        let (h1, n2) = (1.7, 1.33);
+        let water = Subsurface::new(
+            Rgb::BLACK,
+            Rgb::splat(1e-3),
+            0.0,
+            n2,
+            SubsurfaceMode::RandomWalk,
+        );
+        let plane = Object::new(Quadric::plane(DVec3::ZERO, DVec3::Y), vec![], None).unwrap();
+        let scene = Scene {
+            geometry: Aggregate::new(vec![plane]),
+            materials: vec![Material::Subsurface(water)],
+            object_material: vec![0],
+            lights: vec![PointLight {
+                position: DVec3::new(0.0, h1, 0.0),
+                intensity: Rgb::WHITE,
+            }],
+            ..Default::default()
+        };
+        let media = Media::new(&scene, DVec3::new(0.0, -1.0, 0.0));
+        assert_eq!(media.flat.len(), 1);
+        let mut stack = MediumStack::default();
+        stack.push(0);
+        let simpson = |f: &dyn Fn(f64) -> f64, a: f64, b: f64, n: usize| {
+            let h = (b - a) / n as f64;
+            let mut sum = f(a) + f(b);
+            for k in 1..n {
+                sum += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            sum * h / 3.0
+        };
+        let flux = 2.0
+            * PI
+            * simpson(
+                &|t: f64| (1.0 - isolux_materials::fresnel::dielectric(t.cos(), n2)) * t.sin(),
+                0.0,
+                PI / 2.0,
+                20_000,
+            );
+        for h2 in [0.3, 1.0, 4.0] {
+            let through = |a: f64| {
+                let r_plane = h2 * a.tan();
+                let p = DVec3::new(r_plane, -h2, 0.0);
+                let Some(r) = refraction(&scene, &media, &stack, 0, p) else {
+                    return 0.0;
+                };
+                let cos2 = r.wi.y;
+                // dA = 2 pi R dR, dR = h2 / cos^2 a da.
+                r.factor * cos2 * 2.0 * PI * r_plane * h2 / (a.cos() * a.cos())
+            };
+            let got = simpson(&through, 0.0, PI / 2.0 - 1e-4, 200_000);
+            assert!(
+                (got / flux - 1.0).abs() < 1e-4,
+                "depth {h2}: {got} against {flux}"
+            );
+        }
+        // Straight below the light: 1 / (h1 + h2 n1 / n2)^2 times T(0).
+        let r = refraction(&scene, &media, &stack, 0, DVec3::new(0.0, -1.0, 0.0)).unwrap();
+        let t0 = 1.0 - ((n2 - 1.0) / (n2 + 1.0)).powi(2);
+        assert!((r.factor - t0 / (h1 + 1.0 / n2).powi(2)).abs() < 1e-12);
+        assert!((r.wi - DVec3::Y).length() < 1e-12);
+    }
 }

@@ -22,4 +22,6 @@ pub use camera::{Camera, CameraRig};
 pub use environment::{EnvMap, Environment};
 pub use light::PointLight;
 pub use render::{render, RenderError, RenderOptions, RenderStats};
-pub use scene::{FilmProblem, FilmSettings, IntegratorSettings, MediumLightSampling, Scene};
+pub use scene::{
+    FilmProblem, FilmSettings, FlatBoundary, IntegratorSettings, MediumLightSampling, Scene,
+};

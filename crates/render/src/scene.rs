@@ -2,7 +2,7 @@
 //! directly in code).
 
 use crate::{Camera, Environment, PointLight};
-use isolux_core::DVec3;
+use isolux_core::{Aabb, DMat3, DVec3};
 use isolux_geometry::{Aggregate, Object};
 use isolux_materials::subsurface_material::SubsurfaceMode;
 use isolux_materials::{Material, Subsurface};
@@ -86,6 +86,19 @@ impl Default for FilmSettings {
             spp: 16,
         }
     }
+}
+
+/// A plane bounding a solid: the points `p` with `normal . p = offset`
+/// inside `bbox`, the solid on the side `normal . p < offset`
+/// ([`Scene::flat_boundary`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlatBoundary {
+    /// Outward unit normal.
+    pub normal: DVec3,
+    /// `normal . p` on the plane.
+    pub offset: f64,
+    /// The object's box (infinite for an unbounded plane).
+    pub bbox: Aabb,
 }
 
 /// Path tracer settings.
@@ -228,23 +241,54 @@ impl Scene {
         let mut out = Vec::new();
         for (k, light) in self.lights.iter().enumerate() {
             let held = self.media_at(light.position);
+            // A light just outside a medium bounded by a plane, above the
+            // plane, reaches its inside by refraction.
+            let refracts = |m: usize, i: usize| {
+                self.flat_boundary(i)
+                    .is_some_and(|b| b.normal.dot(light.position) > b.offset)
+                    && held.len() == m
+                    && held.iter().zip(&around[..m]).all(|(a, b)| a.0 == b.0)
+            };
             if let Some((i, _)) = around
                 .iter()
                 .enumerate()
-                .find(|&(m, (i, _))| !null(m) && !held.iter().any(|(j, _)| j == i))
+                .find(|&(m, (i, _))| {
+                    !null(m) && !held.iter().any(|(j, _)| j == i) && !refracts(m, *i)
+                })
                 .map(|(_, x)| x)
             {
                 out.push(format!(
                     "light[{k}] lies outside the random-walk medium of object[{i}], which \
                      holds the camera: a point light reaches nothing inside a medium from \
-                     outside it (shadow rays cannot bend through its boundary), so it lights \
-                     what the camera sees there only by way of surfaces outside the medium; \
-                     light the medium with the environment (its paths do refract), or a \
-                     point light inside it (docs/subsurface.md)"
+                     outside it (shadow rays cannot bend through its curved boundary; only a \
+                     flat one is refracted through), so it lights what the camera sees there \
+                     only by way of surfaces outside the medium; light the medium with the \
+                     environment (its paths do refract), or a point light inside it \
+                     (docs/subsurface.md)"
                 ));
             }
         }
         out
+    }
+
+    /// The flat boundary of object `obj`, where its surface is a plane
+    /// (an unperturbed `plane` base, with or without `bounds`): point
+    /// lights outside a random-walk medium of that shape reach its inside
+    /// through the plane by refraction (`integrator::refracted_light`).
+    pub fn flat_boundary(&self, obj: usize) -> Option<FlatBoundary> {
+        let o = self.geometry.objects().get(obj)?;
+        let q = o.base();
+        let len = q.b.length();
+        if q.m != DMat3::ZERO || !o.perturbations().is_empty() || !(len > 0.0) {
+            return None;
+        }
+        // F = 2 b.x + c > 0 inside, x = p - origin: outward normal -b.
+        let normal = -q.b / len;
+        Some(FlatBoundary {
+            normal,
+            offset: normal.dot(o.origin()) + q.c / (2.0 * len),
+            bbox: o.bbox(),
+        })
     }
 
     /// Whether the scene may hold a *null boundary*: a random-walk medium

@@ -46,7 +46,7 @@ struct Params {
     camera: vec4<u32>,
 }
 
-struct Light { position: vec4<f32>, intensity: vec4<f32> }
+struct Light { position: vec4<f32>, intensity: vec4<f32>, plane: vec4<f32> }
 
 @group(0) @binding(0) var<storage, read> objects: array<Object>;
 @group(0) @binding(1) var<storage, read> perturbations: array<Perturbation>;
@@ -313,10 +313,13 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
     var l = vec3<f32>(0.0);
     let env_map = params.counts.w == ENV_MAP;
     let n_lights = select(0u, params.counts.y, (what & GATHER_LIGHTS) != 0u);
+    // The point lights again, through the flat boundary of the medium
+    // around p (`refraction`).
+    let n_refr = select(0u, n_lights, REFRACTION && SUBSURFACE && !first && path.medium != 0u);
     let n_env = select(0u, 1u, (what & GATHER_ENV) != 0u && env_map);
     let n_cos = select(0u, 1u, (what & GATHER_COSINE) != 0u);
     let n_mirror = select(0u, 1u, mirror.w > 0.0);
-    let n = n_lights + n_env + n_cos + n_mirror;
+    let n = n_lights + n_refr + n_env + n_cos + n_mirror;
     bsdf = no_sample();
     for (var i = 0u; i <= n; i++) {
         var wi: vec3<f32>;
@@ -329,6 +332,8 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var with_f = true;     // false: the mirror, weighted by Fresnel alone
         var mm = shading_material(m, mi);
         var flags = 0u;
+        var refracted = false;
+        var refr_c = vec3<f32>(0.0);
         if (i == n) {
             // The BSDF sample, scored below unless its draw was (a plain
             // material's specular or closed-form sample) or failed.
@@ -359,7 +364,22 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
                     continue;
                 }
             }
-        } else if (i < n_lights + n_env) {
+        } else if (i < n_lights + n_refr) {
+            let r = refraction(i - n_lights, p);
+            if (!(r.factor > 0.0)) {
+                continue;
+            }
+            wi = r.wi;
+            origin = offset_origin(p, ng, wi);
+            // To the crossing point, short of the boundary; the medium
+            // attenuates the way there.
+            t_max = dot(r.c - origin, wi) * (1.0 - 1e-4) - spawn_offset(r.c);
+            let med = materials[medium_top() - 1u];
+            rad = lights[i - n_lights].intensity.rgb * r.factor
+                * exp(-(med.b.rgb + med.c.rgb) * r.inside);
+            refracted = true;
+            refr_c = r.c;
+        } else if (i < n_lights + n_refr + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
                 continue;
@@ -368,7 +388,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             origin = offset_origin(p, ng, wi);
             rad = env_eval(wi);
             light_pdf = s.w;
-        } else if (i < n_lights + n_env + n_cos) {
+        } else if (i < n_lights + n_refr + n_env + n_cos) {
             let local = cosine_hemisphere(rand2());
             if (local.z <= 0.0) {
                 continue;
@@ -423,7 +443,8 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         // is in and passes null boundaries (`shadow_transmittance`).
         var lit = true;
         if (!first) {
-            let tr = shadow_transmittance(origin, wi, t_max, i < n_lights);
+            let tr = connection_transmittance(origin, wi, t_max, i < n_lights, refracted, refr_c,
+                                              i - n_lights);
             rad *= tr;
             lit = max3(tr) > 0.0;
         }
@@ -648,6 +669,120 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
     return max3(path.beta) > 0.0;
 }
 
+// A point light's connection into the innermost medium through its flat
+// boundary (integrator.rs `refraction`): the direction wi from the point
+// inside toward the crossing point c, the distance `inside` to it, and
+// `factor`, the Fresnel transmittance times the refracted inverse square
+// law; factor 0 where light i does not reach p so (its record's
+// `intensity.w` names the medium, layout.rs `GpuLight`).
+struct Refraction {
+    wi: vec3<f32>,
+    inside: f32,
+    c: vec3<f32>,
+    factor: f32,
+}
+
+fn refraction(i: u32, p: vec3<f32>) -> Refraction {
+    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+    let light = lights[i];
+    let id = u32(light.intensity.w);
+    if (!REFRACTION || !SUBSURFACE || id == 0u || id != medium_top()) {
+        return r;
+    }
+    let outside = medium_outside(path.medium, id);
+    if (u32(light.position.w) != outside) {
+        return r;
+    }
+    let n2 = materials[id - 1u].a.x;
+    var n1 = 1.0;
+    if (outside != 0u) {
+        n1 = materials[outside - 1u].a.x;
+    }
+    if (n1 == n2) {
+        return r;
+    }
+    let n = light.plane.xyz;
+    let lp = light.position.xyz;
+    let h1 = dot(n, lp) - light.plane.w;
+    let h2 = max(light.plane.w - dot(n, p), 0.0);
+    if (!(h1 > 0.0)) {
+        return r;
+    }
+    let u = (lp - p) - dot(n, lp - p) * n;
+    let d = length(u);
+    var along = vec3<f32>(0.0);
+    if (d > 0.0) {
+        along = u / d;
+    }
+    // Snell's law along the feet's line, by bisection (the mismatch grows
+    // with s, the crossing's distance from the foot of p).
+    var lo = 0.0;
+    var hi = d;
+    for (var k = 0u; k < 40u; k++) {
+        let s = 0.5 * (lo + hi);
+        let m = n2 * s / sqrt(s * s + h2 * h2) - n1 * (d - s) / sqrt((d - s) * (d - s) + h1 * h1);
+        if (m < 0.0) {
+            lo = s;
+        } else {
+            hi = s;
+        }
+    }
+    let s = 0.5 * (lo + hi);
+    let l1 = sqrt((d - s) * (d - s) + h1 * h1);
+    let l2 = sqrt(s * s + h2 * h2);
+    if (!(l2 > 0.0)) {
+        return r;
+    }
+    let cos1 = h1 / l1;
+    let sin1 = (d - s) / l1;
+    let cos2 = h2 / l2;
+    var g = 1.0 / ((h1 + h2 * n1 / n2) * (h1 + h2 * n1 / n2));
+    if (d > 1e-6 * (h1 + h2)) {
+        let dr = h1 / (cos1 * cos1) + h2 / (cos2 * cos2) * (n1 * cos1) / (n2 * cos2);
+        g = sin1 / (d * cos2 * dr);
+    }
+    let factor = (1.0 - fresnel_dielectric(cos1, n2 / n1)) * g;
+    if (!(factor > 0.0) || !finite(factor)) {
+        return r;
+    }
+    let c = p + s * along + h2 * n;
+    return Refraction((c - p) / l2, l2, c, factor);
+}
+
+// The transmittance of a light's connection from o along d to t_max
+// (`as_light`: a point light's shadow ray, `shadow_transmittance`), and
+// where `refracted` (a `Refraction`'s, to light i, ending at c on the
+// innermost medium's flat boundary short of it) also beyond the
+// boundary, from c to the light in the media after crossing. One call
+// site of `shadow_transmittance` per caller.
+fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bool,
+                            refracted: bool, c: vec3<f32>, i: u32) -> vec3<f32> {
+    let med = path.medium;
+    var tr = vec3<f32>(1.0);
+    var oo = o;
+    var dd = d;
+    var tt = t_max;
+    var lit = as_light;
+    let legs = select(1u, 2u, REFRACTION && refracted);
+    for (var leg = 0u; leg < legs; leg++) {
+        if (leg == 1u) {
+            let n = lights[i].plane.xyz;
+            path.medium = medium_crossed(med, medium_top());
+            oo = c + n * spawn_offset(c);
+            let to = lights[i].position.xyz - oo;
+            tt = length(to);
+            dd = to / tt;
+            lit = true;
+        }
+        tr *= shadow_transmittance(oo, dd, tt, lit);
+        if (!(max3(tr) > 0.0)) {
+            break;
+        }
+    }
+    path.medium = med;
+    return tr;
+}
+
 // Whether scattering events in the path's media try point light i
 // (integrator.rs `medium_lights`): every light in a scene with null
 // boundaries, else only the lights of the innermost medium's material
@@ -696,19 +831,29 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32
                 equi: bool, scatter: bool) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
-        if (!medium_tries(i)) {
-            continue;
-        }
         let light = lights[i];
         var e = vec4<f32>(0.0);
-        if (equi) {
+        if (equi && medium_tries(i)) {
             e = equiangular(o, d, t_end, light.position.xyz);
         }
-        // k = 0: the equiangular sample; k = 1: the scattering point.
-        for (var k = 0u; k < 2u; k++) {
+        // k = 0: the equiangular sample; k = 1: the scattering point; k =
+        // 2: the scattering point lit through the medium's flat boundary.
+        for (var k = 0u; k < 3u; k++) {
             var tk = t;
             var w = 0.0;
-            if (k == 0u) {
+            var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+            if (k == 2u) {
+                if (!REFRACTION || !scatter) {
+                    continue;
+                }
+                refr = refraction(i, o + t * d);
+                if (!(refr.factor > 0.0)) {
+                    continue;
+                }
+                w = ss / st;
+            } else if (!medium_tries(i)) {
+                continue;
+            } else if (k == 0u) {
                 let u = rand();
                 if (e.y == 0.0) {
                     continue;
@@ -733,15 +878,28 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32
                 continue;
             }
             let p = o + tk * d;
-            let dl = light.position.xyz - p;
-            let dist2 = dot(dl, dl);
-            if (!(dist2 > 0.0)) {
-                continue;
+            var wl: vec3<f32>;
+            var dist: f32;
+            var rad: vec3<f32>;
+            if (k == 2u) {
+                // To the crossing point, short of the boundary; the medium
+                // attenuates the way there.
+                wl = refr.wi;
+                dist = refr.inside * (1.0 - 1e-4) - spawn_offset(refr.c);
+                let mm = materials[medium_top() - 1u];
+                rad = light.intensity.rgb * refr.factor * exp(-(mm.b.rgb + mm.c.rgb) * refr.inside);
+            } else {
+                let dl = light.position.xyz - p;
+                let dist2 = dot(dl, dl);
+                if (!(dist2 > 0.0)) {
+                    continue;
+                }
+                dist = sqrt(dist2);
+                wl = dl / dist;
+                rad = light.intensity.rgb / dist2;
             }
-            let dist = sqrt(dist2);
-            let wl = dl / dist;
-            let tr = shadow_transmittance(p, wl, dist, true);
-            l += light.intensity.rgb * tr * (w * hg_phase(dot(wl, d), g) / dist2);
+            let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, refr.c, i);
+            l += rad * tr * (w * hg_phase(dot(wl, d), g));
         }
     }
     return l;
@@ -903,6 +1061,7 @@ fn bounce() -> bool {
         var st = 0.0;
         var equi = false;
         var any_lights = false;
+        var refracts = false;
         if (SUBSURFACE && path.medium != 0u) {
             let mm = materials[medium_top() - 1u];
             st = (mm.b.rgb + mm.c.rgb)[min(path.channel, 2u)];
@@ -910,6 +1069,8 @@ fn bounce() -> bool {
                 t_max = -log(1.0 - rand()) / st;
                 for (var i = 0u; i < params.counts.y; i++) {
                     any_lights = any_lights || medium_tries(i);
+                    refracts = refracts
+                        || (REFRACTION && u32(lights[i].intensity.w) == medium_top());
                 }
                 equi = any_lights && params.camera.z != 0u;
             }
@@ -918,7 +1079,7 @@ fn bounce() -> bool {
         if (SUBSURFACE && t_max < 3.0e38) {
             let t_end = select(3.0e38, h.x, h.x >= 0.0);
             let scatter = t_max < t_end;
-            if (any_lights && (equi || scatter)) {
+            if ((any_lights && (equi || scatter)) || (refracts && scatter)) {
                 let hit = hit_object;
                 let mm = materials[medium_top() - 1u];
                 let ss = mm.b.rgb[min(path.channel, 2u)];
