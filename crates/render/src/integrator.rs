@@ -687,7 +687,7 @@ pub struct Media<'a> {
     pub null_boundaries: bool,
     /// The random-walk media bounded by a plane, by object index, with
     /// their planes ([`Scene::flat_boundary`]): point lights outside them
-    /// reach inside through the plane by refraction ([`refraction`]).
+    /// reach inside through the plane by refraction (`refraction`).
     pub flat: Vec<(usize, FlatBoundary)>,
 }
 
