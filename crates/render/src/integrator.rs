@@ -244,9 +244,9 @@ struct Refraction {
 /// another index (a sun above water): the point lights of a medium
 /// behind a smooth plane reach it by refraction, which a shadow ray
 /// cannot find but a solve can. The crossing point `c` obeys Snell's law,
-/// `n2 sin theta_2 = n1 sin theta_1` (inside, outside), found by bisection
-/// along the line between the feet of `p` and the light (the mismatch is
-/// monotone in it). The light's irradiance at `p`, normal to the refracted
+/// `n2 sin theta_2 = n1 sin theta_1` (inside, outside), found by
+/// safeguarded Newton steps along the line between the feet of `p` and
+/// the light (the mismatch is monotone in it). The light's irradiance at `p`, normal to the refracted
 /// ray, is `I T(theta_1) G` with the Fresnel transmittance `T` and
 ///
 /// `G = sin theta_1 / (R cos theta_2 dR/dtheta_1)`,
@@ -280,26 +280,47 @@ fn refraction(
     let light = scene.lights[k].position;
     let n = b.normal;
     let (h1, h2) = (n.dot(light) - b.offset, b.offset - n.dot(p));
-    if !(h1 > 0.0) || !(h2 >= 0.0) {
+    if !(h1 > 0.0) || !(h2 > 0.0) {
         return None;
     }
     let u = (light - p) - n.dot(light - p) * n;
     let d = u.length();
     let along = if d > 0.0 { u / d } else { DVec3::ZERO };
-    // s: the crossing's distance from the foot of p along the feet's line.
+    // s: the crossing's distance from the foot of p along the feet's line,
+    // where the mismatch of Snell's law (increasing in s) vanishes: Newton
+    // steps from the straight line's crossing, kept inside the bracket
+    // (bisection where a step would leave it).
     let mismatch = |s: f64| {
-        n2 * s / (s * s + h2 * h2).sqrt() - n1 * (d - s) / ((d - s) * (d - s) + h1 * h1).sqrt()
+        let (a, b) = (s * s + h2 * h2, (d - s) * (d - s) + h1 * h1);
+        let (ra, rb) = (a.sqrt(), b.sqrt());
+        let f = n2 * s / ra - n1 * (d - s) / rb;
+        let df = n2 * h2 * h2 / (a * ra) + n1 * h1 * h1 / (b * rb);
+        (f, df)
     };
     let (mut lo, mut hi) = (0.0, d);
-    for _ in 0..64 {
-        let mid = 0.5 * (lo + hi);
-        if mismatch(mid) < 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
+    let mut s = d * h2 / (h1 + h2);
+    let tol = 1e-13 * (d + h1 + h2);
+    for _ in 0..80 {
+        let (f, df) = mismatch(s);
+        let step = f / df;
+        if !(step.abs() > tol) {
+            if step.is_finite() {
+                s -= step;
+            }
+            break;
         }
+        if f < 0.0 {
+            lo = s;
+        } else {
+            hi = s;
+        }
+        let next = s - step;
+        s = if next > lo && next < hi {
+            next
+        } else {
+            0.5 * (lo + hi)
+        };
     }
-    let s = 0.5 * (lo + hi);
     let c = p + s * along + h2 * n;
     let tol = 1e-9 * (1.0 + c.abs().max_element());
     if (c.cmplt(b.bbox.min - tol) | c.cmpgt(b.bbox.max + tol)).any() {

@@ -670,7 +670,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
 }
 
 // A point light's connection into the innermost medium through its flat
-// boundary (integrator.rs `refraction`): the direction wi from the point
+// boundary (integrator.rs `refraction`, the same Newton steps in f32): the direction wi from the point
 // inside toward the crossing point c, the distance `inside` to it, and
 // `factor`, the Fresnel transmittance times the refracted inverse square
 // law; factor 0 where light i does not reach p so (its record's
@@ -704,8 +704,8 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     let n = light.plane.xyz;
     let lp = light.position.xyz;
     let h1 = dot(n, lp) - light.plane.w;
-    let h2 = max(light.plane.w - dot(n, p), 0.0);
-    if (!(h1 > 0.0)) {
+    let h2 = light.plane.w - dot(n, p);
+    if (!(h1 > 0.0) || !(h2 > 0.0)) {
         return r;
     }
     let u = (lp - p) - dot(n, lp - p) * n;
@@ -714,20 +714,36 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     if (d > 0.0) {
         along = u / d;
     }
-    // Snell's law along the feet's line, by bisection (the mismatch grows
-    // with s, the crossing's distance from the foot of p).
+    // Snell's law along the feet's line (the mismatch grows with s, the
+    // crossing's distance from the foot of p): Newton steps from the
+    // straight line's crossing, bisection where one would leave the
+    // bracket.
     var lo = 0.0;
     var hi = d;
+    var s = d * h2 / (h1 + h2);
+    let tol = 1e-6 * (d + h1 + h2);
     for (var k = 0u; k < 40u; k++) {
-        let s = 0.5 * (lo + hi);
-        let m = n2 * s / sqrt(s * s + h2 * h2) - n1 * (d - s) / sqrt((d - s) * (d - s) + h1 * h1);
-        if (m < 0.0) {
+        let a = s * s + h2 * h2;
+        let b = (d - s) * (d - s) + h1 * h1;
+        let ra = sqrt(a);
+        let rb = sqrt(b);
+        let f = n2 * s / ra - n1 * (d - s) / rb;
+        let df = n2 * h2 * h2 / (a * ra) + n1 * h1 * h1 / (b * rb);
+        let step = f / df;
+        if (!(abs(step) > tol)) {
+            if (finite(step)) {
+                s -= step;
+            }
+            break;
+        }
+        if (f < 0.0) {
             lo = s;
         } else {
             hi = s;
         }
+        let next = s - step;
+        s = select(0.5 * (lo + hi), next, next > lo && next < hi);
     }
-    let s = 0.5 * (lo + hi);
     let l1 = sqrt((d - s) * (d - s) + h1 * h1);
     let l2 = sqrt(s * s + h2 * h2);
     if (!(l2 > 0.0)) {
