@@ -902,7 +902,7 @@ pub fn radiance_culled(
                 });
             }
         }
-        let equiangular = flight.is_some()
+        let equiangular = flight.is_some_and(|f| f.sigma_s > 0.0)
             && scene.integrator.medium_lights == MediumLightSampling::Equiangular
             && medium_lights(scene, media, &stack).next().is_some();
         let t_search = if equiangular { f64::INFINITY } else { t_max };

@@ -1088,7 +1088,8 @@ fn bounce() -> bool {
                     refracts = refracts
                         || (REFRACTION && u32(lights[i].intensity.w) == medium_top());
                 }
-                equi = any_lights && params.camera.z != 0u;
+                // (A medium that does not scatter has nothing to gather.)
+                equi = any_lights && params.camera.z != 0u && mm.b.rgb[min(path.channel, 2u)] > 0.0;
             }
         }
         let h = scene_hit(o, d, select(t_max, 3.0e38, equi));
