@@ -24,7 +24,7 @@ fn tile_list_bytes(width: u32, height: u32) -> u64 {
 
 /// Bytes of one path's state between the wavefront's steps (`WfPath` in
 /// render.wgsl).
-const WF_PATH_BYTES: u64 = 96;
+const WF_PATH_BYTES: u64 = 112;
 
 /// The wavefront's steps of one bounce each, before the last step takes
 /// every bounce left, in a scene without a medium (when `max_depth + 1`

@@ -447,7 +447,7 @@ fn channel_means(img: &Image) -> ([f64; 3], [f64; 3]) {
 fn random_walk_medium_conserves_energy_under_a_white_sky() {
     // A non-absorbing medium behind a glass boundary: every photon that
     // enters leaves again, so the expected radiance is exactly the sky's,
-    // per channel (single-channel tracking adds colour noise only).
+    // per channel (spectral MIS over the channels adds noise only).
     let src = SPHERE_SCENE
         .replace(
             "type = \"diffuse\"\nreflectance = [REFL, REFL, REFL]",
@@ -524,7 +524,8 @@ fn medium_scene(params: &str, spp: u32) -> Image {
 /// equilibrium inside a medium of index `n` is `n^2` times that outside,
 /// so every channel averages `n^2` (closed form). More: the medium loses
 /// nothing and every path leaves the convex sphere to the sky, so each
-/// path brings exactly `3 n^2` in the one channel it carries, and every
+/// path's spectral MIS weights equal its channels' density ratios, which
+/// sum to 3: every path brings `3 n^2` over its channels, and every
 /// pixel's channels sum to `3 n^2` to rounding. With absorption, every
 /// channel loses energy, most where it absorbs most. Paths used to start
 /// outside every medium and saw the sky through empty space (mean 1 per
@@ -587,7 +588,7 @@ fn a_camera_inside_a_random_walk_medium_sees_it() {
 /// water (index 1.33, radius 3, listed first), under a white sky, starts
 /// in both (`Scene::media_at`, outermost first: the water's box is the
 /// larger) and sees the equilibrium radiance of the inner medium, `1.5^2`:
-/// each path brings exactly `3 n^2` in its channel, as without the water
+/// each path brings exactly `3 n^2` over its channels, as without the water
 /// (closed form; the eta scalings of the two boundaries telescope). A
 /// camera outside the inner sphere, in the water, sees `1.33^2`.
 #[test]

@@ -28,11 +28,13 @@
 //! Point lights' light along a flight is also sampled by equiangular
 //! sampling, one point per light, and the two estimates are combined by
 //! multiple importance sampling ([`crate::MediumLightSampling`]). The
-//! coefficients differ per colour channel, so the first entry into a
-//! chromatic medium picks one channel uniformly and carries it with
-//! weight 3 (unbiased; colour noise is the price); a grey medium (fog,
-//! smoke) is the same in every channel, and paths carry all three
-//! through it. Events inside a medium (scattering, meeting its
+//! coefficients differ per colour channel: a path's flights sample one
+//! channel's, the *hero* drawn at its first chromatic medium, and every
+//! channel is weighted by spectral MIS over the three (`Spectral`), so
+//! paths carry all three channels without colour noise; a grey medium
+//! (fog, smoke) is the same in every channel and changes no weight
+//! ratio. (Until 2026-12-04 a path carried the hero alone, with weight
+//! 3: colour noise.) Events inside a medium (scattering, meeting its
 //! boundary) do not count toward `max_depth`; a path is cut after 100,000
 //! of them. A bounce on another surface inside a medium counts toward it,
 //! as anywhere. Media nest (a marble under water, [`MediumStack`]): a path
@@ -79,18 +81,45 @@ fn object_medium(scene: &Scene, obj: usize) -> Option<&Subsurface> {
     scene.materials[scene.object_material[obj]].medium()
 }
 
-/// The colour channel a path carries through media from its first one
-/// on, chosen uniformly, and the throughput `beta` in that channel alone,
-/// weighted 3 (unbiased).
-fn pick_channel(beta: Rgb, rng: &mut Pcg32) -> (usize, Rgb) {
-    let c = rng.next_below(3) as usize;
-    let v = channel(beta, c) * 3.0;
-    let one = match c {
-        0 => Rgb::new(v, 0.0, 0.0),
-        1 => Rgb::new(0.0, v, 0.0),
-        _ => Rgb::new(0.0, 0.0, v),
-    };
-    (c, one)
+/// The mean of the three channels.
+fn mean(c: Rgb) -> f64 {
+    (c.r + c.g + c.b) / 3.0
+}
+
+/// Spectral MIS over a path's colour channels (the hero scheme of Wilkie
+/// et al. 2014, as in pbrt-v4): the free flights of a path through
+/// chromatic media are sampled with one channel's coefficients, the
+/// *hero*, drawn uniformly at the path's first flight in such a medium,
+/// and every channel is weighted by the balance heuristic over the three
+/// channels' densities of the whole path. The throughput `beta` holds
+/// `f_c / mean_k p_k` per channel directly; `ratio` holds each channel's
+/// path density relative to their mean (`mean ratio = 1`), updated with
+/// every flight's densities `p` per channel: `beta *= f / mean(ratio
+/// p)`, `ratio = ratio p / mean(ratio p)`. The hero's density cancels.
+/// Every channel's weight stays within 3 of its own estimate, so paths
+/// carry all three channels without colour noise; in a medium that
+/// loses nothing (`f = p` per channel) `beta` equals `ratio`, whose
+/// channels sum to exactly 3, as one channel carried with weight 3 did.
+/// A grey medium's densities are the same in every channel: its flights
+/// change no ratio.
+#[derive(Clone, Copy, Debug)]
+struct Spectral {
+    hero: Option<usize>,
+    ratio: Rgb,
+}
+
+impl Spectral {
+    /// Weights `beta` for a flight event of densities `p` and
+    /// contribution `f` per channel.
+    fn update(&mut self, beta: &mut Rgb, f: Rgb, p: Rgb) {
+        let m = mean(self.ratio * p);
+        if m > 0.0 {
+            *beta *= f / m;
+            self.ratio = self.ratio * p / m;
+        } else {
+            *beta = Rgb::BLACK;
+        }
+    }
 }
 
 /// What the first camera-ray hit saw (for AOVs).
@@ -436,10 +465,11 @@ fn light_scattered_at(
 }
 
 /// A flight through the innermost medium of a path: the ray, the distance
-/// `t_end` at which it meets the next surface, and the medium's
-/// extinction `sigma_t` and scattering `sigma_s` in the path's channel.
-/// Its scattering points have the density `sigma_t exp(-sigma_t t)` on
-/// `[0, t_end)`.
+/// `t_end` at which it meets the next surface, the medium's extinction
+/// `sigma_t` and scattering `sigma_s` per channel, and the path's
+/// [`Spectral`] ratios at its start. Its scattering points have the
+/// density `mean_c r_c sigma_t,c exp(-sigma_t,c t)` on `[0, t_end)`
+/// ([`Flight::density`]).
 ///
 /// (Sampling the whole ray `[0, inf)` instead, where the free flight's
 /// search had not reached the surface, saved that search but wasted the
@@ -449,14 +479,23 @@ fn light_scattered_at(
 struct Flight {
     ray: Ray,
     t_end: f64,
-    sigma_t: f64,
-    sigma_s: f64,
+    sigma_t: Rgb,
+    sigma_s: Rgb,
     g: f64,
+    ratio: Rgb,
 }
 
 impl Flight {
+    /// The density of a scattering point at `t` over the path's channels
+    /// (the balance of their densities, weighted by the path's ratios).
     fn density(&self, t: f64) -> f64 {
-        self.sigma_t * (-self.sigma_t * t).exp()
+        mean(self.ratio * self.sigma_t * self.transmittance(t))
+    }
+
+    /// The transmittance to `t` per channel (`t` may be infinite).
+    fn transmittance(&self, t: f64) -> Rgb {
+        self.sigma_t
+            .map(|s| if s > 0.0 { (-s * t).exp() } else { 1.0 })
     }
 
     fn equiangular(&self, light: &PointLight) -> Option<Equiangular> {
@@ -505,7 +544,7 @@ fn medium_light(
 /// The point lights' light scattered along a whole flight, one
 /// equiangular sample per light (Kulla and Fajardo 2012,
 /// [`MediumLightSampling::Equiangular`]): `sigma_s exp(-sigma_t t) L(t) /
-/// pdf(t)`, weighted against the free flight's scattering point
+/// pdf(t)` per channel, weighted against the free flight's scattering point
 /// ([`medium_light`]) by the power heuristic. Per unit of the path's
 /// throughput at the flight's start.
 fn equiangular_light(
@@ -525,8 +564,8 @@ fn equiangular_light(
             continue;
         }
         let w = power_heuristic(pdf, flight.density(t));
-        let through = flight.sigma_s * (-flight.sigma_t * t).exp() * w / pdf;
-        if through > 0.0 && through.is_finite() {
+        let through = flight.sigma_s * flight.transmittance(t) * (w / pdf);
+        if !through.is_black() && through.is_finite() {
             let p = flight.ray.at(t);
             l += light_scattered_at(scene, media, stack, light, p, flight.ray.dir, flight.g)
                 * through;
@@ -863,19 +902,16 @@ pub fn radiance_culled(
     let max_depth = scene.integrator.max_depth;
     let mut depth = 0u32;
     let mut eta_scale = 1.0;
-    // The media the path is in, and the colour channel it carries.
+    // The media the path is in, and its colour channels' ratios.
+    let mut spectral = Spectral {
+        hero: None,
+        ratio: Rgb::WHITE,
+    };
     let mut stack = MediumStack::default();
     for &(i, _) in &media.camera {
         stack.push(i);
     }
     let medium_of = |obj: usize| object_medium(scene, obj);
-    // One colour channel from the first chromatic medium on (grey media
-    // carry all three: their flights and albedos are the same in each).
-    let mut path_channel: Option<usize> = None;
-    if media.camera.iter().any(|(_, m)| !m.is_grey()) {
-        let (c, one) = pick_channel(beta, rng);
-        (path_channel, beta) = (Some(c), one);
-    }
     let mut medium_events = 0u32;
     // The environment along the current ray was already counted (the
     // mirror reflection of a subsurface boundary, below).
@@ -889,20 +925,32 @@ pub fn radiance_culled(
         let mut t_max = f64::INFINITY;
         let mut flight = None;
         if let Some(m) = inside {
-            let c = path_channel.unwrap_or(0);
-            let st = channel(m.sigma_t(), c);
-            if st > 0.0 {
-                t_max = -(1.0 - rng.next_f64()).ln() / st;
+            let st = m.sigma_t();
+            if !st.is_black() {
+                // The hero channel's free flight (drawn at the first
+                // chromatic medium; a grey medium's are all the same).
+                let c = if m.is_grey() {
+                    spectral.hero.unwrap_or(0)
+                } else {
+                    *spectral
+                        .hero
+                        .get_or_insert_with(|| rng.next_below(3) as usize)
+                };
+                let stc = channel(st, c);
+                if stc > 0.0 {
+                    t_max = -(1.0 - rng.next_f64()).ln() / stc;
+                }
                 flight = Some(Flight {
                     ray,
                     t_end: f64::INFINITY,
                     sigma_t: st,
-                    sigma_s: channel(m.sigma_s, c),
+                    sigma_s: m.sigma_s,
                     g: m.g,
+                    ratio: spectral.ratio,
                 });
             }
         }
-        let equiangular = flight.is_some_and(|f| f.sigma_s > 0.0)
+        let equiangular = flight.is_some_and(|f| !f.sigma_s.is_black())
             && scene.integrator.medium_lights == MediumLightSampling::Equiangular
             && medium_lights(scene, media, &stack).next().is_some();
         let t_search = if equiangular { f64::INFINITY } else { t_max };
@@ -915,6 +963,13 @@ pub fn radiance_culled(
             l += beta * equiangular_light(scene, media, &stack, f, rng);
             found = found.filter(|(_, h)| h.t <= t_max);
         }
+        // The flight passing the surface (or leaving for good): its
+        // transmittance is its probability and its contribution, per
+        // channel ([`Spectral`]).
+        if let Some(f) = flight.filter(|_| found.is_some() || !t_max.is_finite()) {
+            let tr = f.transmittance(found.map_or(f64::INFINITY, |(_, h)| h.t));
+            spectral.update(&mut beta, tr, tr);
+        }
         if let (None, Some(m), Some(f)) = (found, inside, flight) {
             if t_max.is_finite() {
                 // Scattering event inside the medium.
@@ -922,7 +977,8 @@ pub fn radiance_culled(
                 if medium_events > MAX_MEDIUM_EVENTS {
                     break;
                 }
-                beta *= f.sigma_s / f.sigma_t;
+                let tr = f.transmittance(t_max);
+                spectral.update(&mut beta, f.sigma_s * tr, f.sigma_t * tr);
                 let p = ray.at(t_max);
                 // Point lights, by next-event estimation (the environment
                 // lies behind the medium's boundary).
@@ -1074,15 +1130,11 @@ pub fn radiance_culled(
         eta_scale *= s.eta * s.eta;
         // Crossing a medium's boundary leaves it if the path is inside
         // it, and else enters it (inside the media it is in: they nest).
-        if s.flags.contains(BxdfFlags::TRANSMISSION) && material.medium().is_some() {
-            let Some(entered) = stack.cross(obj) else {
-                break;
-            };
-            if entered && path_channel.is_none() && material.medium().is_some_and(|m| !m.is_grey())
-            {
-                let (c, one) = pick_channel(beta, rng);
-                (path_channel, beta) = (Some(c), one);
-            }
+        if s.flags.contains(BxdfFlags::TRANSMISSION)
+            && material.medium().is_some()
+            && stack.cross(obj).is_none()
+        {
+            break;
         }
         prev_pdf = if s.flags.is_specular() {
             None

@@ -466,9 +466,9 @@ struct Path {
     depth: u32,
     // Subsurface media (random walk): the media the path is inside, each
     // as 1 + its material (0: none), the innermost in the low 16 bits and
-    // the one around it in the high 16 (`medium_top`); the colour channel
-    // it carries (3: all), the scattering events and boundary crossings
-    // so far.
+    // the one around it in the high 16 (`medium_top`); the hero channel
+    // whose coefficients its free flights sample (3: none yet; `ratio`
+    // below), the scattering events and boundary crossings so far.
     medium: u32,
     channel: u32,
     events: u32,
@@ -481,6 +481,9 @@ struct Path {
     entry: bool,
     entry_n: vec3<f32>,
     entry_m: u32,
+    // Each channel's path density relative to their mean (spectral MIS,
+    // integrator.rs `Spectral`): 1 outside chromatic media.
+    ratio: vec3<f32>,
 }
 
 var<private> path: Path;
@@ -833,18 +836,25 @@ fn equiangular_pdf(e: vec4<f32>, t: f32) -> f32 {
 }
 
 // The point lights' light scattered toward the path along its flight
-// from o along d through the innermost medium (extinction st, scattering
-// ss, Henyey-Greenstein g in the path's channel), which meets the next
-// surface at t_end, per unit of the path's throughput at o (integrator.rs
-// `medium_light` and `equiangular_light`): where `scatter`, next-event
-// estimation at the flight's scattering point t, `ss / st I p T / r^2`
-// per light; where `equi` (`params.camera.z`, scene key
+// from o along d through the innermost medium, which meets the next
+// surface at t_end, per channel and unit of the path's throughput at o
+// (integrator.rs `medium_light` and `equiangular_light`): where
+// `scatter`, next-event estimation at the flight's scattering point t,
+// `sigma_s T(t) / density(t) I p T_l / r^2` per light (the scattering
+// point's weight, `Spectral`; with the lights through the medium's flat
+// boundary, `refraction`); where `equi` (`params.camera.z`, scene key
 // `medium_light_sampling`), one equiangular sample per light along the
-// flight, `ss exp(-st t') I p T / r^2 / pdf(t')`, the two weighted by
-// the power heuristic. One call site of `shadow_transmittance` (docs/gpu.md,
-// "One call site per switch").
-fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32, g: f32,
-                equi: bool, scatter: bool) -> vec3<f32> {
+// flight, `sigma_s T(t') I p T_l / r^2 / pdf(t')`, the two weighted by
+// the power heuristic against the flight's density over the channels,
+// `mean(ratio sigma_t T(t))`. One call site of `connection_transmittance`
+// (docs/gpu.md, "One call site per switch").
+fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scatter: bool) -> vec3<f32> {
+    let mm = materials[medium_top() - 1u];
+    let ss = mm.b.rgb;
+    let st = mm.b.rgb + mm.c.rgb;
+    let g = mm.a.y;
+    let tr_t = exp(-st * t);
+    let density_t = dot(path.ratio, st * tr_t) / 3.0;
     var l = vec3<f32>(0.0);
     for (var i = 0u; i < params.counts.y; i++) {
         let light = lights[i];
@@ -856,17 +866,17 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32
         // 2: the scattering point lit through the medium's flat boundary.
         for (var k = 0u; k < 3u; k++) {
             var tk = t;
-            var w = 0.0;
+            var w = vec3<f32>(0.0);
             var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
             if (k == 2u) {
-                if (!REFRACTION || !scatter) {
+                if (!REFRACTION || !scatter || !(density_t > 0.0)) {
                     continue;
                 }
                 refr = refraction(i, o + t * d);
                 if (!(refr.factor > 0.0)) {
                     continue;
                 }
-                w = ss / st;
+                w = ss * tr_t / density_t;
             } else if (!medium_tries(i)) {
                 continue;
             } else if (k == 0u) {
@@ -880,17 +890,18 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32
                     continue;
                 }
                 let tr = exp(-st * tk);
-                w = ss * tr * power_heuristic(pdf, st * tr) / pdf;
+                let density = dot(path.ratio, st * tr) / 3.0;
+                w = ss * tr * (power_heuristic(pdf, density) / pdf);
             } else {
-                if (!scatter) {
+                if (!scatter || !(density_t > 0.0)) {
                     continue;
                 }
-                w = ss / st;
+                w = ss * tr_t / density_t;
                 if (e.y != 0.0) {
-                    w *= power_heuristic(st * exp(-st * t), equiangular_pdf(e, t));
+                    w *= power_heuristic(density_t, equiangular_pdf(e, t));
                 }
             }
-            if (!(w > 0.0) || !finite(w)) {
+            if (!(max3(w) > 0.0) || !finite3(w)) {
                 continue;
             }
             let p = o + tk * d;
@@ -902,8 +913,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32
                 // attenuates the way there.
                 wl = refr.wi;
                 dist = refr.inside * (1.0 - 1e-4) - spawn_offset(refr.c);
-                let mm = materials[medium_top() - 1u];
-                rad = light.intensity.rgb * refr.factor * exp(-(mm.b.rgb + mm.c.rgb) * refr.inside);
+                rad = light.intensity.rgb * refr.factor * exp(-st * refr.inside);
             } else {
                 let dl = light.position.xyz - p;
                 let dist2 = dot(dl, dl);
@@ -915,7 +925,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, st: f32, ss: f32
                 rad = light.intensity.rgb / dist2;
             }
             let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, refr.c, i);
-            l += rad * tr * (w * hg_phase(dot(wl, d), g));
+            l += rad * tr * w * hg_phase(dot(wl, d), g);
         }
     }
     return l;
@@ -1020,17 +1030,21 @@ fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) ->
     return vec3<f32>(0.0);
 }
 
-// A scattering event at p inside the medium (random walk): albedo of the
-// path's channel, roulette, a Henyey-Greenstein direction about d (its
-// point lights were gathered by `bounce`'s `medium_light`).
-fn medium_scatter(p: vec3<f32>, d: vec3<f32>, st: f32) -> bool {
+// A scattering event at distance t along the flight from o along d
+// inside the medium (random walk): its weight per channel (`Spectral`),
+// roulette, a Henyey-Greenstein direction about d (its point lights were
+// gathered by `bounce`'s `medium_light`).
+fn medium_scatter(o: vec3<f32>, d: vec3<f32>, t: f32) -> bool {
     path.events += 1u;
     if (path.events > MAX_MEDIUM_EVENTS) {
         return false;
     }
     let mm = materials[medium_top() - 1u];
-    let scattered = path.beta * (mm.b.rgb[min(path.channel, 2u)] / st);
-    let beta = roulette(scattered);
+    let sigma_t = mm.b.rgb + mm.c.rgb;
+    let tr = exp(-sigma_t * t);
+    spectral_update(mm.b.rgb * tr, sigma_t * tr);
+    let p = o + t * d;
+    let beta = roulette(path.beta);
     if (!(max3(beta) > 0.0)) {
         return false;
     }
@@ -1074,38 +1088,50 @@ fn bounce() -> bool {
         // unless equiangular sampling of its lights needs the whole flight
         // (`params.camera.z`, integrator.rs `MediumLightSampling`).
         var t_max = 3.0e38;
-        var st = 0.0;
+        var flight = false;
         var equi = false;
         var any_lights = false;
         var refracts = false;
         if (SUBSURFACE && path.medium != 0u) {
             let mm = materials[medium_top() - 1u];
-            st = (mm.b.rgb + mm.c.rgb)[min(path.channel, 2u)];
-            if (st > 0.0) {
-                t_max = -log(1.0 - rand()) / st;
+            let sigma_t = mm.b.rgb + mm.c.rgb;
+            flight = max3(sigma_t) > 0.0;
+            if (flight) {
+                // The hero channel's free flight (drawn at the path's
+                // first chromatic medium; a grey medium's are all alike).
+                if (path.channel > 2u && !grey_medium(mm)) {
+                    path.channel = min(u32(rand() * 3.0), 2u);
+                }
+                let st = sigma_t[min(path.channel, 2u)];
+                if (st > 0.0) {
+                    t_max = -log(1.0 - rand()) / st;
+                }
                 for (var i = 0u; i < params.counts.y; i++) {
                     any_lights = any_lights || medium_tries(i);
                     refracts = refracts
                         || (REFRACTION && u32(lights[i].intensity.w) == medium_top());
                 }
                 // (A medium that does not scatter has nothing to gather.)
-                equi = any_lights && params.camera.z != 0u && mm.b.rgb[min(path.channel, 2u)] > 0.0;
+                equi = any_lights && params.camera.z != 0u && max3(mm.b.rgb) > 0.0;
             }
         }
         let h = scene_hit(o, d, select(t_max, 3.0e38, equi));
-        if (SUBSURFACE && t_max < 3.0e38) {
+        if (SUBSURFACE && flight) {
             let t_end = select(3.0e38, h.x, h.x >= 0.0);
             let scatter = t_max < t_end;
             if ((any_lights && (equi || scatter)) || (refracts && scatter)) {
                 let hit = hit_object;
-                let mm = materials[medium_top() - 1u];
-                let ss = mm.b.rgb[min(path.channel, 2u)];
-                path.l += path.beta * medium_light(o, d, t_max, t_end, st, ss, mm.a.y, equi, scatter);
+                path.l += path.beta * medium_light(o, d, t_max, t_end, equi, scatter);
                 hit_object = hit;
             }
             if (scatter) {
-                return medium_scatter(o + t_max * d, d, st);
+                return medium_scatter(o, d, t_max);
             }
+            // The flight passed the surface (or left for good): its
+            // transmittance is its probability and its contribution.
+            let mm = materials[medium_top() - 1u];
+            let tr = exp(-(mm.b.rgb + mm.c.rgb) * t_end);
+            spectral_update(tr, tr);
         }
         if (h.x < 0.0) {
             var w = 1.0;
@@ -1209,16 +1235,13 @@ fn bounce() -> bool {
     path.eta_scale *= s.eta * s.eta;
     // Crossing a medium's boundary leaves it if the path is inside it,
     // and else enters it, inside the one the path is in (media nest two
-    // deep: `path.medium`); the first entry picks the colour channel the
+    // deep: `path.medium`).
     // path carries from then on.
     if (is_medium && transmitted) {
         let id = objects[oi].range.z + 1u;
         let next = medium_crossed(path.medium, id);
         if (next == MEDIA_TOO_DEEP) {
             return false;
-        }
-        if ((next & 0xffffu) == id && path.channel > 2u && !grey_medium(m)) {
-            beta = pick_channel(beta);
         }
         path.medium = next;
     }
@@ -1252,36 +1275,32 @@ fn bounce_bound() -> u32 {
     return 2u * params.counts.z + MAX_MEDIUM_EVENTS + 3u;
 }
 
-// The colour channel the path carries through media from its first one
-// on, chosen uniformly (into `path.channel`), and the throughput beta in
-// that channel alone, weighted 3 (integrator.rs `pick_channel`).
-fn pick_channel(beta: vec3<f32>) -> vec3<f32> {
-    let c = min(u32(rand() * 3.0), 2u);
-    path.channel = c;
-    var one = vec3<f32>(0.0);
-    one[c] = 3.0 * beta[c];
-    return one;
+// Spectral MIS over the colour channels (integrator.rs `Spectral`): a
+// flight event of densities p and contribution f per channel weighs the
+// throughput by f / mean(ratio p) and updates the ratios.
+fn spectral_update(f: vec3<f32>, p: vec3<f32>) {
+    let m = dot(path.ratio, p) / 3.0;
+    if (m > 0.0) {
+        path.beta *= f / m;
+        path.ratio = path.ratio * p / m;
+    } else {
+        path.beta = vec3<f32>(0.0);
+    }
 }
 
 // Whether medium m scatters and absorbs every channel alike (grey fog):
-// paths carry all three channels through it (`path.channel` 3), as on the
-// CPU (`Subsurface::is_grey`).
+// its flights need no hero channel and change no ratio, as on the CPU
+// (`Subsurface::is_grey`).
 fn grey_medium(m: Material) -> bool {
     return all(m.b.rgb == m.b.rrr) && all(m.c.rgb == m.c.rrr);
 }
 
 // A camera path from o along d, in `path`.
-// A camera inside random-walk media starts in them, carrying one colour
-// channel if one of them is chromatic (integrator.rs).
+// A camera inside random-walk media starts in them (integrator.rs).
 fn start_path(o: vec3<f32>, d: vec3<f32>) {
-    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u);
+    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u, vec3<f32>(1.0));
     if (SUBSURFACE && params.camera.x != 0u) {
         path.medium = params.camera.x;
-        let outer = params.camera.x >> 16u;
-        if (!grey_medium(materials[(params.camera.x & 0xffffu) - 1u])
-            || (outer != 0u && !grey_medium(materials[outer - 1u]))) {
-            path.beta = pick_channel(path.beta);
-        }
     }
 }
 
@@ -1502,6 +1521,7 @@ struct WfPath {
     beta: vec4<f32>,    // beta, pixel (bits)
     entry_n: vec4<f32>, // entry_n, entry_m (bits)
     info: vec4<u32>,    // depth, medium, channel | env_counted << 8 | entry << 9, events
+    ratio: vec4<f32>,   // ratio, 0
 }
 
 @group(1) @binding(0) var<storage, read_write> wf_paths: array<WfPath>;
@@ -1521,6 +1541,7 @@ fn wf_store(slot: u32, pixel: u32) {
         vec4<f32>(path.beta, bitcast<f32>(pixel)),
         vec4<f32>(path.entry_n, bitcast<f32>(path.entry_m)),
         vec4<u32>(path.depth, path.medium, flags, path.events),
+        vec4<f32>(path.ratio, 0.0),
     );
 }
 
@@ -1529,7 +1550,7 @@ fn wf_load(slot: u32) -> u32 {
     let w = wf_paths[slot];
     path = Path(w.o.xyz, w.d.xyz, w.l.xyz, w.beta.xyz, w.o.w, w.d.w, w.info.x, w.info.y,
         w.info.z & 255u, w.info.w, (w.info.z & 256u) != 0u, (w.info.z & 512u) != 0u,
-        w.entry_n.xyz, bitcast<u32>(w.entry_n.w));
+        w.entry_n.xyz, bitcast<u32>(w.entry_n.w), w.ratio.xyz);
     // Without the subsurface integrator its fields keep `start_path`'s
     // values (every write to them is behind SUBSURFACE): constants, not
     // values loaded and carried through the bounce to `wf_store` (RADV:
@@ -1542,6 +1563,7 @@ fn wf_load(slot: u32) -> u32 {
         path.entry = false;
         path.entry_n = vec3<f32>(0.0);
         path.entry_m = 0u;
+        path.ratio = vec3<f32>(1.0);
     }
     rng_state = bitcast<u32>(w.l.w);
     return bitcast<u32>(w.beta.w);
