@@ -180,6 +180,8 @@ fn translucent_scenes_match_the_cpu_within_noise() {
         ("underwater.toml", 16),
         // The camera in fog, a lamp outside it (a null boundary).
         ("fog.toml", 16),
+        // The sun above flat water, refracted into it.
+        ("shallows.toml", 16),
     ] {
         let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());
