@@ -799,45 +799,14 @@ fn a_lamp_above_water_lights_the_floor_through_the_surface() {
     let (n1, n2, sigma, rho, depth) = (1.0f64, 1.33f64, 0.3, 0.8, 2.0);
     let s = scene(&test_scene("sun-above-water.toml", &[]));
     let light = s.lights[0].position;
-    let h1 = light.y;
-    // Landing radius at depth `depth` of the light's ray at angle a.
-    let landing = |a: f64| h1 * a.tan() + depth * (n1 * a.sin() / n2).asin().tan();
     let want = film_of(&s, |ray| {
         let t = (-depth - ray.origin.y) / ray.dir.y;
         let q = ray.at(t);
         if !(t > 0.0) || q.x.abs() > 30.0 || q.z.abs() > 30.0 {
             return 0.0;
         }
-        let d = DVec3::new(light.x - q.x, 0.0, light.z - q.z).length();
-        // Fermat: the crossing at horizontal distance x from the light's foot.
-        let optical =
-            |x: f64| n1 * (x * x + h1 * h1).sqrt() + n2 * ((d - x).powi(2) + depth * depth).sqrt();
-        let (mut a, mut b) = (0.0, d);
-        let r = (5f64.sqrt() - 1.0) / 2.0;
-        for _ in 0..200 {
-            let (c1, c2) = (b - r * (b - a), a + r * (b - a));
-            if optical(c1) < optical(c2) {
-                b = c2;
-            } else {
-                a = c1;
-            }
-        }
-        let x = 0.5 * (a + b);
-        let (l1, l2) = (
-            (x * x + h1 * h1).sqrt(),
-            ((d - x).powi(2) + depth * depth).sqrt(),
-        );
-        let (th1, cos2) = ((x / l1).asin(), depth / l2);
-        let g = if d < 1e-9 {
-            1.0 / (h1 + depth * n1 / n2).powi(2)
-        } else {
-            let e = 1e-6;
-            let dr = (landing(th1 + e) - landing(th1 - e)) / (2.0 * e);
-            th1.sin() / (landing(th1) * cos2 * dr)
-        };
-        let tr = 1.0 - fresnel(th1.cos(), n1, n2);
-        let e = 20.0 * tr * g * cos2 * (-sigma * l2).exp();
-        (-sigma * t).exp() * rho / std::f64::consts::PI * e
+        let (e, cos2) = refracted_reference(light, q, n1, n2, sigma);
+        (-sigma * t).exp() * rho / std::f64::consts::PI * e * cos2
     });
     let (got, want, se) = against(&render_with(&s, 2), &want);
     eprintln!("lamp above water: render {got} +- {se}, closed form {want}");
@@ -846,6 +815,48 @@ fn a_lamp_above_water_lights_the_floor_through_the_surface() {
         (got - want).abs() < 4.0 * se + 2e-3 * want,
         "render {got} +- {se}, closed form {want}"
     );
+}
+
+/// The irradiance at `q` under the water of `sun-above-water.toml` (the
+/// half-space `y < 0` of index `n2` and extinction `sigma`) from its
+/// light of intensity 20 at `light` above it (index `n1`), normal to the
+/// refracted ray, and that ray's cosine with the vertical: `I T(theta_1)
+/// G exp(-sigma l_2)`, with the crossing point Fermat's principle picks
+/// (least optical length `n_1 l_1 + n_2 l_2`, by golden-section search)
+/// and `G = sin theta_1 / (R cos theta_2 dR/dtheta_1)`, the landing radius
+/// `R(theta_1)` traced through Snell's law and differentiated
+/// numerically.
+fn refracted_reference(light: DVec3, q: DVec3, n1: f64, n2: f64, sigma: f64) -> (f64, f64) {
+    let (h1, depth) = (light.y, -q.y);
+    let d = DVec3::new(light.x - q.x, 0.0, light.z - q.z).length();
+    let optical =
+        |x: f64| n1 * (x * x + h1 * h1).sqrt() + n2 * ((d - x).powi(2) + depth * depth).sqrt();
+    let (mut a, mut b) = (0.0, d);
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..100 {
+        let (c1, c2) = (b - r * (b - a), a + r * (b - a));
+        if optical(c1) < optical(c2) {
+            b = c2;
+        } else {
+            a = c1;
+        }
+    }
+    let x = 0.5 * (a + b);
+    let (l1, l2) = (
+        (x * x + h1 * h1).sqrt(),
+        ((d - x).powi(2) + depth * depth).sqrt(),
+    );
+    let (th1, cos2) = ((x / l1).asin(), depth / l2);
+    let landing = |a: f64| h1 * a.tan() + depth * (n1 * a.sin() / n2).asin().tan();
+    let g = if d < 1e-9 {
+        1.0 / (h1 + depth * n1 / n2).powi(2)
+    } else {
+        let e = 1e-6;
+        let dr = (landing(th1 + e) - landing(th1 - e)) / (2.0 * e);
+        th1.sin() / (landing(th1) * cos2 * dr)
+    };
+    let tr = 1.0 - fresnel(th1.cos(), n1, n2);
+    (20.0 * tr * g * (-sigma * l2).exp(), cos2)
 }
 
 /// The lamp above water lights the water itself at its scattering events
@@ -874,40 +885,8 @@ fn a_lamp_above_water_lights_the_water_through_the_surface() {
     src.truncate(src.find("\n# floor\n").unwrap());
     let s = scene(&src);
     let light = s.lights[0].position;
-    let h1 = light.y;
     let want = film_of(&s, |ray| {
-        let irradiance = |q: DVec3| {
-            let depth = -q.y;
-            let d = DVec3::new(light.x - q.x, 0.0, light.z - q.z).length();
-            let optical = |x: f64| {
-                n1 * (x * x + h1 * h1).sqrt() + n2 * ((d - x).powi(2) + depth * depth).sqrt()
-            };
-            let (mut a, mut b) = (0.0, d);
-            let r = (5f64.sqrt() - 1.0) / 2.0;
-            for _ in 0..80 {
-                let (c1, c2) = (b - r * (b - a), a + r * (b - a));
-                if optical(c1) < optical(c2) {
-                    b = c2;
-                } else {
-                    a = c1;
-                }
-            }
-            let x = 0.5 * (a + b);
-            let (l1, l2) = (
-                (x * x + h1 * h1).sqrt(),
-                ((d - x).powi(2) + depth * depth).sqrt(),
-            );
-            let (th1, cos2) = ((x / l1).asin(), depth / l2);
-            let landing = |a: f64| h1 * a.tan() + depth * (n1 * a.sin() / n2).asin().tan();
-            let g = if d < 1e-9 {
-                1.0 / (h1 + depth * n1 / n2).powi(2)
-            } else {
-                let e = 1e-6;
-                let dr = (landing(th1 + e) - landing(th1 - e)) / (2.0 * e);
-                th1.sin() / (landing(th1) * cos2 * dr)
-            };
-            20.0 * (1.0 - fresnel(th1.cos(), n1, n2)) * g * (-st * l2).exp()
-        };
+        let irradiance = |q: DVec3| refracted_reference(light, q, n1, n2, st).0;
         let (n, t_end) = (600, 60.0);
         let h = t_end / n as f64;
         let f =
