@@ -861,10 +861,7 @@ fn innermost(packed: u32) -> u32 {
 pub fn refracted_media(
     scene: &Scene,
 ) -> Result<Vec<Option<(usize, isolux_render::FlatBoundary)>>, String> {
-    let flat: Vec<_> = scene
-        .media()
-        .filter_map(|(i, _, _)| scene.flat_boundary(i).map(|b| (i, b)))
-        .collect();
+    let flat = scene.flat_media();
     let fix = "render without --gpu";
     let mut out = Vec::new();
     for (k, l) in scene.lights.iter().enumerate() {

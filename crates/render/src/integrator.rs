@@ -76,6 +76,12 @@ fn channel(c: Rgb, i: usize) -> f64 {
     }
 }
 
+/// `exp(-sigma_t d)` per channel: the transmittance over a distance `d`
+/// (which may be infinite) of a medium of extinction `sigma_t`.
+fn transmittance(sigma_t: Rgb, d: f64) -> Rgb {
+    sigma_t.map(|s| if s > 0.0 { (-s * d).exp() } else { 1.0 })
+}
+
 /// The medium behind object `obj`'s surface (its material's), if any.
 fn object_medium(scene: &Scene, obj: usize) -> Option<&Subsurface> {
     scene.materials[scene.object_material[obj]].medium()
@@ -216,10 +222,7 @@ fn light_transmittance(
 ) -> Option<Rgb> {
     let medium_of = |obj: usize| object_medium(scene, obj);
     let extinction = |stack: &MediumStack, d: f64| match stack.top().and_then(medium_of) {
-        Some(m) => {
-            let st = m.sigma_t();
-            Rgb::new((-st.r * d).exp(), (-st.g * d).exp(), (-st.b * d).exp())
-        }
+        Some(m) => transmittance(m.sigma_t(), d),
         None => Rgb::WHITE,
     };
     let (mut o, mut stack) = (origin, *stack);
@@ -406,12 +409,7 @@ fn refracted_irradiance(
             return None;
         }
     }
-    let st = object_medium(scene, r.obj)?.sigma_t();
-    let inside = Rgb::new(
-        (-st.r * r.inside).exp(),
-        (-st.g * r.inside).exp(),
-        (-st.b * r.inside).exp(),
-    );
+    let inside = transmittance(object_medium(scene, r.obj)?.sigma_t(), r.inside);
     let mut after = *stack;
     after.cross(r.obj)?;
     let out = r.c + r.normal * (1e-7 * (1.0 + r.c.abs().max_element()));
@@ -494,8 +492,7 @@ impl Flight {
 
     /// The transmittance to `t` per channel (`t` may be infinite).
     fn transmittance(&self, t: f64) -> Rgb {
-        self.sigma_t
-            .map(|s| if s > 0.0 { (-s * t).exp() } else { 1.0 })
+        transmittance(self.sigma_t, t)
     }
 
     fn equiangular(&self, light: &PointLight) -> Option<Equiangular> {
@@ -775,10 +772,7 @@ impl<'a> Media<'a> {
                 })
                 .collect(),
             null_boundaries: scene.may_have_null_boundaries(),
-            flat: scene
-                .media()
-                .filter_map(|(i, _, _)| scene.flat_boundary(i).map(|b| (i, b)))
-                .collect(),
+            flat: scene.flat_media(),
         }
     }
 

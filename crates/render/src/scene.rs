@@ -291,6 +291,14 @@ impl Scene {
         })
     }
 
+    /// The random-walk media bounded by a plane, by object index, with
+    /// their planes ([`Scene::flat_boundary`]), in file order.
+    pub fn flat_media(&self) -> Vec<(usize, FlatBoundary)> {
+        self.media()
+            .filter_map(|(i, _, _)| self.flat_boundary(i).map(|b| (i, b)))
+            .collect()
+    }
+
     /// Whether the scene may hold a *null boundary*: a random-walk medium
     /// of index 1 (fog in air), or two random-walk objects of the same
     /// index whose bounding boxes overlap (one may lie in the other).

@@ -374,9 +374,8 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             // To the crossing point, short of the boundary; the medium
             // attenuates the way there.
             t_max = dot(r.c - origin, wi) * (1.0 - 1e-4) - spawn_offset(r.c);
-            let med = materials[medium_top() - 1u];
             rad = lights[i - n_lights].intensity.rgb * r.factor
-                * exp(-(med.b.rgb + med.c.rgb) * r.inside);
+                * medium_extinction(path.medium, r.inside);
             refracted = true;
             refr_c = r.c;
         } else if (i < n_lights + n_refr + n_env) {
@@ -1129,8 +1128,7 @@ fn bounce() -> bool {
             }
             // The flight passed the surface (or left for good): its
             // transmittance is its probability and its contribution.
-            let mm = materials[medium_top() - 1u];
-            let tr = exp(-(mm.b.rgb + mm.c.rgb) * t_end);
+            let tr = medium_extinction(path.medium, t_end);
             spectral_update(tr, tr);
         }
         if (h.x < 0.0) {
