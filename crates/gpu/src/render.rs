@@ -877,19 +877,26 @@ pub fn refracted_media(
                     .find(|&j| j != i && scene.object_material[j] == mi)
                 {
                     return Err(format!(
-                        "light[{k}] reaches the medium of object[{i}] through its flat surface,                          and object[{j}] has the same material: the GPU follows media by                          material and cannot tell them apart; give object[{i}] a material of                          its own, or {fix}"
+                        "light[{k}] reaches the medium of object[{i}] through its flat surface, \
+                         and object[{j}] has the same material: the GPU follows media by \
+                         material and cannot tell them apart; give object[{i}] a material of \
+                         its own, or {fix}"
                     ));
                 }
                 if b.bbox.is_finite() || b.bbox.min.is_finite() || b.bbox.max.is_finite() {
                     return Err(format!(
-                        "light[{k}] reaches the medium of object[{i}] through its flat surface,                          which has bounds: the GPU refracts point lights through unbounded                          planes only; {fix}"
+                        "light[{k}] reaches the medium of object[{i}] through its flat surface, \
+                         which has bounds: the GPU refracts point lights through unbounded \
+                         planes only; {fix}"
                     ));
                 }
                 out.push(Some((i, b)));
             }
             [&(i, _), &(j, _), ..] => {
                 return Err(format!(
-                    "light[{k}] lies above the flat surfaces of two random-walk media                      (object[{i}] and object[{j}]): the GPU refracts a point light into one;                      {fix}"
+                    "light[{k}] lies above the flat surfaces of two random-walk media \
+                     (object[{i}] and object[{j}]): the GPU refracts a point light into one; \
+                     {fix}"
                 ))
             }
         }

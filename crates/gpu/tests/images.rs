@@ -562,18 +562,25 @@ fn refracted_lights_the_gpu_cannot_follow_are_refused() {
     assert!(src.contains(water));
     let drop = "[[object]]\nmaterial = \"water\"\nbase = { type = \"sphere\", center = [5.0, -5.0, 0.0], radius = 1.0 }\n";
     let shared = src.replace(water, &format!("{water}\n{drop}"));
-    let why = isolux_gpu::refracted_media(&parse(&shared)).unwrap_err();
-    assert!(why.contains("object[1] has the same material"), "{why}");
+    let shared_why = isolux_gpu::refracted_media(&parse(&shared)).unwrap_err();
+    assert!(
+        shared_why.contains("object[1] has the same material"),
+        "{shared_why}"
+    );
     let bounded = src.replace(
         water,
         &format!("{water}bounds = {{ min = [-5.0, -10.0, -5.0], max = [5.0, 1.0, 5.0] }}\n"),
     );
-    let why = isolux_gpu::refracted_media(&parse(&bounded)).unwrap_err();
-    assert!(why.contains("has bounds"), "{why}");
+    let bounded_why = isolux_gpu::refracted_media(&parse(&bounded)).unwrap_err();
+    assert!(bounded_why.contains("has bounds"), "{bounded_why}");
     let pool = "[[material]]\nname = \"pool\"\ntype = \"subsurface\"\nsigma_s = [0.0, 0.0, 0.0]\nsigma_a = [0.1, 0.1, 0.1]\nior = 1.2\nmode = \"random_walk\"\n\n[[object]]\nmaterial = \"pool\"\nbase = { type = \"plane\", point = [0.0, -20.0, 0.0], normal = [0.0, 1.0, 0.0] }\n";
     let two = format!("{src}\n{pool}");
-    let why = isolux_gpu::refracted_media(&parse(&two)).unwrap_err();
-    assert!(why.contains("two random-walk media"), "{why}");
+    let two_why = isolux_gpu::refracted_media(&parse(&two)).unwrap_err();
+    assert!(two_why.contains("two random-walk media"), "{two_why}");
+    // Each message one line of single spaces (no source indentation).
+    for why in [&shared_why, &bounded_why, &two_why] {
+        assert!(!why.contains("  ") && !why.contains('\n'), "{why:?}");
+    }
 }
 
 /// Surfaces under water meet water (the CPU's closed-form check in
