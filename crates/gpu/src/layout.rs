@@ -1053,14 +1053,17 @@ pub struct GpuParams {
     /// render.wgsl).
     pub layers: [u32; 4],
     /// `[the random-walk media the camera is in, null boundaries,
-    /// equiangular sampling, 0]`: `1 +` the material of the innermost in
-    /// the low 16 bits, of the one around it in the high 16 (0: none),
+    /// equiangular sampling, medium slot bits]`: `1 +` the material of the
+    /// innermost in the lowest slot, of each one around it in the next
+    /// (0: none),
     /// where camera paths start (`isolux_render::Scene::media_at`); 1
     /// where the scene may hold null boundaries, which point lights'
     /// shadow rays pass (`isolux_render::Scene::may_have_null_boundaries`);
     /// 1 where flights through media sample their point lights'
     /// light by equiangular sampling too
-    /// (`isolux_render::MediumLightSampling::Equiangular`).
+    /// (`isolux_render::MediumLightSampling::Equiangular`); the width in
+    /// bits of each medium's slot in the packed media (`render::medium_bits`:
+    /// 8 or 16).
     pub camera: [u32; 4],
 }
 

@@ -832,22 +832,42 @@ pub struct GpuFrame {
 }
 
 /// The random-walk media that hold `at`, as the kernels' `path.medium`
-/// packs them: `1 +` the material of the innermost in the low 16 bits,
-/// of the one around it in the high 16 (0: none). `media` are in the
-/// order they nest (`isolux_render::Scene::media_nested`, outermost
-/// first), so the innermost is the last that holds `at`. For
-/// `GpuParams::camera`; each light's `position.w` takes the low half
-/// ([`innermost`]). Deeper nesting is refused before ([`nested_too_deep`]).
-fn medium_of(media: &[(isolux_geometry::Object, u32)], at: glam::DVec3) -> u32 {
+/// packs them: `1 +` the material of the innermost in the lowest slot of
+/// `bits` bits ([`medium_bits`]), of each one around it in the next (0:
+/// none). `media` are in the order they nest
+/// (`isolux_render::Scene::media_nested`, outermost first), so the
+/// innermost is the last that holds `at`. For `GpuParams::camera`; each
+/// light's `position.w` takes the lowest slot ([`innermost`]). Deeper
+/// nesting than the slots hold is refused before ([`nested_too_deep`]).
+fn medium_of(media: &[(isolux_geometry::Object, u32)], at: glam::DVec3, bits: u32) -> u32 {
     media
         .iter()
         .filter(|(o, _)| o.contains(at))
-        .fold(0, |packed, (_, m)| (packed << 16) | *m)
+        .fold(0, |packed, (_, m)| {
+            packed.checked_shl(bits).unwrap_or(0) | *m
+        })
 }
 
 /// The innermost medium of a packed [`medium_of`].
-fn innermost(packed: u32) -> u32 {
-    packed & 0xffff
+fn innermost(packed: u32, bits: u32) -> u32 {
+    packed & ((1 << bits) - 1)
+}
+
+/// The width in bits of each medium's slot in the kernels' packed media
+/// (`path.medium`, `params.camera.w`; `medium_bits()` in render.wgsl): 8,
+/// so that media nest four deep, where every random-walk medium's `1 +`
+/// material index is below 255 (a scene's first 254 materials), and else
+/// 16 (two deep, up to the first 65534 materials), which
+/// [`nested_too_deep`] checks.
+pub fn medium_bits(scene: &Scene) -> u32 {
+    let small = scene
+        .media()
+        .all(|(i, ..)| scene.object_material[i] + 1 < 0xff);
+    if small {
+        8
+    } else {
+        16
+    }
 }
 
 /// Per point light of `scene`, the random-walk medium bounded by an
@@ -904,10 +924,14 @@ pub fn refracted_media(
     Ok(out)
 }
 
-/// Three random-walk media of `scene` whose bounding boxes overlap (the
-/// GPU's paths follow two nested media, a marble under water, and not a
-/// third), or a medium whose material index does not fit the kernels'
-/// 16 bits: why `--gpu` refuses the scene.
+/// Random-walk media of `scene` whose bounding boxes all overlap, one
+/// more than the kernels' packed media hold ([`medium_bits`]: four deep,
+/// a fish in a jelly in a drop under water, or two where a medium's
+/// material comes after the first 254), so that a path could be inside
+/// them all; or a medium whose material index does not fit the kernels'
+/// 16 bits: why `--gpu` refuses the scene. (Boxes that overlap pairwise
+/// share a point, so growing a set while its boxes' common part is not
+/// empty finds every such set.)
 pub fn nested_too_deep(scene: &Scene) -> Option<String> {
     let media: Vec<_> = scene.media_nested();
     if let Some((i, ..)) = media
@@ -919,24 +943,57 @@ pub fn nested_too_deep(scene: &Scene) -> Option<String> {
              which the GPU's kernels cannot name: render without --gpu"
         ));
     }
+    let bits = medium_bits(scene);
+    let depth = (32 / bits) as usize;
     let boxes: Vec<_> = media.iter().map(|(i, o, _)| (*i, o.bbox())).collect();
-    let meet = |a: &isolux_core::Aabb, b: &isolux_core::Aabb| !a.intersection(b).is_empty();
-    for (x, (i, a)) in boxes.iter().enumerate() {
-        let around: Vec<_> = boxes[x + 1..].iter().filter(|(_, b)| meet(a, b)).collect();
-        for (y, (j, b)) in around.iter().enumerate() {
-            if let Some((k, _)) = around[y + 1..].iter().find(|(_, c)| meet(b, c)) {
-                let mut ids = [*i, *j, *k];
-                ids.sort();
-                return Some(format!(
-                    "objects {}, {} and {}: random-walk media whose bounding boxes overlap, \
-                     so that a path could be inside all three; the GPU follows media nested \
-                     two deep (a marble under water), not three: render without --gpu",
-                    ids[0], ids[1], ids[2]
-                ));
-            }
-        }
+    let mut set = Vec::new();
+    if !overlapping(&boxes, depth + 1, &mut set, None) {
+        return None;
     }
-    None
+    set.sort();
+    let ids = set
+        .iter()
+        .map(|i| i.to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let why = if bits == 8 {
+        String::new()
+    } else {
+        " (four where every random-walk medium's material is among the scene's first 254)"
+            .to_string()
+    };
+    Some(format!(
+        "objects {ids}: {} random-walk media whose bounding boxes overlap, so that a path \
+         could be inside them all; the GPU follows media nested {depth} deep{why}: render \
+         without --gpu",
+        depth + 1
+    ))
+}
+
+/// Grows `set` (object indices) by boxes of `boxes` after those in it
+/// until it holds `n` whose common part (`common`; `None`: everything) is
+/// not empty; `false` where no such `n` exist.
+fn overlapping(
+    boxes: &[(usize, isolux_core::Aabb)],
+    n: usize,
+    set: &mut Vec<usize>,
+    common: Option<isolux_core::Aabb>,
+) -> bool {
+    if set.len() == n {
+        return true;
+    }
+    for (x, (i, b)) in boxes.iter().enumerate() {
+        let part = common.map_or(*b, |c| c.intersection(b));
+        if part.is_empty() {
+            continue;
+        }
+        set.push(*i);
+        if overlapping(&boxes[x + 1..], n, set, Some(part)) {
+            return true;
+        }
+        set.pop();
+    }
+    false
 }
 
 /// Texels with their density in `(u, v)` (`w`), and the CDFs: the marginal
@@ -1148,6 +1205,7 @@ impl Gpu {
             .into_iter()
             .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
             .collect();
+        let bits = medium_bits(scene);
         let refracted = refracted_media(scene).map_err(GpuError::Setup)?;
         let lights: Vec<GpuLight> = scene
             .lights
@@ -1158,7 +1216,12 @@ impl Gpu {
                 // lies in (0: none), whose scattering events gather it.
                 position: {
                     let [x, y, z, _] = v4(l.position - at);
-                    [x, y, z, innermost(medium_of(&media, l.position)) as f32]
+                    [
+                        x,
+                        y,
+                        z,
+                        innermost(medium_of(&media, l.position, bits), bits) as f32,
+                    ]
                 },
                 intensity: [
                     l.intensity.r as f32,
@@ -1213,10 +1276,10 @@ impl Gpu {
             wave: [0; 4],
             layers: [0; 4],
             camera: [
-                medium_of(&media, scene.camera.position),
+                medium_of(&media, scene.camera.position, bits),
                 null_boundaries as u32,
                 (scene.integrator.medium_lights == MediumLightSampling::Equiangular) as u32,
-                0,
+                bits,
             ],
         };
 
@@ -1822,7 +1885,7 @@ impl GpuFrame {
             .basis();
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         self.params.origin = v4(origin - self.rebase);
-        self.params.camera[0] = medium_of(&self.media, origin);
+        self.params.camera[0] = medium_of(&self.media, origin, self.params.camera[3]);
         self.params.forward = v4(forward);
         self.params.right = v4(right);
         self.params.up = v4(up);
@@ -1950,6 +2013,90 @@ mod tests {
                 assert!((p - want).abs() < 1e-6, "{x} {y} {p} {want}");
             }
         }
+    }
+
+    /// A scene of `n` random-walk spheres nested around the origin, each
+    /// of its own material, after `padding` unused diffuse materials.
+    fn nested_spheres(n: usize, padding: usize) -> Scene {
+        nested_spheres_at(n, padding, 0.0)
+    }
+
+    /// [`nested_spheres`] with the `k`-th sphere's centre at `x = k
+    /// spacing`.
+    fn nested_spheres_at(n: usize, padding: usize, spacing: f64) -> Scene {
+        let mut text =
+            String::from("[camera]\nposition = [0.0, 0.0, 9.0]\nlook_at = [0.0, 0.0, 0.0]\n");
+        for k in 0..padding {
+            text += &format!("[[material]]\nname = \"pad{k}\"\ntype = \"diffuse\"\n");
+        }
+        for k in 0..n {
+            text += &format!(
+                "[[material]]\nname = \"m{k}\"\ntype = \"subsurface\"\nmode = \"random_walk\"\n\
+                 sigma_s = [1.0, 1.0, 1.0]\nsigma_a = [0.0, 0.0, 0.0]\n\
+                 [[object]]\nmaterial = \"m{k}\"\n\
+                 base = {{ type = \"sphere\", center = [{}, 0.0, 0.0], radius = {} }}\n",
+                k as f64 * spacing,
+                4.0 - k as f64 * 0.5
+            );
+        }
+        isolux_scene::parse_str(
+            &text,
+            std::path::Path::new("nested.toml"),
+            std::path::Path::new("."),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn media_nest_as_deep_as_their_slots_hold() {
+        // 8-bit slots: four deep.
+        let four = nested_spheres(4, 0);
+        assert_eq!(medium_bits(&four), 8);
+        assert_eq!(nested_too_deep(&four), None);
+        let packed = medium_of(
+            &four
+                .media_nested()
+                .iter()
+                .map(|(i, o, _)| ((*o).clone(), four.object_material[*i] as u32 + 1))
+                .collect::<Vec<_>>(),
+            glam::DVec3::ZERO,
+            8,
+        );
+        assert_eq!(packed, 0x01_02_03_04);
+        assert_eq!(innermost(packed, 8), 4);
+        let five = nested_spheres(5, 0);
+        let why = nested_too_deep(&five).expect("five deep refused");
+        assert!(
+            why.starts_with("objects 0, 1, 2, 3, 4: 5 random-walk media") && why.contains("4 deep"),
+            "{why}"
+        );
+        assert!(!why.contains("  "), "{why}");
+        // A medium after the first 254 materials: 16-bit slots, two deep.
+        let late = nested_spheres(3, 254);
+        assert_eq!(medium_bits(&late), 16);
+        assert_eq!(medium_bits(&nested_spheres(3, 251)), 8);
+        let why = nested_too_deep(&late).expect("three deep at 16 bits refused");
+        assert!(
+            why.contains("nested 2 deep (four where every random-walk medium's material is among"),
+            "{why}"
+        );
+        assert_eq!(nested_too_deep(&nested_spheres(2, 254)), None);
+        // Five media side by side, and four nested beside a fifth: none
+        // holds more than four.
+        assert_eq!(nested_too_deep(&nested_spheres_at(5, 0, 10.0)), None);
+        let mut beside = nested_spheres(4, 0);
+        let other = nested_spheres_at(2, 0, 10.0);
+        beside.geometry = isolux_geometry::Aggregate::new(
+            beside
+                .geometry
+                .objects()
+                .iter()
+                .chain(&other.geometry.objects()[1..])
+                .cloned()
+                .collect(),
+        );
+        beside.object_material.push(beside.object_material[0]);
+        assert_eq!(nested_too_deep(&beside), None);
     }
 
     #[test]

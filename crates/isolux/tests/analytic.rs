@@ -611,6 +611,28 @@ fn media_nest() {
     }
 }
 
+/// Media nest four deep (examples/tests/deep-media.toml: spheres of index
+/// 1.9 in 1.7 in 1.5 in water of 1.33, all scattering without absorption,
+/// under a white sky): the camera in the innermost sees `1.9^2`, every
+/// path bringing exactly `3 n^2` over its channels, and from the sphere
+/// of 1.7, `1.7^2` (closed form, as [`media_nest`]).
+#[test]
+fn media_nest_four_deep() {
+    let deep = test_scene("deep-media.toml", &[]);
+    for (camera, n, depth) in [("[0.5, 0.0, 0.3]", 1.9, 4), ("[0.1, 0.0, 0.3]", 1.7, 3)] {
+        let s = scene(&deep.replace("[0.5, 0.0, 0.3]", camera));
+        assert_eq!(s.media_at(s.camera.position).len(), depth);
+        let want = 3.0 * n * n;
+        for p in &render_with(&s, 2).rgb {
+            let sum = p.iter().map(|&v| v as f64).sum::<f64>();
+            assert!(
+                (sum - want).abs() < 1e-5 * want,
+                "camera at {camera}: {p:?}"
+            );
+        }
+    }
+}
+
 /// A grey medium (fog: the same coefficients in every channel) carries
 /// all three channels on every path instead of choosing one: with the
 /// camera inside a non-absorbing grey sphere of index 1.5 under a white

@@ -464,8 +464,10 @@ struct Path {
     eta_scale: f32,
     depth: u32,
     // Subsurface media (random walk): the media the path is inside, each
-    // as 1 + its material (0: none), the innermost in the low 16 bits and
-    // the one around it in the high 16 (`medium_top`); the hero channel
+    // as 1 + its material (0: none) in a slot of `medium_bits()` bits, the
+    // innermost in the lowest slot and each around it in the next
+    // (`medium_top`; four media deep in 8-bit slots, two in 16-bit ones,
+    // render.rs `medium_bits`); the hero channel
     // whose coefficients its free flights sample (3: none yet; `ratio`
     // below), the scattering events and boundary crossings so far.
     medium: u32,
@@ -487,9 +489,21 @@ struct Path {
 
 var<private> path: Path;
 
+// The width in bits of a packed medium's slot (`params.camera.w`, render.rs
+// `medium_bits`): 8, so that media nest four deep, or 16 (two deep) in a
+// scene where a medium's 1 + material does not fit 8 bits.
+fn medium_bits() -> u32 {
+    return params.camera.w;
+}
+
+// The mask of a packed medium's slot.
+fn medium_mask() -> u32 {
+    return (1u << medium_bits()) - 1u;
+}
+
 // 1 + the material of the innermost medium the path is in (0: none).
 fn medium_top() -> u32 {
-    return path.medium & 0xffffu;
+    return path.medium & medium_mask();
 }
 
 // ---- Subsurface scattering (integrator.rs) ---------------------------------
@@ -935,37 +949,47 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
 // `MediumStack::outside_of`): the innermost, or where id is the innermost
 // (the path leaving it) the one around it.
 fn medium_outside(med: u32, id: u32) -> u32 {
-    if ((med & 0xffffu) == id) {
-        return med >> 16u;
+    let mask = medium_mask();
+    if ((med & mask) == id) {
+        return (med >> medium_bits()) & mask;
     }
-    return med & 0xffffu;
+    return med & mask;
 }
 
 // The packed media med after crossing the boundary of medium id
-// (integrator.rs `MediumStack::cross`): out of it if med holds it, else
-// into it; MEDIA_TOO_DEEP for a third (refused before the render,
-// render.rs `nested_too_deep`).
+// (integrator.rs `MediumStack::cross`): out of it if med holds it (in any
+// slot: media may overlap), else into it; MEDIA_TOO_DEEP for one more
+// than the slots hold (refused before the render, render.rs
+// `nested_too_deep`).
 const MEDIA_TOO_DEEP: u32 = 0xffffffffu;
 fn medium_crossed(med: u32, id: u32) -> u32 {
-    if ((med & 0xffffu) == id) {
-        return med >> 16u;
+    let b = medium_bits();
+    let mask = medium_mask();
+    for (var k = 0u; k < 4u; k++) {
+        let s = k * b;
+        if (s >= 32u) {
+            break;
+        }
+        if (((med >> s) & mask) == id) {
+            // The slots below it stay, those above move down one.
+            let above = select(0u, (med >> (s + b)) << s, s + b < 32u);
+            return (med & ((1u << s) - 1u)) | above;
+        }
     }
-    if ((med >> 16u) == id) {
-        return med & 0xffffu;
-    }
-    if (med > 0xffffu) {
+    if ((med >> (32u - b)) != 0u) {
         return MEDIA_TOO_DEEP;
     }
-    return (med << 16u) | id;
+    return (med << b) | id;
 }
 
 // Extinction over a distance t in the innermost of the packed media med
 // (`path.medium`'s packing), per channel.
 fn medium_extinction(med: u32, t: f32) -> vec3<f32> {
-    if (!SUBSURFACE || (med & 0xffffu) == 0u) {
+    let top = med & medium_mask();
+    if (!SUBSURFACE || top == 0u) {
         return vec3<f32>(1.0);
     }
-    let mm = materials[(med & 0xffffu) - 1u];
+    let mm = materials[top - 1u];
     return exp(-(mm.b.rgb + mm.c.rgb) * t);
 }
 
@@ -1232,9 +1256,8 @@ fn bounce() -> bool {
     var beta = path.beta * s.f * (abs(s.wi.z) / s.pdf);
     path.eta_scale *= s.eta * s.eta;
     // Crossing a medium's boundary leaves it if the path is inside it,
-    // and else enters it, inside the one the path is in (media nest two
-    // deep: `path.medium`).
-    // path carries from then on.
+    // and else enters it, inside the one the path is in (media nest four
+    // deep, or two: `path.medium`).
     if (is_medium && transmitted) {
         let id = objects[oi].range.z + 1u;
         let next = medium_crossed(path.medium, id);
