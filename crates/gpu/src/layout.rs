@@ -999,7 +999,7 @@ impl GpuMaterials {
 }
 
 /// A point light. WGSL: `struct Light { position: vec4<f32>, intensity:
-/// vec4<f32>, plane: vec4<f32> }`.
+/// vec4<f32>, plane: vec4<f32>, flat: vec4<u32> }`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
@@ -1016,6 +1016,10 @@ pub struct GpuLight {
     /// normal and `n . p` on the plane (in the frame's rebased
     /// coordinates).
     pub plane: [f32; 4],
+    /// `[b, 0, 0, 0]`: where that plane has `bounds`, `b` is 1 + its
+    /// object, whose box (`GpuObject::bmin`, `bmax`) the crossing point
+    /// must lie in (0: an unbounded plane, no box to test).
+    pub flat: [u32; 4],
 }
 
 /// The render kernel's parameter block (a read-only storage buffer, see
@@ -1496,7 +1500,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuRay>(), 32);
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 112);
-        assert_eq!(std::mem::size_of::<GpuLight>(), 48);
+        assert_eq!(std::mem::size_of::<GpuLight>(), 64);
         assert_eq!(std::mem::size_of::<GpuParams>(), 192);
         assert_eq!(std::mem::size_of::<GpuQuery>(), 80);
         assert_eq!(std::mem::size_of::<GpuAnswer>(), 48);

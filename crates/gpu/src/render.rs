@@ -870,14 +870,22 @@ pub fn medium_bits(scene: &Scene) -> u32 {
     }
 }
 
-/// Per point light of `scene`, the random-walk medium bounded by an
-/// unbounded plane that the light lies above (its object and plane,
-/// `Scene::flat_boundary`), whose inside it reaches by refraction
-/// through the plane (`refraction` in render.wgsl, as on the CPU);
-/// `Err` with why `--gpu` refuses the scene where the GPU cannot tell
-/// the medium from the path's (its media are materials, not objects:
-/// the medium's material also on another object; a light above two such
-/// media) or the plane has `bounds`.
+/// Whether a flat boundary has `bounds` (a finite face of its box), so
+/// that the kernels test the crossing point against its object's box
+/// (`GpuLight::flat`).
+fn bounded(b: &isolux_render::FlatBoundary) -> bool {
+    let [min, max] = [b.bbox.min, b.bbox.max].map(|v| v.to_array());
+    min.into_iter().chain(max).any(f64::is_finite)
+}
+
+/// Per point light of `scene`, the random-walk medium bounded by a
+/// plane (with or without `bounds`) that the light lies above (its
+/// object and plane, `Scene::flat_boundary`), whose inside it reaches by
+/// refraction through the plane (`refraction` in render.wgsl, as on the
+/// CPU); `Err` with why `--gpu` refuses the scene where the GPU cannot
+/// tell the medium from the path's (its media are materials, not
+/// objects: the medium's material also on another object; a light above
+/// two such media).
 pub fn refracted_media(
     scene: &Scene,
 ) -> Result<Vec<Option<(usize, isolux_render::FlatBoundary)>>, String> {
@@ -901,13 +909,6 @@ pub fn refracted_media(
                          and object[{j}] has the same material: the GPU follows media by \
                          material and cannot tell them apart; give object[{i}] a material of \
                          its own, or {fix}"
-                    ));
-                }
-                if b.bbox.is_finite() || b.bbox.min.is_finite() || b.bbox.max.is_finite() {
-                    return Err(format!(
-                        "light[{k}] reaches the medium of object[{i}] through its flat surface, \
-                         which has bounds: the GPU refracts point lights through unbounded \
-                         planes only; {fix}"
                     ));
                 }
                 out.push(Some((i, b)));
@@ -1233,6 +1234,13 @@ impl Gpu {
                     let [x, y, z, _] = v4(b.normal);
                     [x, y, z, (b.offset - b.normal.dot(at)) as f32]
                 }),
+                flat: [
+                    r.filter(|(_, b)| bounded(b))
+                        .map_or(0, |(i, _)| i as u32 + 1),
+                    0,
+                    0,
+                    0,
+                ],
             })
             .collect();
         let (env_kind, env_rgb, env_size, texels, cdf) = match &scene.environment {

@@ -46,7 +46,7 @@ struct Params {
     camera: vec4<u32>,
 }
 
-struct Light { position: vec4<f32>, intensity: vec4<f32>, plane: vec4<f32> }
+struct Light { position: vec4<f32>, intensity: vec4<f32>, plane: vec4<f32>, flat: vec4<u32> }
 
 @group(0) @binding(0) var<storage, read> objects: array<Object>;
 @group(0) @binding(1) var<storage, read> perturbations: array<Perturbation>;
@@ -778,6 +778,16 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
         return r;
     }
     let c = p + s * along + h2 * n;
+    if (light.flat.x != 0u) {
+        // A plane with bounds: the crossing must lie in its box (in the
+        // object's frame, its faces rounded outward).
+        let ob = objects[light.flat.x - 1u];
+        let lc = c - ob.origin.xyz;
+        let tol = 1e-5 * (1.0 + max3(abs(lc)));
+        if (any(lc < ob.bmin.xyz - tol) || any(lc > ob.bmax.xyz + tol)) {
+            return r;
+        }
+    }
     return Refraction((c - p) / l2, l2, c, factor);
 }
 
