@@ -746,12 +746,18 @@ pub struct Media<'a> {
     /// their planes ([`Scene::flat_boundary`]): point lights outside them
     /// reach inside through the plane by refraction (`refraction`).
     pub flat: Vec<(usize, FlatBoundary)>,
+    /// Whether scattering events may gather any point light directly
+    /// ([`medium_lights`]: a light inside a medium, or any light where
+    /// null boundaries may be), so that flights look for lights to
+    /// sample at all (0.7% of the random walk's instructions per sample
+    /// in a scene lit from outside its media, callgrind; docs/benchmarks.md).
+    pub gathers: bool,
 }
 
 impl<'a> Media<'a> {
     /// The media of `scene` for paths from `origin`.
     pub fn new(scene: &'a Scene, origin: DVec3) -> Self {
-        Media {
+        let mut media = Media {
             camera: scene.media_at(origin),
             lights: scene
                 .lights
@@ -773,7 +779,11 @@ impl<'a> Media<'a> {
                 .collect(),
             null_boundaries: scene.may_have_null_boundaries(),
             flat: scene.flat_media(),
-        }
+            gathers: false,
+        };
+        media.gathers = !scene.lights.is_empty()
+            && (media.null_boundaries || media.lights.iter().any(Option::is_some));
+        media
     }
 
     /// The material of object `obj` seen from inside the medium of
@@ -944,8 +954,9 @@ pub fn radiance_culled(
                 });
             }
         }
-        let equiangular = flight.is_some_and(|f| !f.sigma_s.is_black())
+        let equiangular = media.gathers
             && scene.integrator.medium_lights == MediumLightSampling::Equiangular
+            && flight.as_ref().is_some_and(|f| !f.sigma_s.is_black())
             && medium_lights(scene, media, &stack).next().is_some();
         let t_search = if equiangular { f64::INFINITY } else { t_max };
         let mut found = match primary.take() {
@@ -960,11 +971,14 @@ pub fn radiance_culled(
         // The flight passing the surface (or leaving for good): its
         // transmittance is its probability and its contribution, per
         // channel ([`Spectral`]).
-        if let Some(f) = flight.filter(|_| found.is_some() || !t_max.is_finite()) {
+        if let Some(f) = flight
+            .as_ref()
+            .filter(|_| found.is_some() || !t_max.is_finite())
+        {
             let tr = f.transmittance(found.map_or(f64::INFINITY, |(_, h)| h.t));
             spectral.update(&mut beta, tr, tr);
         }
-        if let (None, Some(m), Some(f)) = (found, inside, flight) {
+        if let (None, Some(m), Some(f)) = (&found, inside, &flight) {
             if t_max.is_finite() {
                 // Scattering event inside the medium.
                 medium_events += 1;
@@ -976,7 +990,7 @@ pub fn radiance_culled(
                 let p = ray.at(t_max);
                 // Point lights, by next-event estimation (the environment
                 // lies behind the medium's boundary).
-                l += beta * medium_light(scene, media, &stack, &f, t_max, equiangular);
+                l += beta * medium_light(scene, media, &stack, f, t_max, equiangular);
                 match russian_roulette(beta, eta_scale, rng) {
                     Some(b) => beta = b,
                     None => break,
