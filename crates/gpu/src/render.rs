@@ -870,6 +870,50 @@ pub fn medium_bits(scene: &Scene) -> u32 {
     }
 }
 
+/// Lists, for manifold next-event estimation of point lights through
+/// curved boundaries (`manifold_refraction` in render.wgsl, as the CPU's
+/// `RefractedLights::Manifold`), the objects of each random-walk medium
+/// that is not flat: in `materials`' data, `[count, objects...]` (as
+/// `f32`), whose offset `+ 1` goes to the medium's record's `c.w` (0:
+/// none; the GPU follows media by material, and finds the object the
+/// path is in among those that share it). Whether any was listed (and
+/// the scene has a point light): the kernels then carry the code. An
+/// offset past `2^24`, which `f32` cannot hold exactly, is refused.
+fn manifold_media(scene: &Scene, materials: &mut GpuMaterials) -> Result<bool, GpuError> {
+    if scene.integrator.refracted_lights != isolux_render::RefractedLights::Manifold
+        || scene.lights.is_empty()
+    {
+        return Ok(false);
+    }
+    let flat: Vec<usize> = scene.flat_media().iter().map(|(i, _)| *i).collect();
+    let mut listed = false;
+    for mi in 0..scene.materials.len() {
+        let objs: Vec<usize> = scene
+            .media()
+            .filter(|(i, ..)| scene.object_material[*i] == mi && !flat.contains(i))
+            .map(|(i, ..)| i)
+            .collect();
+        if objs.is_empty() {
+            continue;
+        }
+        let at = materials.data.len();
+        if at + 1 >= 1 << 24 {
+            return Err(GpuError::Setup(format!(
+                "material \"{}\": its list of objects for point lights refracted through \
+                 its boundary lies past the first 2^24 words of material data, which the \
+                 GPU's record cannot address; set integrator.refracted_lights = \"flat\", \
+                 or render without --gpu",
+                scene.material_names.get(mi).map_or("?", |n| n.as_str())
+            )));
+        }
+        materials.data.push(objs.len() as f32);
+        materials.data.extend(objs.iter().map(|&i| i as f32));
+        materials.materials[mi].c[3] = (at + 1) as f32;
+        listed = true;
+    }
+    Ok(listed)
+}
+
 /// Whether a flat boundary has `bounds` (a finite face of its box), so
 /// that the kernels test the crossing point against its object's box
 /// (`GpuLight::flat`).
@@ -1197,7 +1241,8 @@ impl Gpu {
                 }
             })
             .collect();
-        let materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
+        let mut materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
+        let manifold = manifold_media(scene, &mut materials)?;
         let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
         let null_boundaries = scene.may_have_null_boundaries();
         // In the order they nest, outermost first (`medium_of`).
@@ -1371,7 +1416,7 @@ impl Gpu {
         let bind = self.frame_bind_group(&buffers, &layers);
         let needed = Features {
             null_boundaries,
-            refraction: refracted.iter().any(Option::is_some),
+            refraction: refracted.iter().any(Option::is_some) || manifold,
             ..Features::of(&materials.materials).fit_to(&geo, scene.lights.len())
         };
         let random_walk = materials
@@ -1470,7 +1515,11 @@ impl GpuFrame {
         if !features.covers(self.needed) {
             return Err(GpuError::Setup(format!(
                 "kernels with {features} cannot render this scene: it needs {}",
-                self.needed
+                // Tile lists are optional (the same hits either way).
+                Features {
+                    tiles: false,
+                    ..self.needed
+                }
             )));
         }
         self.features = features;

@@ -554,6 +554,59 @@ fn lamps_above_water_match_the_cpu() {
     }
 }
 
+/// A lamp above a drop of water lights the floor inside it through the
+/// curved surface, by manifold next-event estimation
+/// (`examples/tests/lamp-above-drop.toml`; the CPU's closed form in
+/// `crates/isolux/tests/analytic.rs`, 0.22456): the GPU's mean against
+/// it, and GPU against CPU within noise for the floor, for scattering
+/// water under the lamp (no floor), and for two drops of one material
+/// (the GPU finds the one the path is in among the material's objects).
+/// With `refracted_lights = "flat"` the floor is black on both.
+#[test]
+fn lamps_above_drops_match_the_cpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let floor = common::test_scene_text("lamp-above-drop.toml");
+    let scene = isolux_scene::parse_str(&floor, Path::new("drop.toml"), Path::new(".")).unwrap();
+    let m = image_mean(&gpu_image(&gpu, &scene));
+    eprintln!("floor in a drop: GPU {m}");
+    assert!((m - 0.22456).abs() < 0.02 * 0.22456, "{m}");
+    let mut water = floor
+        .replace("sigma_s = [0.0, 0.0, 0.0]", "sigma_s = [0.3, 0.4, 0.5]")
+        .replace("max_depth = 1", "max_depth = 4");
+    water.truncate(water.find("\n[[material]]\nname = \"floor\"").unwrap());
+    // The other drop listed first: the material's first object is not
+    // the one the paths are in.
+    let drop = "[[object]]\nmaterial = \"water\"\n";
+    assert!(floor.contains(drop));
+    let twin = floor.replace("max_depth = 1", "max_depth = 4").replacen(
+        drop,
+        &format!(
+            "{drop}base = {{ type = \"sphere\", center = [6.0, 0.0, 0.0], radius = 1.0 }}\n\n{drop}"
+        ),
+        1,
+    );
+    for (name, src) in [
+        (
+            "floor in a drop",
+            floor.replace("max_depth = 1", "max_depth = 4"),
+        ),
+        ("scattering drop under a lamp", water),
+        ("two drops of one material", twin),
+    ] {
+        let mut scene =
+            isolux_scene::parse_str(&src, Path::new("drop.toml"), Path::new(".")).unwrap();
+        assert_matches_cpu(&gpu, &mut scene, name, 0.001);
+    }
+    let flat = floor.replace(
+        "[integrator]\n",
+        "[integrator]\nrefracted_lights = \"flat\"\n",
+    );
+    let scene = isolux_scene::parse_str(&flat, Path::new("drop.toml"), Path::new(".")).unwrap();
+    assert_eq!(image_mean(&gpu_image(&gpu, &scene)), 0.0);
+}
+
 /// What the GPU cannot follow of lamps above flat water is refused by
 /// name before a render (`refracted_media`; no adapter needed): the
 /// water's material on a second object (the GPU's media are materials),
@@ -1075,7 +1128,12 @@ fn frames_choose_the_kernels_their_scenes_need() {
                     ..needed
                 };
                 let e = frame.set_features(lacking).unwrap_err().to_string();
-                assert!(e.contains(&needed.to_string()), "{name}: {e}");
+                // (Tile lists, optional, go unnamed among the needs.)
+                let named = Features {
+                    tiles: false,
+                    ..needed
+                };
+                assert!(e.ends_with(&format!("it needs {named}")), "{name}: {e}");
             }
             frame.set_features(Features::ALL).unwrap();
             assert_eq!(frame.features(), Features::ALL);
@@ -1150,6 +1208,13 @@ fn wavefront_traces_the_megakernels_paths() {
         scene.film.width = 61;
         scene.film.height = 35;
         scene.film.spp = 4;
+        if loses_whole_paths(&gpu) {
+            // Mesa 22.3 miscompiles the manifold solve's loops inside the
+            // megakernel's (its mean 1% low, where the wavefront's and the
+            // CPU's agree; on Mesa 25.0.7 both kernels give the same image
+            // bit for bit): compare the paths without it there.
+            scene.integrator.refracted_lights = isolux_render::RefractedLights::Flat;
+        }
         let run = |wavefront: bool| {
             let mut frame = gpu.prepare(&scene).unwrap();
             frame.set_wavefront(wavefront);

@@ -1563,3 +1563,94 @@ fn a_scene_far_from_the_origin_renders_as_at_the_origin() {
         assert!(d <= 0.02 * noise, "moved {shift:e}: {d} vs {noise}");
     }
 }
+
+/// `examples/tests/lamp-above-drop.toml`: a point light of intensity 20 at
+/// `[0, 5, 0]` above a sphere of absorbing water (radius 2 about the
+/// origin, index 1.33, `sigma_a` 0.1) holding a diffuse floor (0.8) at
+/// `y = -0.5`, the camera inside the water, black sky, `max_depth` 1. The
+/// light reaches the floor only through the curved surface, by
+/// refraction (manifold next-event estimation): each pixel's expected
+/// value is `exp(-sigma t) rho / pi E cos`, `E = I T G exp(-sigma l)` for
+/// the path through the crossing point that Fermat's principle picks, in
+/// the plane of the light, the centre and the floor point (golden-section
+/// search of the optical length over the great circle), and the
+/// spreading `G = (d theta_L / ds) (sin theta_L / rho_q)` from the
+/// symmetry about the light's axis (`theta_L` the light's ray's angle
+/// with the axis, `rho_q` the floor point's distance from it, `s` across
+/// the ray in that plane, differentiated numerically). With
+/// `refracted_lights = "flat"` (the behaviour before) the floor is black.
+#[test]
+fn a_lamp_above_a_drop_lights_the_floor_inside_through_the_curved_surface() {
+    let (n1, n2, sigma, rho, radius) = (1.0f64, 1.33f64, 0.1, 0.8, 2.0);
+    let s = scene(&test_scene("lamp-above-drop.toml", &[]));
+    let light = s.lights[0].position;
+    let want = film_of(&s, |ray| {
+        let t = (-0.5 - ray.origin.y) / ray.dir.y;
+        let q = ray.at(t);
+        if !(t > 0.0) || q.x.abs() > 1.0 || q.z.abs() > 1.0 {
+            return 0.0;
+        }
+        let (e, cos_floor) = drop_reference(light, q, radius, n1, n2, sigma);
+        (-sigma * t).exp() * rho / std::f64::consts::PI * e * cos_floor
+    });
+    let (got, want, se) = against(&render_with(&s, 2), &want);
+    eprintln!("lamp above a drop: render {got} +- {se}, closed form {want}");
+    assert!(want > 0.01, "{want}");
+    assert!(
+        (got - want).abs() < 4.0 * se + 3e-3 * want,
+        "render {got} +- {se}, closed form {want}"
+    );
+    let flat = scene(&test_scene(
+        "lamp-above-drop.toml",
+        &[(
+            "[integrator]\n",
+            "[integrator]\nrefracted_lights = \"flat\"\n",
+        )],
+    ));
+    let img = render_with(&flat, 2);
+    assert!(img.rgb.iter().flatten().all(|&v| v == 0.0));
+}
+
+/// The irradiance at `q`, inside a sphere of radius `radius` about the
+/// origin (index `n2`, extinction `sigma`), from a light of intensity 20
+/// at `light` outside (index `n1`), normal to the refracted ray, and that
+/// ray's cosine with the vertical (Fermat's principle in the plane of
+/// the light, the centre and `q`; the spreading from the symmetry about
+/// the light's axis).
+fn drop_reference(light: DVec3, q: DVec3, radius: f64, n1: f64, n2: f64, sigma: f64) -> (f64, f64) {
+    let e1 = light.normalize();
+    // The crossing for a point qq in the plane of e1 and e2.
+    let solve = |qq: DVec3| {
+        let off = qq - qq.dot(e1) * e1;
+        let e2 = off.normalize();
+        let at = |psi: f64| radius * (psi.cos() * e1 + psi.sin() * e2);
+        let optical = |psi: f64| n1 * (light - at(psi)).length() + n2 * (at(psi) - qq).length();
+        let (mut a, mut b) = (0.0, (radius / light.length()).acos());
+        let r = (5f64.sqrt() - 1.0) / 2.0;
+        for _ in 0..200 {
+            let (c1, c2) = (b - r * (b - a), a + r * (b - a));
+            if optical(c1) < optical(c2) {
+                b = c2;
+            } else {
+                a = c1;
+            }
+        }
+        at(0.5 * (a + b))
+    };
+    let x = solve(q);
+    let theta = |xx: DVec3| (xx - light).normalize().dot(-e1).acos();
+    let ray = (q - x).normalize();
+    // Across the ray, in the plane.
+    let normal_of_plane = e1.cross(q - x).normalize();
+    let across = normal_of_plane.cross(ray);
+    let ds = 1e-5;
+    let dtheta = (theta(solve(q + ds * across)) - theta(solve(q - ds * across))).abs() / (2.0 * ds);
+    let rho_q = (q - q.dot(e1) * e1).length();
+    let g = dtheta * theta(x).sin() / rho_q;
+    let cos_out = (light - x).normalize().dot(x / radius);
+    let tr = 1.0 - fresnel(cos_out, n1, n2);
+    (
+        20.0 * tr * g * (-sigma * (q - x).length()).exp(),
+        ray.dot(-DVec3::Y),
+    )
+}

@@ -572,13 +572,18 @@ fn sss_media_and_profile() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("unknown medium \"jelly\" (valid: apple,"));
 }
 
-/// A point light outside the random-walk medium around the camera (the
-/// sun above a camera in a drop of water) lights nothing the camera sees
-/// in the medium directly: `render` warns, naming the light and the
-/// medium's object, and renders. A lamp in the water (the example as it
-/// is) draws no warning, nor does the sun above water of index 1 (a null
-/// boundary, which shadow rays pass), nor the sun above the example's
-/// flat water (refracted through its surface, since 2026-12-04).
+/// A point light that cannot reach the random-walk medium around the
+/// camera lights nothing the camera sees in the medium directly:
+/// `render` warns, naming the light and the medium's object, and renders.
+/// So for the sun above a camera in a bubble of another medium under
+/// water (two boundaries: a point light is refracted through one), and
+/// above a drop of water with `refracted_lights = "flat"` (curved
+/// boundaries stop point lights then). A lamp in the water (the example
+/// as it is) draws no warning, nor does the sun above water of index 1 (a
+/// null boundary, which shadow rays pass), nor the sun above the
+/// example's flat water (refracted through its surface, since
+/// 2026-12-04) or above the drop (manifold next-event estimation, since
+/// later that day).
 #[test]
 fn a_light_outside_the_cameras_medium_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
@@ -598,9 +603,28 @@ fn a_light_outside_the_cameras_medium_is_warned_about() {
         "base = { type = \"sphere\", center = [0.0, -50.0, 0.0], radius = 50.0 }",
     );
     assert_ne!(drop, src);
+    let flat = drop.replace(
+        "[integrator]\n",
+        "[integrator]\nrefracted_lights = \"flat\"\n",
+    );
+    assert_ne!(flat, drop);
+    // The camera in a bubble of another medium (listed first, so that it
+    // is object 0) under the water.
+    let bubble = format!(
+        "{}\n[[material]]\nname = \"bubble\"\ntype = \"subsurface\"\nsigma_s = [0.1, 0.1, 0.1]\n\
+         sigma_a = [0.0, 0.0, 0.0]\nior = 1.5\nmode = \"random_walk\"\n",
+        src
+    )
+    .replacen(
+        "[[object]]",
+        "[[object]]\nmaterial = \"bubble\"\nbase = { type = \"sphere\", center = [0.0, -0.9, 4.0], radius = 0.2 }\n\n[[object]]",
+        1,
+    );
     for (src, light, warned) in [
         (&src, lamp, false),
-        (&drop, sun, true),
+        (&drop, sun, false),
+        (&flat, sun, true),
+        (&bubble, sun, true),
         (&src, sun, false),
         (&index_1, sun, false),
     ] {

@@ -14,6 +14,7 @@ pub mod camera;
 pub mod environment;
 pub mod integrator;
 pub mod light;
+pub mod manifold;
 pub mod realtime;
 pub mod render;
 pub mod scene;
@@ -23,5 +24,6 @@ pub use environment::{EnvMap, Environment};
 pub use light::PointLight;
 pub use render::{render, RenderError, RenderOptions, RenderStats};
 pub use scene::{
-    FilmProblem, FilmSettings, FlatBoundary, IntegratorSettings, MediumLightSampling, Scene,
+    FilmProblem, FilmSettings, FlatBoundary, IntegratorSettings, MediumLightSampling,
+    RefractedLights, Scene,
 };

@@ -111,6 +111,29 @@ pub struct IntegratorSettings {
     /// How scattering events inside a random-walk medium gather point
     /// lights (scene key `medium_light_sampling`).
     pub medium_lights: MediumLightSampling,
+    /// How point lights reach the inside of random-walk media through
+    /// their smooth boundaries (scene key `refracted_lights`).
+    pub refracted_lights: RefractedLights,
+}
+
+/// How point lights outside a random-walk medium reach its inside
+/// through its smooth boundary, a delta interface no shadow ray can
+/// bend through (scene key `integrator.refracted_lights`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RefractedLights {
+    /// `"manifold"` (default): through flat boundaries by their closed
+    /// form, through curved ones by manifold next-event estimation
+    /// (Hanika et al. 2015, [`crate::manifold`]): a lamp outside a
+    /// marble or a drop of water lights its inside.
+    #[default]
+    Manifold,
+    /// `"flat"`: through flat boundaries only (a plane: the sun above the
+    /// sea); a curved boundary stops point lights, whose light then
+    /// enters only along paths that leave the medium and happen to meet
+    /// nothing but the lamp's reflections (none: a point light is never
+    /// hit). The behaviour before manifold next-event estimation, kept
+    /// to compare against.
+    Flat,
 }
 
 /// How a path inside a random-walk medium gathers the light of point
@@ -169,6 +192,7 @@ impl Default for IntegratorSettings {
             max_depth: 8,
             seed: 0,
             medium_lights: MediumLightSampling::Equiangular,
+            refracted_lights: RefractedLights::Manifold,
         }
     }
 }
@@ -223,13 +247,14 @@ impl Scene {
     }
 
     /// Warnings for point lights outside a random-walk medium that holds
-    /// the camera (the sun above a camera under water): a point light
-    /// reaches no point inside a medium from outside it, since shadow
-    /// rays cannot bend through its boundary (a smooth dielectric), so
-    /// such a light shows in the image only by way of surfaces outside
-    /// the medium that paths reach. A null boundary (fog of index 1 in
-    /// air) passes shadow rays and draws no warning. Each names the light
-    /// and the medium's object.
+    /// the camera that cannot reach its inside: shadow rays cannot bend
+    /// through its boundary (a smooth dielectric), and a point light is
+    /// refracted in only through one boundary (from the medium just
+    /// around it; with [`RefractedLights::Flat`], only through a plane),
+    /// so such a light shows in the image only by way of surfaces
+    /// outside the medium that paths reach. A null boundary (fog of index
+    /// 1 in air) passes shadow rays and draws no warning. Each names the
+    /// light and the medium's object.
     pub fn lights_outside_the_cameras_media(&self) -> Vec<String> {
         let around = self.media_at(self.camera.position);
         // A medium's boundary is null (it passes shadow rays) where its
@@ -241,11 +266,15 @@ impl Scene {
         let mut out = Vec::new();
         for (k, light) in self.lights.iter().enumerate() {
             let held = self.media_at(light.position);
-            // A light just outside a medium bounded by a plane, above the
-            // plane, reaches its inside by refraction.
+            // A light just outside a medium reaches its inside by
+            // refraction: through a curved boundary by manifold next-event
+            // estimation, through a plane (with `refracted_lights =
+            // "flat"`, only then) from above it.
             let refracts = |m: usize, i: usize| {
-                self.flat_boundary(i)
-                    .is_some_and(|b| b.normal.dot(light.position) > b.offset)
+                (self.integrator.refracted_lights == RefractedLights::Manifold
+                    || self
+                        .flat_boundary(i)
+                        .is_some_and(|b| b.normal.dot(light.position) > b.offset))
                     && held.len() == m
                     && held.iter().zip(&around[..m]).all(|(a, b)| a.0 == b.0)
             };
@@ -257,12 +286,21 @@ impl Scene {
                 })
                 .map(|(_, x)| x)
             {
+                let why = match self.integrator.refracted_lights {
+                    RefractedLights::Manifold => {
+                        "behind more than one boundary (shadow rays cannot bend through a \
+                         medium's boundary; a point light is refracted through one, from the \
+                         medium just around it)"
+                    }
+                    RefractedLights::Flat => {
+                        "behind its curved boundary (with integrator.refracted_lights = \
+                         \"flat\" only flat boundaries refract point lights)"
+                    }
+                };
                 out.push(format!(
                     "light[{k}] lies outside the random-walk medium of object[{i}], which \
-                     holds the camera: a point light reaches nothing inside a medium from \
-                     outside it (shadow rays cannot bend through its curved boundary; only a \
-                     flat one is refracted through), so it lights what the camera sees there \
-                     only by way of surfaces outside the medium; light the medium with the \
+                     holds the camera, {why}: it lights what the camera sees there only by \
+                     way of surfaces outside the medium; light the medium with the \
                      environment (its paths do refract), or a point light inside it \
                      (docs/subsurface.md)"
                 ));

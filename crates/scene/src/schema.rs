@@ -16,7 +16,7 @@ use isolux_materials::{
 use isolux_materials::{HeidrichSeidel, Plastic, Subsurface, SubsurfaceBrdf, Ward};
 use isolux_render::{
     Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, MediumLightSampling, PointLight,
-    Scene,
+    RefractedLights, Scene,
 };
 use std::path::Path;
 
@@ -283,8 +283,19 @@ fn film(t: &Table) -> Result<FilmSettings> {
 }
 
 fn integrator(t: &Table) -> Result<IntegratorSettings> {
-    t.allow(&["max_depth", "seed", "medium_light_sampling"])?;
+    t.allow(&[
+        "max_depth",
+        "seed",
+        "medium_light_sampling",
+        "refracted_lights",
+    ])?;
     let mut s = IntegratorSettings::default();
+    if let Some(v) = t.get("refracted_lights") {
+        s.refracted_lights = match v.choice(&["manifold", "flat"])? {
+            "flat" => RefractedLights::Flat,
+            _ => RefractedLights::Manifold,
+        };
+    }
     if let Some(v) = t.get("medium_light_sampling") {
         s.medium_lights = match v.choice(&["equiangular", "distance"])? {
             "distance" => MediumLightSampling::Distance,

@@ -110,6 +110,10 @@ fn max3(v: vec3<f32>) -> f32 {
     return max(v.x, max(v.y, v.z));
 }
 
+fn min3(v: vec3<f32>) -> f32 {
+    return min(v.x, min(v.y, v.z));
+}
+
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2 = a * a;
     if (a2 == 0.0) {
@@ -334,6 +338,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var flags = 0u;
         var refracted = false;
         var refr_c = vec3<f32>(0.0);
+        var refr_n = vec3<f32>(0.0);
         if (i == n) {
             // The BSDF sample, scored below unless its draw was (a plain
             // material's specular or closed-form sample) or failed.
@@ -378,6 +383,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
                 * medium_extinction(path.medium, r.inside);
             refracted = true;
             refr_c = r.c;
+            refr_n = r.n;
         } else if (i < n_lights + n_refr + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
@@ -442,7 +448,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         // is in and passes null boundaries (`shadow_transmittance`).
         var lit = true;
         if (!first) {
-            let tr = connection_transmittance(origin, wi, t_max, i < n_lights, refracted, refr_c,
+            let tr = connection_transmittance(origin, wi, t_max, i < n_lights, refracted, refr_c, refr_n,
                                               i - n_lights);
             rad *= tr;
             lit = max3(tr) > 0.0;
@@ -696,17 +702,25 @@ struct Refraction {
     inside: f32,
     c: vec3<f32>,
     factor: f32,
+    n: vec3<f32>, // the boundary's outward normal at c
 }
 
 fn refraction(i: u32, p: vec3<f32>) -> Refraction {
-    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
     let light = lights[i];
-    let id = u32(light.intensity.w);
-    if (!REFRACTION || !SUBSURFACE || id == 0u || id != medium_top()) {
+    let id = medium_top();
+    if (!REFRACTION || !SUBSURFACE || id == 0u) {
         return r;
     }
     let outside = medium_outside(path.medium, id);
     if (u32(light.position.w) != outside) {
+        return r;
+    }
+    // Flat (the light's record names the medium) or curved (the medium's
+    // record lists its objects: manifold next-event estimation).
+    let flat = u32(light.intensity.w) == id;
+    let objs = u32(materials[id - 1u].c.w);
+    if (!flat && objs == 0u) {
         return r;
     }
     let n2 = materials[id - 1u].a.x;
@@ -716,6 +730,9 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     }
     if (n1 == n2) {
         return r;
+    }
+    if (!flat) {
+        return manifold_refraction(objs - 1u, id, p, light.position.xyz, n1, n2);
     }
     let n = light.plane.xyz;
     let lp = light.position.xyz;
@@ -788,7 +805,215 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
             return r;
         }
     }
-    return Refraction((c - p) / l2, l2, c, factor);
+    return Refraction((c - p) / l2, l2, c, factor, n);
+}
+
+// ---- Manifold next-event estimation (manifold.rs) --------------------------
+//
+// A point light reaching a point p inside a random-walk medium through its
+// curved boundary (integrator.rs `manifold_refraction`): Newton's method
+// on the surface for the crossing x where `n_out w_o + n_in w_i` lies
+// along the normal, from the straight segment's crossing, each iterate
+// projected back onto F' = 0; the spreading `dOmega_L / dA_p` from the
+// implicit function theorem, `|(dx_1 x dx_2) . l| / D^3` (l = x - L)
+// for p moved by a unit across the arriving ray. The Jacobian is exact
+// but for the normal's derivative, by central differences.
+
+// F' of object oi at x (the GPU's coordinates) and its gradient.
+fn object_field(oi: u32, x_gpu: vec3<f32>) -> vec4<f32> {
+    let obj = objects[oi];
+    let x = vec3<real>(x_gpu - obj.origin.xyz);
+    var v = vec4<real>(q_eval(obj.base, x), q_grad(obj.base, x));
+    let first = obj.range.x;
+    for (var k = first; k < first + obj.range.y; k++) {
+        let pert = perturbations[k];
+        let qv = q_eval(pert.q, x);
+        if (qv > 0.0) {
+            let f = real(pert.factor.x);
+            v += vec4<real>(f * qv * qv * qv, 3.0 * f * qv * qv * q_grad(pert.q, x));
+        }
+    }
+    return vec4<f32>(v);
+}
+
+// The outward unit normal of object oi at x.
+fn object_normal_at(oi: u32, x: vec3<f32>) -> vec3<f32> {
+    return -normalize(object_field(oi, x).yzw);
+}
+
+// From y back onto F' = 0 by Newton steps along the gradient; w = 0
+// where they do not settle.
+fn manifold_project(oi: u32, y0: vec3<f32>, scale: f32) -> vec4<f32> {
+    var y = y0;
+    let tol = 1e-6 * scale;
+    for (var k = 0u; k < 12u; k++) {
+        let f = object_field(oi, y);
+        let g2 = dot(f.yzw, f.yzw);
+        if (!(g2 > 0.0) || !finite(g2)) {
+            return vec4<f32>(y, 0.0);
+        }
+        let step = f.x / g2;
+        y -= step * f.yzw;
+        if (abs(step) * sqrt(g2) <= tol) {
+            return vec4<f32>(y, 1.0);
+        }
+    }
+    return vec4<f32>(y, 0.0);
+}
+
+// The tangential part of `n_out w_o + n_in w_i` at x (normal n) in the
+// tangents s, t.
+fn manifold_constraint(n: vec3<f32>, x: vec3<f32>, p: vec3<f32>, light: vec3<f32>,
+                       n_in: f32, n_out: f32, fr: Frame) -> vec2<f32> {
+    let h = n_out * normalize(light - x) + n_in * normalize(p - x);
+    let tt = h - dot(h, n) * n;
+    return vec2<f32>(dot(tt, fr.s), dot(tt, fr.t));
+}
+
+// The constraint's derivative for x moved along tangent u (integrator
+// manifold.rs `jacobian`): exact in the distances, the normal's
+// derivative by central differences at eps.
+fn manifold_jacobian(oi: u32, x: vec3<f32>, n: vec3<f32>, p: vec3<f32>, light: vec3<f32>,
+                     n_in: f32, n_out: f32, fr: Frame, u: vec3<f32>, eps: f32) -> vec2<f32> {
+    let to_l = light - x;
+    let to_p = p - x;
+    let rl = length(to_l);
+    let rp = length(to_p);
+    let wo = to_l / rl;
+    let wi = to_p / rp;
+    let hn = dot(n_out * wo + n_in * wi, n);
+    let dh = -n_out * (u - dot(wo, u) * wo) / rl - n_in * (u - dot(wi, u) * wi) / rp;
+    let dn = (object_normal_at(oi, x + eps * u) - object_normal_at(oi, x - eps * u)) / (2.0 * eps);
+    let dc = dh - hn * dn;
+    return vec2<f32>(dot(dc, fr.s), dot(dc, fr.t));
+}
+
+// m^-1 v for the 2 x 2 matrix of columns a, b (zero if singular).
+fn solve2(a: vec2<f32>, b: vec2<f32>, v: vec2<f32>) -> vec2<f32> {
+    let det = a.x * b.y - b.x * a.y;
+    if (!(abs(det) > 0.0)) {
+        return vec2<f32>(0.0);
+    }
+    return vec2<f32>(b.y * v.x - b.x * v.y, -a.y * v.x + a.x * v.y) / det;
+}
+
+fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
+    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+    // The medium's object: the one of its material's list (material
+    // data: count, then the objects) that holds p.
+    let count = u32(material_data[list]);
+    var oi = u32(material_data[list + 1u]);
+    if (count > 1u) {
+        oi = 0xffffffffu;
+        for (var k = 0u; k < count; k++) {
+            let o = u32(material_data[list + 1u + k]);
+            let obj = objects[o];
+            let lc = p - obj.origin.xyz;
+            if (all(lc >= obj.bmin.xyz) && all(lc <= obj.bmax.xyz) && object_field(o, p).x > 0.0) {
+                oi = o;
+                break;
+            }
+        }
+        if (oi == 0xffffffffu) {
+            return r;
+        }
+    }
+    let to_light = light - p;
+    let dist = length(to_light);
+    if (!(dist > 0.0)) {
+        return r;
+    }
+    let seed = object_first_hit(oi, p, to_light / dist, 0.0, dist);
+    if (!(seed.x >= 0.0)) {
+        return r;
+    }
+    // Russian roulette by the attenuation of the straight way out.
+    let mm = materials[id - 1u];
+    let q = exp(-min3(mm.b.rgb + mm.c.rgb) * seed.x);
+    if (!(q > 0.0) || (q < 1.0 && rand() >= q)) {
+        return r;
+    }
+    let pr = manifold_project(oi, p + seed.x * to_light / dist, dist);
+    if (pr.w == 0.0) {
+        return r;
+    }
+    var x = pr.xyz;
+    var n = object_normal_at(oi, x);
+    let tol = 1e-5 * (n1 + n2);
+    // The normal's derivative's step: 1e-3 of the object's size (at most
+    // 10 units, for unbounded objects), above f32's resolution there.
+    let ob = objects[oi];
+    let eps_n = 1e-3 * clamp(length(ob.bmax.xyz - ob.bmin.xyz), 1e-2, 10.0);
+    var ok = false;
+    var fr = frame_from_normal(n);
+    var ja = vec2<f32>(0.0);
+    var jb = vec2<f32>(0.0);
+    var c = vec2<f32>(0.0);
+    for (var it = 0u; it < 16u; it++) {
+        fr = frame_from_normal(n);
+        c = manifold_constraint(n, x, p, light, n2, n1, fr);
+        let norm = length(c);
+        ja = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, fr.s, eps_n);
+        jb = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, fr.t, eps_n);
+        if (norm < tol) {
+            ok = true;
+            break;
+        }
+        var step = -solve2(ja, jb, c);
+        let cap = 0.25 * length(x - p);
+        if (length(step) > cap) {
+            step *= cap / length(step);
+        }
+        var moved = false;
+        for (var h = 0u; h < 8u; h++) {
+            let y = manifold_project(oi, x + step.x * fr.s + step.y * fr.t, dist);
+            if (y.w != 0.0) {
+                let ny = object_normal_at(oi, y.xyz);
+                let cy = manifold_constraint(ny, y.xyz, p, light, n2, n1, frame_from_normal(ny));
+                if (length(cy) < norm) {
+                    x = y.xyz;
+                    n = ny;
+                    moved = true;
+                    break;
+                }
+            }
+            step *= 0.5;
+        }
+        if (!moved) {
+            // No step reduces the constraint: no solution nearby (p
+            // beyond the refracted rays' reach, near the shadow's edge
+            // of a convex boundary), as on the CPU.
+            break;
+        }
+    }
+    if (!ok) {
+        return r;
+    }
+    let to_x = x - p;
+    let lx = length(to_x);
+    let cos_out = dot(normalize(light - x), n);
+    if (!(lx > 0.0) || !(cos_out > 0.0)) {
+        return r;
+    }
+    // The spreading: the solution's motion for p moved across the ray.
+    let wi = -to_x / lx;
+    let across = frame_from_normal(wi);
+    var dx: array<vec3<f32>, 2>;
+    for (var k = 0u; k < 2u; k++) {
+        let u = select(across.t, across.s, k == 0u);
+        // dC/dp u (only w_i moves with p), exact.
+        let dwi = n2 * (u - dot(wi, u) * wi) / lx;
+        let m = solve2(ja, jb, vec2<f32>(dot(dwi, fr.s), dot(dwi, fr.t)));
+        dx[k] = -(m.x * fr.s + m.y * fr.t);
+    }
+    let to_l = x - light;
+    let d2 = dot(to_l, to_l);
+    let spread = abs(dot(cross(dx[0], dx[1]), to_l)) / (sqrt(d2) * d2);
+    let factor = (1.0 - fresnel_dielectric(cos_out, n2 / n1)) * spread / min(q, 1.0);
+    if (!(factor > 0.0) || !finite(factor)) {
+        return r;
+    }
+    return Refraction(to_x / lx, lx, x, factor, n);
 }
 
 // The transmittance of a light's connection from o along d to t_max
@@ -798,7 +1023,7 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
 // boundary, from c to the light in the media after crossing. One call
 // site of `shadow_transmittance` per caller.
 fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bool,
-                            refracted: bool, c: vec3<f32>, i: u32) -> vec3<f32> {
+                            refracted: bool, c: vec3<f32>, cn: vec3<f32>, i: u32) -> vec3<f32> {
     let med = path.medium;
     var tr = vec3<f32>(1.0);
     var oo = o;
@@ -808,9 +1033,8 @@ fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bo
     let legs = select(1u, 2u, REFRACTION && refracted);
     for (var leg = 0u; leg < legs; leg++) {
         if (leg == 1u) {
-            let n = lights[i].plane.xyz;
             path.medium = medium_crossed(med, medium_top());
-            oo = c + n * spawn_offset(c);
+            oo = c + cn * spawn_offset(c);
             let to = lights[i].position.xyz - oo;
             tt = length(to);
             dd = to / tt;
@@ -890,7 +1114,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
         for (var k = 0u; k < 3u; k++) {
             var tk = t;
             var w = vec3<f32>(0.0);
-            var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+            var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
             if (k == 2u) {
                 if (!REFRACTION || !scatter || !(density_t > 0.0)) {
                     continue;
@@ -947,7 +1171,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
                 wl = dl / dist;
                 rad = light.intensity.rgb / dist2;
             }
-            let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, refr.c, i);
+            let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, refr.c, refr.n, i);
             l += rad * tr * w * hg_phase(dot(wl, d), g);
         }
     }
@@ -1142,7 +1366,10 @@ fn bounce() -> bool {
                 for (var i = 0u; i < params.counts.y; i++) {
                     any_lights = any_lights || medium_tries(i);
                     refracts = refracts
-                        || (REFRACTION && u32(lights[i].intensity.w) == medium_top());
+                        || (REFRACTION && (u32(lights[i].intensity.w) == medium_top()
+                            || (mm.c.w != 0.0
+                                && u32(lights[i].position.w)
+                                    == medium_outside(path.medium, medium_top()))));
                 }
                 // (A medium that does not scatter has nothing to gather.)
                 equi = any_lights && params.camera.z != 0u && max3(mm.b.rgb) > 0.0;
