@@ -870,11 +870,12 @@ fn manifold_constraint(n: vec3<f32>, x: vec3<f32>, p: vec3<f32>, light: vec3<f32
     return vec2<f32>(dot(tt, fr.s), dot(tt, fr.t));
 }
 
-// The constraint's derivative for x moved along tangent u (integrator
-// manifold.rs `jacobian`): exact in the distances, the normal's
-// derivative by central differences at eps.
+// The constraint's Jacobian at x (manifold.rs `jacobian`), its columns
+// for x moved along the tangents s and t: exact in the distances, the
+// normal's derivative by central differences at eps (one call site of
+// `object_field` for the four normals).
 fn manifold_jacobian(oi: u32, x: vec3<f32>, n: vec3<f32>, p: vec3<f32>, light: vec3<f32>,
-                     n_in: f32, n_out: f32, fr: Frame, u: vec3<f32>, eps: f32) -> vec2<f32> {
+                     n_in: f32, n_out: f32, fr: Frame, eps: f32) -> mat2x2<f32> {
     let to_l = light - x;
     let to_p = p - x;
     let rl = length(to_l);
@@ -882,10 +883,20 @@ fn manifold_jacobian(oi: u32, x: vec3<f32>, n: vec3<f32>, p: vec3<f32>, light: v
     let wo = to_l / rl;
     let wi = to_p / rp;
     let hn = dot(n_out * wo + n_in * wi, n);
-    let dh = -n_out * (u - dot(wo, u) * wo) / rl - n_in * (u - dot(wi, u) * wi) / rp;
-    let dn = (object_normal_at(oi, x + eps * u) - object_normal_at(oi, x - eps * u)) / (2.0 * eps);
-    let dc = dh - hn * dn;
-    return vec2<f32>(dot(dc, fr.s), dot(dc, fr.t));
+    var normals: array<vec3<f32>, 4>;
+    for (var k = 0u; k < 4u; k++) {
+        let u = select(fr.t, fr.s, k < 2u) * select(-eps, eps, (k & 1u) == 0u);
+        normals[k] = object_normal_at(oi, x + u);
+    }
+    var cols: array<vec2<f32>, 2>;
+    for (var k = 0u; k < 2u; k++) {
+        let u = select(fr.t, fr.s, k == 0u);
+        let dh = -n_out * (u - dot(wo, u) * wo) / rl - n_in * (u - dot(wi, u) * wi) / rp;
+        let dn = (normals[2u * k] - normals[2u * k + 1u]) / (2.0 * eps);
+        let dc = dh - hn * dn;
+        cols[k] = vec2<f32>(dot(dc, fr.s), dot(dc, fr.t));
+    }
+    return mat2x2<f32>(cols[0], cols[1]);
 }
 
 // m^-1 v for the 2 x 2 matrix of columns a, b (zero if singular).
@@ -953,8 +964,9 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
         fr = frame_from_normal(n);
         c = manifold_constraint(n, x, p, light, n2, n1, fr);
         let norm = length(c);
-        ja = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, fr.s, eps_n);
-        jb = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, fr.t, eps_n);
+        let jac = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, eps_n);
+        ja = jac[0];
+        jb = jac[1];
         if (norm < tol) {
             ok = true;
             break;
