@@ -192,6 +192,9 @@ fn translucent_scenes_match_the_cpu_within_noise() {
         ("fog.toml", 16),
         // The sun above flat water, refracted into it.
         ("shallows.toml", 16),
+        // A lamp behind curved media, refracted into them (manifold
+        // next-event estimation).
+        ("lamplit-milk.toml", 16),
     ] {
         let mut scene = common::example(name);
         assert!(isolux_gpu::unsupported_material(&scene).is_none());
