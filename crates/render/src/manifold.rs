@@ -172,10 +172,8 @@ fn inverse_times(m: &[[f64; 2]; 2], d: [f64; 2]) -> Option<[f64; 2]> {
 /// Newton's method on the surface for the crossing, from `seed` (a point
 /// on it): each step solves the linearized tangential constraint in the
 /// current point's tangent frame and projects the moved point back onto
-/// `F' = 0`, halving a step that does not reduce the constraint. The
-/// Jacobian is taken by forward differences along the tangents, off the
-/// surface by `O(eps^2)` (which changes it by `O(eps)` relative: no
-/// projection needed).
+/// `F' = 0`, halving a step that does not reduce the constraint (the
+/// Jacobian: [`jacobian`]).
 fn solve(
     obj: &Object,
     p: DVec3,
