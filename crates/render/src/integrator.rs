@@ -811,7 +811,7 @@ pub struct Media<'a> {
     /// reach inside through the plane by refraction (`refraction`).
     pub flat: Vec<(usize, FlatBoundary)>,
     /// Whether scattering events may gather any point light directly
-    /// ([`medium_lights`]: a light inside a medium, or any light where
+    /// (`medium_lights`: a light inside a medium, or any light where
     /// null boundaries may be), so that flights look for lights to
     /// sample at all (0.7% of the random walk's instructions per sample
     /// in a scene lit from outside its media, callgrind; docs/benchmarks.md).
