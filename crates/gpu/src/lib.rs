@@ -306,6 +306,15 @@ pub struct Features {
     /// plane (`REFRACTION` in the WGSL; `refraction` in `render.wgsl`,
     /// [`refracted_media`]).
     pub refraction: bool,
+    /// Point lights refracted into random-walk media through curved
+    /// boundaries by manifold next-event estimation (`MANIFOLD` in the
+    /// WGSL; `manifold_refraction` in `render.wgsl`), which only a scene
+    /// with a point light and a curved random-walk medium needs, with
+    /// `integrator.refracted_lights = "manifold"` (it comes with
+    /// [`Features::refraction`]). Without it a scene whose lamps refract
+    /// through flat boundaries alone leaves the solve out (RADV: the
+    /// wavefront step of a scene with the solve is 43% larger).
+    pub manifold: bool,
 }
 
 impl Features {
@@ -318,6 +327,7 @@ impl Features {
         tiles: true,
         null_boundaries: true,
         refraction: true,
+        manifold: true,
     };
     /// No material code at all (what the AOV kernel reaches) and no
     /// candidate list.
@@ -328,6 +338,7 @@ impl Features {
         tiles: false,
         null_boundaries: false,
         refraction: false,
+        manifold: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
@@ -347,6 +358,7 @@ impl Features {
             tiles: true,
             null_boundaries: true,
             refraction: true,
+            manifold: true,
         }
     }
 
@@ -384,6 +396,7 @@ impl Features {
             && (self.many_lights || !needed.many_lights)
             && (self.null_boundaries || !needed.null_boundaries)
             && (self.refraction || !needed.refraction)
+            && (self.manifold || !needed.manifold)
     }
 
     /// The part of `self` that an entry point of the render module
@@ -435,7 +448,8 @@ impl std::fmt::Display for Features {
                 || self.many_lights
                 || self.tiles
                 || self.null_boundaries
-                || self.refraction)
+                || self.refraction
+                || self.manifold)
         {
             let models = Features {
                 list: false,
@@ -443,6 +457,7 @@ impl std::fmt::Display for Features {
                 tiles: false,
                 null_boundaries: false,
                 refraction: false,
+                manifold: false,
                 ..*self
             };
             write!(f, "{models}")?;
@@ -460,6 +475,9 @@ impl std::fmt::Display for Features {
             }
             if self.refraction {
                 f.write_str(", refracted lights")?;
+            }
+            if self.manifold {
+                f.write_str(", manifold lights")?;
             }
             return Ok(());
         }
@@ -521,6 +539,7 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
             features.null_boundaries
         )
         + &format!("const REFRACTION: bool = {};\n", features.refraction)
+        + &format!("const MANIFOLD: bool = {};\n", features.manifold)
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -1289,6 +1308,7 @@ mod tests {
             tiles: !list,
             null_boundaries: list,
             refraction: list,
+            manifold: list,
         };
         let mut sets = vec![Features::NONE, Features::ALL];
         sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, false)));
@@ -1335,6 +1355,7 @@ mod tests {
             tiles: false,
             null_boundaries: false,
             refraction: false,
+            manifold: false,
             ..Features::ALL
         };
         assert_eq!(
@@ -1380,7 +1401,7 @@ mod tests {
         assert_eq!(
             sss.to_string(),
             "subsurface, candidate list, many lights, tile lists, null boundaries, \
-             refracted lights"
+             refracted lights, manifold lights"
         );
         // Kernels with the null boundaries' loop cover those without.
         let plain = Features {
@@ -1391,9 +1412,16 @@ mod tests {
         // And kernels with refracted lights those without.
         let unrefracted = Features {
             refraction: false,
+            manifold: false,
             ..sss
         };
         assert!(sss.covers(unrefracted) && !unrefracted.covers(sss));
+        // And kernels with the manifold solve those with flat refraction.
+        let flat = Features {
+            manifold: false,
+            ..sss
+        };
+        assert!(sss.covers(flat) && !flat.covers(sss));
         assert!(sss.has(tag::SSS_SINGLE_LOBE) && sss.has(tag::SSS_ENTRY_LOBE));
         // The real-time mode shades a medium with its local BRDF.
         let rt = sss.reached_by("realtime");
@@ -1406,7 +1434,7 @@ mod tests {
         assert_eq!(
             many.to_string(),
             "17 models with wave, candidate list, many lights, tile lists, null boundaries, \
-             refracted lights"
+             refracted lights, manifold lights"
         );
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.

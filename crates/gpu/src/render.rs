@@ -1417,6 +1417,7 @@ impl Gpu {
         let needed = Features {
             null_boundaries,
             refraction: refracted.iter().any(Option::is_some) || manifold,
+            manifold,
             ..Features::of(&materials.materials).fit_to(&geo, scene.lights.len())
         };
         let random_walk = materials

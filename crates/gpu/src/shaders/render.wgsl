@@ -720,7 +720,7 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     // record lists its objects: manifold next-event estimation).
     let flat = u32(light.intensity.w) == id;
     let objs = u32(materials[id - 1u].c.w);
-    if (!flat && objs == 0u) {
+    if (!flat && (!MANIFOLD || objs == 0u)) {
         return r;
     }
     let n2 = materials[id - 1u].a.x;
@@ -731,7 +731,7 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     if (n1 == n2) {
         return r;
     }
-    if (!flat) {
+    if (MANIFOLD && !flat) {
         return manifold_refraction(objs - 1u, id, p, light.position.xyz, n1, n2);
     }
     let n = light.plane.xyz;
@@ -1382,7 +1382,7 @@ fn bounce() -> bool {
                     any_lights = any_lights || medium_tries(i);
                     refracts = refracts
                         || (REFRACTION && (u32(lights[i].intensity.w) == medium_top()
-                            || (mm.c.w != 0.0
+                            || (MANIFOLD && mm.c.w != 0.0
                                 && u32(lights[i].position.w)
                                     == medium_outside(path.medium, medium_top()))));
                 }
