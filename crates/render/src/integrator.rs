@@ -256,10 +256,11 @@ fn light_transmittance(
     None
 }
 
-/// A point light's connection into a medium through its flat boundary:
-/// the direction `wi` from the point inside toward the crossing point
-/// `c` on the plane, the distance `inside` to it, and `factor`, the
-/// Fresnel transmittance times the refracted inverse square law ([`refraction`]).
+/// A point light's connection into a medium through its boundary, flat
+/// or curved: the direction `wi` from the point inside toward the
+/// crossing point `c` on the boundary (outward normal `normal` there), the
+/// distance `inside` to it, and `factor`, the Fresnel transmittance times
+/// the refracted inverse square law ([`refraction`]).
 #[derive(Clone, Copy, Debug)]
 struct Refraction {
     obj: usize,
@@ -825,13 +826,22 @@ pub struct Media<'a> {
 impl<'a> Media<'a> {
     /// The media of `scene` for paths from `origin`.
     pub fn new(scene: &'a Scene, origin: DVec3) -> Self {
-        let mut media = Media {
+        let lit = !scene.lights.is_empty();
+        let lights: Vec<_> = scene
+            .lights
+            .iter()
+            .map(|l| scene.medium_at(l.position).map(|(i, _)| i))
+            .collect();
+        let null_boundaries = scene.may_have_null_boundaries();
+        let flat = scene.flat_media();
+        Media {
             camera: scene.media_at(origin),
-            lights: scene
-                .lights
-                .iter()
-                .map(|l| scene.medium_at(l.position).map(|(i, _)| i))
-                .collect(),
+            gathers: lit && (null_boundaries || lights.iter().any(Option::is_some)),
+            refracts: lit
+                && (!flat.is_empty()
+                    || (scene.integrator.refracted_lights == RefractedLights::Manifold
+                        && scene.media().next().is_some())),
+            lights,
             relative: scene
                 .materials
                 .iter()
@@ -845,18 +855,9 @@ impl<'a> Media<'a> {
                     _ => None,
                 })
                 .collect(),
-            null_boundaries: scene.may_have_null_boundaries(),
-            flat: scene.flat_media(),
-            gathers: false,
-            refracts: false,
-        };
-        media.refracts = !scene.lights.is_empty()
-            && (!media.flat.is_empty()
-                || (scene.integrator.refracted_lights == RefractedLights::Manifold
-                    && scene.media().next().is_some()));
-        media.gathers = !scene.lights.is_empty()
-            && (media.null_boundaries || media.lights.iter().any(Option::is_some));
-        media
+            null_boundaries,
+            flat,
+        }
     }
 
     /// The material of object `obj` seen from inside the medium of

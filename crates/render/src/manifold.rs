@@ -120,10 +120,10 @@ pub fn connect_from(
     // The spreading, by the implicit function theorem: moving p by a
     // unit u across the arriving ray moves the solution along the surface
     // by dx = -J^-1 (dC/dp) u, and the light's direction by what dx
-    // subtends from the light: dOmega = |(dx_1 x dx_2) . l| / D^2 per
-    // unit area at p.
-    let f = Frame::from_normal(-to_x / lx);
+    // subtends from the light: dOmega = |(dx_1 x dx_2) . l| / D^3 per
+    // unit area at p (l = x - L, D = |l|).
     let wi = -to_x / lx;
+    let f = Frame::from_normal(wi);
     let mut dx = [DVec3::ZERO; 2];
     for (d, u) in dx.iter_mut().zip([f.s, f.t]) {
         // dC/dp u: only w_i moves with p.

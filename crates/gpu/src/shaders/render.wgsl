@@ -691,12 +691,15 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
     return max3(path.beta) > 0.0;
 }
 
-// A point light's connection into the innermost medium through its flat
-// boundary (integrator.rs `refraction`, the same Newton steps in f32): the direction wi from the point
-// inside toward the crossing point c, the distance `inside` to it, and
-// `factor`, the Fresnel transmittance times the refracted inverse square
-// law; factor 0 where light i does not reach p so (its record's
-// `intensity.w` names the medium, layout.rs `GpuLight`).
+// A point light's connection into the innermost medium through its
+// boundary (integrator.rs `refraction`, in f32): through a flat one by
+// the same Newton steps (the light's record's `intensity.w` names the
+// medium, layout.rs `GpuLight`), through a curved one by
+// `manifold_refraction` (the medium's record's `c.w` lists its objects).
+// The direction wi from the point inside toward the crossing point c,
+// the distance `inside` to it, `factor`, the Fresnel transmittance times
+// the refracted inverse square law (0 where light i does not reach p
+// so), and the boundary's outward normal at c.
 struct Refraction {
     wi: vec3<f32>,
     inside: f32,
@@ -959,13 +962,13 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
     let ob = objects[oi];
     let eps_n = 2e-4 * clamp(length(ob.bmax.xyz - ob.bmin.xyz), 1e-2, 10.0);
     var ok = false;
-    var fr = frame_from_normal(n);
+    // The last iterate's frame and Jacobian, for the spreading.
+    var fr: Frame;
     var ja = vec2<f32>(0.0);
     var jb = vec2<f32>(0.0);
-    var c = vec2<f32>(0.0);
     for (var it = 0u; it < 16u; it++) {
         fr = frame_from_normal(n);
-        c = manifold_constraint(n, x, p, light, n2, n1, fr);
+        let c = manifold_constraint(n, x, p, light, n2, n1, fr);
         let norm = length(c);
         let jac = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, eps_n);
         ja = jac[0];
@@ -1024,7 +1027,7 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
     let to_l = x - light;
     let d2 = dot(to_l, to_l);
     let spread = abs(dot(cross(dx[0], dx[1]), to_l)) / (sqrt(d2) * d2);
-    let factor = (1.0 - fresnel_dielectric(cos_out, n2 / n1)) * spread / min(q, 1.0);
+    let factor = (1.0 - fresnel_dielectric(cos_out, n2 / n1)) * spread / q;
     if (!(factor > 0.0) || !finite(factor)) {
         return r;
     }
@@ -1034,9 +1037,10 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
 // The transmittance of a light's connection from o along d to t_max
 // (`as_light`: a point light's shadow ray, `shadow_transmittance`), and
 // where `refracted` (a `Refraction`'s, to light i, ending at c on the
-// innermost medium's flat boundary short of it) also beyond the
-// boundary, from c to the light in the media after crossing. One call
-// site of `shadow_transmittance` per caller.
+// innermost medium's boundary, flat or curved, of outward normal cn,
+// short of it) also beyond the boundary, from c to the light in the
+// media after crossing. One call site of `shadow_transmittance` per
+// caller.
 fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bool,
                             refracted: bool, c: vec3<f32>, cn: vec3<f32>, i: u32) -> vec3<f32> {
     let med = path.medium;
