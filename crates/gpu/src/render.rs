@@ -854,21 +854,31 @@ fn innermost(packed: u32, bits: u32) -> u32 {
 }
 
 /// The width in bits of each medium's slot in the kernels' packed media
-/// (`path.medium`, `params.camera.w`; `medium_bits()` in render.wgsl): 8,
-/// so that media nest four deep, where every random-walk medium's `1 +`
-/// material index is below 255 (a scene's first 254 materials), and else
-/// 16 (two deep, up to the first 65534 materials), which
-/// [`nested_too_deep`] checks.
+/// (`path.medium`, `params.camera.w`; `medium_bits()` in render.wgsl),
+/// the narrowest that names every random-walk medium's `1 +` material
+/// index below the slot's mask (all ones is kept out of the slots, so
+/// that no packing equals `MEDIA_TOO_DEEP`): 4, eight deep as on the CPU
+/// (`isolux_render::integrator::MAX_NESTED_MEDIA`), where the media's materials are
+/// among the scene's first 14; 8, four deep, among its first 254; else
+/// 16, two deep, among its first 65534, which [`nested_too_deep`]
+/// checks.
 pub fn medium_bits(scene: &Scene) -> u32 {
-    let small = scene
+    let largest = scene
         .media()
-        .all(|(i, ..)| scene.object_material[i] + 1 < 0xff);
-    if small {
-        8
-    } else {
-        16
-    }
+        .map(|(i, ..)| scene.object_material[i] + 1)
+        .max()
+        .unwrap_or(0);
+    [4, 8]
+        .into_iter()
+        .find(|&bits| largest < (1 << bits) - 1)
+        .unwrap_or(16)
 }
+
+/// How many media of `bits`-bit slots the packed media hold, and the
+/// scene's materials a medium's must be among for them: each width of
+/// [`medium_bits`].
+const MEDIUM_SLOTS: [(u32, &str, usize); 3] =
+    [(4, "eight", 14), (8, "four", 254), (16, "two", 65534)];
 
 /// Lists, for manifold next-event estimation of point lights through
 /// curved boundaries (`manifold_refraction` in render.wgsl, as the CPU's
@@ -970,13 +980,14 @@ pub fn refracted_media(
 }
 
 /// Random-walk media of `scene` whose bounding boxes all overlap, one
-/// more than the kernels' packed media hold ([`medium_bits`]: four deep,
-/// a fish in a jelly in a drop under water, or two where a medium's
-/// material comes after the first 254), so that a path could be inside
-/// them all; or a medium whose material index does not fit the kernels'
-/// 16 bits: why `--gpu` refuses the scene. (Boxes that overlap pairwise
-/// share a point, so growing a set while its boxes' common part is not
-/// empty finds every such set.)
+/// more than the kernels' packed media hold ([`medium_bits`]: eight deep
+/// as on the CPU, a fish in a jelly in a drop under water and more, where
+/// the media's materials are among the scene's first 14; four among its
+/// first 254; two beyond), so that a path could be inside them all; or a
+/// medium whose material index does not fit the kernels' 16 bits: why
+/// `--gpu` refuses the scene. (Boxes that overlap pairwise share a point,
+/// so growing a set while its boxes' common part is not empty finds every
+/// such set.)
 pub fn nested_too_deep(scene: &Scene) -> Option<String> {
     let media: Vec<_> = scene.media_nested();
     if let Some((i, ..)) = media
@@ -1001,15 +1012,23 @@ pub fn nested_too_deep(scene: &Scene) -> Option<String> {
         .map(|i| i.to_string())
         .collect::<Vec<_>>()
         .join(", ");
-    let why = if bits == 8 {
-        String::new()
+    // The deeper nestings narrower slots allow.
+    let deeper: Vec<_> = MEDIUM_SLOTS
+        .iter()
+        .filter(|(b, ..)| *b < bits)
+        .map(|(_, depth, first)| format!("{depth} where every random-walk medium's material is among the scene's first {first}"))
+        .collect();
+    let (why, fix) = if deeper.is_empty() {
+        (String::new(), "")
     } else {
-        " (four where every random-walk medium's material is among the scene's first 254)"
-            .to_string()
+        (
+            format!(" ({})", deeper.join("; ")),
+            "list the media's materials first, or ",
+        )
     };
     Some(format!(
         "objects {ids}: {} random-walk media whose bounding boxes overlap, so that a path \
-         could be inside them all; the GPU follows media nested {depth} deep{why}: render \
+         could be inside them all; the GPU follows media nested {depth} deep{why}: {fix}render \
          without --gpu",
         depth + 1
     ))
@@ -2094,7 +2113,7 @@ mod tests {
                  [[object]]\nmaterial = \"m{k}\"\n\
                  base = {{ type = \"sphere\", center = [{}, 0.0, 0.0], radius = {} }}\n",
                 k as f64 * spacing,
-                4.0 - k as f64 * 0.5
+                4.0 - k as f64 * 0.4
             );
         }
         isolux_scene::parse_str(
@@ -2107,42 +2126,62 @@ mod tests {
 
     #[test]
     fn media_nest_as_deep_as_their_slots_hold() {
-        // 8-bit slots: four deep.
-        let four = nested_spheres(4, 0);
-        assert_eq!(medium_bits(&four), 8);
-        assert_eq!(nested_too_deep(&four), None);
+        // 4-bit slots: eight deep, as on the CPU.
+        let eight = nested_spheres(8, 0);
+        assert_eq!(medium_bits(&eight), 4);
+        assert_eq!(
+            isolux_render::integrator::MAX_NESTED_MEDIA,
+            8,
+            "the CPU's depth changed: see medium_bits"
+        );
+        assert_eq!(nested_too_deep(&eight), None);
         let packed = medium_of(
-            &four
+            &eight
                 .media_nested()
                 .iter()
-                .map(|(i, o, _)| ((*o).clone(), four.object_material[*i] as u32 + 1))
+                .map(|(i, o, _)| ((*o).clone(), eight.object_material[*i] as u32 + 1))
                 .collect::<Vec<_>>(),
             glam::DVec3::ZERO,
-            8,
+            4,
         );
-        assert_eq!(packed, 0x01_02_03_04);
-        assert_eq!(innermost(packed, 8), 4);
-        let five = nested_spheres(5, 0);
-        let why = nested_too_deep(&five).expect("five deep refused");
+        assert_eq!(packed, 0x1234_5678);
+        assert_eq!(innermost(packed, 4), 8);
+        let nine = nested_spheres(9, 0);
+        let why = nested_too_deep(&nine).expect("nine deep refused");
         assert!(
-            why.starts_with("objects 0, 1, 2, 3, 4: 5 random-walk media") && why.contains("4 deep"),
+            why.starts_with("objects 0, 1, 2, 3, 4, 5, 6, 7, 8: 9 random-walk media")
+                && why.contains("nested 8 deep: render"),
             "{why}"
         );
         assert!(!why.contains("  "), "{why}");
+        // A medium's `1 +` material of 15 is the 4-bit mask: 8-bit slots,
+        // four deep.
+        assert_eq!(medium_bits(&nested_spheres(5, 9)), 4);
+        let five = nested_spheres(5, 10);
+        assert_eq!(medium_bits(&five), 8);
+        assert_eq!(nested_too_deep(&nested_spheres(4, 10)), None);
+        let why = nested_too_deep(&five).expect("five deep at 8 bits refused");
+        assert!(
+            why.contains(
+                "nested 4 deep (eight where every random-walk medium's material is among the \
+                 scene's first 14): list the media's materials first, or render without --gpu"
+            ),
+            "{why}"
+        );
         // A medium after the first 254 materials: 16-bit slots, two deep.
         let late = nested_spheres(3, 254);
         assert_eq!(medium_bits(&late), 16);
         assert_eq!(medium_bits(&nested_spheres(3, 251)), 8);
         let why = nested_too_deep(&late).expect("three deep at 16 bits refused");
         assert!(
-            why.contains("nested 2 deep (four where every random-walk medium's material is among"),
+            why.contains("nested 2 deep (eight where every random-walk medium's material is among the scene's first 14; four where every random-walk medium's material is among the scene's first 254)"),
             "{why}"
         );
         assert_eq!(nested_too_deep(&nested_spheres(2, 254)), None);
-        // Five media side by side, and four nested beside a fifth: none
-        // holds more than four.
-        assert_eq!(nested_too_deep(&nested_spheres_at(5, 0, 10.0)), None);
-        let mut beside = nested_spheres(4, 0);
+        // Nine media side by side, and eight nested beside a ninth: none
+        // holds more than eight.
+        assert_eq!(nested_too_deep(&nested_spheres_at(9, 0, 10.0)), None);
+        let mut beside = nested_spheres(8, 0);
         let other = nested_spheres_at(2, 0, 10.0);
         beside.geometry = isolux_geometry::Aggregate::new(
             beside

@@ -899,7 +899,7 @@ fn media_nest_on_the_gpu() {
     // path tracers, with the camera at `camera` in `text` (moved from
     // `at`).
     let closed_form = |text: &str, at: &str, camera: &str, n: f64| {
-        let text = text.replace(at, camera);
+        let text = text.replacen(at, camera, 1);
         let scene =
             isolux_scene::parse_str(&text, Path::new("media.toml"), Path::new(".")).unwrap();
         let mut frame = gpu.prepare(&scene).unwrap();
@@ -958,18 +958,40 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
     let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "jelly under water");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.03 * mc, "{mg} vs {mc}");
-    // Four deep (`media_nest_four_deep` in crates/isolux/tests/analytic.rs):
-    // 8-bit slots hold them, the camera sees its medium's index squared.
+    // Four and eight deep (`media_nest_four_and_eight_deep` in
+    // crates/isolux/tests/analytic.rs): 4-bit slots hold them, the camera
+    // sees its medium's index squared.
     let deep = common::test_scene_text("deep-media.toml");
-    for (camera, n) in [("[0.5, 0.0, 0.3]", 1.9), ("[0.1, 0.0, 0.3]", 1.7)] {
-        closed_form(&deep, "[0.5, 0.0, 0.3]", camera, n);
+    let deeper = deep.clone() + &common::test_scene_text("deeper-media.toml");
+    for (text, camera, n) in [
+        (&deep, "[0.5, 0.0, 0.3]", 1.9),
+        (&deep, "[0.1, 0.0, 0.3]", 1.7),
+        (&deeper, "[0.5, 0.0, 0.3]", 1.1),
+        (&deeper, "[0.5, 0.0, 0.25]", 1.2),
+    ] {
+        closed_form(text, "[0.5, 0.0, 0.3]", camera, n);
     }
+    // Behind eleven other materials the slots are 8 bits wide: four deep
+    // still render, five are refused.
+    let pad = |n: usize, text: &str| {
+        let padding: String = (0..n)
+            .map(|k| format!("[[material]]\nname = \"pad{k}\"\ntype = \"diffuse\"\n"))
+            .collect();
+        text.replacen("[[material]]", &format!("{padding}[[material]]"), 1)
+    };
+    let padded = pad(11, &deep);
+    closed_form(&padded, "[0.5, 0.0, 0.3]", "[0.5, 0.0, 0.3]", 1.9);
+    let scene = isolux_scene::parse_str(&padded, Path::new("padded.toml"), Path::new(".")).unwrap();
+    assert_eq!(isolux_gpu::medium_bits(&scene), 8);
+    let fifth = padded.clone() + &deeper_medium("fifth", 1.6, 0.14);
+    let scene = isolux_scene::parse_str(&fifth, Path::new("fifth.toml"), Path::new(".")).unwrap();
+    let Err(e) = gpu.prepare(&scene) else {
+        panic!("five nested media accepted in 8-bit slots")
+    };
+    assert!(e.to_string().contains("nested 4 deep (eight where"), "{e}");
     // Behind 254 other materials the slots are 16 bits wide: two deep
     // still render, three are refused.
-    let padding: String = (0..254)
-        .map(|k| format!("[[material]]\nname = \"pad{k}\"\ntype = \"diffuse\"\n"))
-        .collect();
-    let late = nested.replacen("[[material]]", &format!("{padding}[[material]]"), 1);
+    let late = pad(254, &nested);
     let scene = isolux_scene::parse_str(&late, Path::new("late.toml"), Path::new(".")).unwrap();
     assert_eq!(isolux_gpu::medium_bits(&scene), 16);
     for p in &gpu_image(&gpu, &scene).rgb {
@@ -1002,28 +1024,24 @@ base = { type = "sphere", center = [0.3, 0.0, 0.0], radius = 0.5 }
     let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "overlapping media");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.02 * mc, "{mg} vs {mc}");
-    // Five deep: refused.
-    let fifth = format!(
-        "{deep}{}",
-        r#"
-[[material]]
-name = "fifth"
-type = "subsurface"
-sigma_s = [1.0, 1.0, 1.0]
-sigma_a = [0.0, 0.0, 0.0]
-ior = 1.2
-mode = "random_walk"
-
-[[object]]
-material = "fifth"
-base = { type = "sphere", center = [0.5, 0.0, 0.3], radius = 0.1 }
-"#
-    );
-    let scene = isolux_scene::parse_str(&fifth, Path::new("fifth.toml"), Path::new(".")).unwrap();
+    // Nine deep: refused.
+    let ninth = deeper.clone() + &deeper_medium("ninth", 1.3, 0.01);
+    let scene = isolux_scene::parse_str(&ninth, Path::new("ninth.toml"), Path::new(".")).unwrap();
     let Err(e) = gpu.prepare(&scene) else {
-        panic!("five nested media accepted")
+        panic!("nine nested media accepted")
     };
-    assert!(e.to_string().contains("nested 4 deep"), "{e}");
+    assert!(e.to_string().contains("nested 8 deep: render"), "{e}");
+}
+
+/// A random-walk sphere named `name` of index `ior` and radius `r` about
+/// the camera of deep-media.toml, as TOML to append to a scene.
+fn deeper_medium(name: &str, ior: f64, r: f64) -> String {
+    format!(
+        "[[material]]\nname = \"{name}\"\ntype = \"subsurface\"\nsigma_s = [1.0, 1.0, 1.0]\n\
+         sigma_a = [0.0, 0.0, 0.0]\nior = {ior}\nmode = \"random_walk\"\n\
+         [[object]]\nmaterial = \"{name}\"\n\
+         base = {{ type = \"sphere\", center = [0.5, 0.0, 0.3], radius = {r} }}\n"
+    )
 }
 
 /// The random walk at many samples (`--ignored`: minutes on Mesa 22.3's

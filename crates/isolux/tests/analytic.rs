@@ -4,6 +4,7 @@
 //! pinhole formula written out again), so a camera bug cannot hide itself.
 
 use isolux_core::{DVec3, Image};
+use isolux_render::integrator::MAX_NESTED_MEDIA;
 use isolux_render::{render, MediumLightSampling, RenderOptions, Scene};
 use std::path::Path;
 
@@ -615,19 +616,28 @@ fn media_nest() {
 /// 1.9 in 1.7 in 1.5 in water of 1.33, all scattering without absorption,
 /// under a white sky): the camera in the innermost sees `1.9^2`, every
 /// path bringing exactly `3 n^2` over its channels, and from the sphere
-/// of 1.7, `1.7^2` (closed form, as [`media_nest`]).
+/// of 1.7, `1.7^2` (closed form, as [`media_nest`]). And eight deep, as
+/// deep as a path follows ([`MAX_NESTED_MEDIA`]; deeper-media.toml
+/// appended: four more, of 1.6, 1.4, 1.2 and 1.1 inward): `1.1^2`, and
+/// from the seventh, `1.2^2`.
 #[test]
-fn media_nest_four_deep() {
+fn media_nest_four_and_eight_deep() {
     let deep = test_scene("deep-media.toml", &[]);
-    for (camera, n, depth) in [("[0.5, 0.0, 0.3]", 1.9, 4), ("[0.1, 0.0, 0.3]", 1.7, 3)] {
-        let s = scene(&deep.replace("[0.5, 0.0, 0.3]", camera));
+    let deeper = deep.clone() + &test_scene("deeper-media.toml", &[]);
+    for (text, camera, n, depth) in [
+        (&deep, "[0.5, 0.0, 0.3]", 1.9, 4),
+        (&deep, "[0.1, 0.0, 0.3]", 1.7, 3),
+        (&deeper, "[0.5, 0.0, 0.3]", 1.1, MAX_NESTED_MEDIA),
+        (&deeper, "[0.5, 0.0, 0.25]", 1.2, 7),
+    ] {
+        let s = scene(&text.replacen("[0.5, 0.0, 0.3]", camera, 1));
         assert_eq!(s.media_at(s.camera.position).len(), depth);
         let want = 3.0 * n * n;
         for p in &render_with(&s, 2).rgb {
             let sum = p.iter().map(|&v| v as f64).sum::<f64>();
             assert!(
                 (sum - want).abs() < 1e-5 * want,
-                "camera at {camera}: {p:?}"
+                "camera at {camera}, {depth} deep: {p:?}"
             );
         }
     }

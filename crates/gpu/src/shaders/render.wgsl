@@ -472,8 +472,8 @@ struct Path {
     // Subsurface media (random walk): the media the path is inside, each
     // as 1 + its material (0: none) in a slot of `medium_bits()` bits, the
     // innermost in the lowest slot and each around it in the next
-    // (`medium_top`; four media deep in 8-bit slots, two in 16-bit ones,
-    // render.rs `medium_bits`); the hero channel
+    // (`medium_top`; eight media deep in 4-bit slots, four in 8-bit ones,
+    // two in 16-bit ones, render.rs `medium_bits`); the hero channel
     // whose coefficients its free flights sample (3: none yet; `ratio`
     // below), the scattering events and boundary crossings so far.
     medium: u32,
@@ -496,8 +496,9 @@ struct Path {
 var<private> path: Path;
 
 // The width in bits of a packed medium's slot (`params.camera.w`, render.rs
-// `medium_bits`): 8, so that media nest four deep, or 16 (two deep) in a
-// scene where a medium's 1 + material does not fit 8 bits.
+// `medium_bits`): 4, so that media nest eight deep (as on the CPU), where
+// every medium's 1 + material fits below the slot's mask; else 8 (four
+// deep) or 16 (two deep).
 fn medium_bits() -> u32 {
     return params.camera.w;
 }
@@ -1218,7 +1219,7 @@ const MEDIA_TOO_DEEP: u32 = 0xffffffffu;
 fn medium_crossed(med: u32, id: u32) -> u32 {
     let b = medium_bits();
     let mask = medium_mask();
-    for (var k = 0u; k < 4u; k++) {
+    for (var k = 0u; k < 8u; k++) {
         let s = k * b;
         if (s >= 32u) {
             break;
