@@ -953,7 +953,11 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
 "#;
     let mut scene =
         isolux_scene::parse_str(&jelly, Path::new("jelly.toml"), Path::new(".")).unwrap();
-    (scene.film.width, scene.film.height, scene.film.spp) = (48, 36, 64);
+    // 128 spp: at 64 a block lit through the jelly by one rare path
+    // put |GPU - CPU| at 1.57 times the CPU's own seed-to-seed difference
+    // for one seed, where five others gave 0.80-1.14 (the GPU's mean
+    // within 0.1% of the CPU's at 1024 spp, the same noise per render).
+    (scene.film.width, scene.film.height, scene.film.spp) = (48, 36, 128);
     scene.integrator.max_depth = 8;
     let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "jelly under water");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
