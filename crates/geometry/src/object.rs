@@ -997,6 +997,39 @@ impl Object {
         self.intersect_in(&self.local(ray), t_min, t_max, Items::All)
     }
 
+    /// A lower bound, by closed forms alone, on the first crossing of the
+    /// surface `F' = 0` along `ray` (up to `t_max`, which it returns where
+    /// it finds nothing sooner) from a start inside the object: the base
+    /// quadric's first crossing, or the ray's entry into the support of a
+    /// dent (a perturbation of negative factor) if that comes first; 0
+    /// where the start lies outside `F > 0` or in a dent's support. Bumps
+    /// only add to `F'`, and dents change it only in their supports, so
+    /// `F' >= F > 0` before that bound. Without dents, where the base is
+    /// crossed first, it is the crossing itself. (Manifold next-event
+    /// estimation decides by it whether the exact [`Object::intersect`]
+    /// is worth its cost.)
+    pub fn exit_bound(&self, ray: &Ray, t_max: f64) -> f64 {
+        let local = self.local(ray);
+        if !(self.base.eval(local.origin) > 0.0) {
+            return 0.0;
+        }
+        let first = |q: [f64; 3], t: f64| {
+            quadratic_crossings(q)
+                .iter()
+                .copied()
+                .find(|&r| r > 0.0 && r < t)
+                .unwrap_or(t)
+        };
+        let mut t = first(self.base_along.along(&self.base, &local), t_max);
+        for q in self.perturbations.iter().filter(|q| q.factor < 0.0) {
+            if !(q.quadric.eval(local.origin) <= 0.0) {
+                return 0.0;
+            }
+            t = first(q.quadric.along(&local), t);
+        }
+        t
+    }
+
     /// Whether some ray of `beam` may meet the object: its box and, for a
     /// bounded solid, a ball around it (the base's positive set and the
     /// bumps' supports), which for round objects rejects the tiles near

@@ -912,6 +912,35 @@ fn solve2(a: vec2<f32>, b: vec2<f32>, v: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(b.y * v.x - b.x * v.y, -a.y * v.x + a.x * v.y) / det;
 }
 
+// The first root of the quadratic (A, B, C) in (0, t), else t.
+fn first_root_below(c: vec3<real>, t: f32) -> f32 {
+    let b = vec2<f32>(roots(c));
+    return select(select(t, b.y, b.y > 0.0 && b.y < t), b.x, b.x > 0.0 && b.x < t);
+}
+
+// A lower bound on the first crossing of object ob's surface from p (inside
+// it) along dir, up to t_max, by closed forms (geometry `Object::exit_bound`):
+// the base quadric's crossing, or the entry into a dent's support if
+// sooner; 0 where p lies outside the base or in a dent's support.
+fn exit_bound(ob: Object, p: vec3<f32>, dir: vec3<f32>, t_max: f32) -> f32 {
+    let lo = vec3<real>(p - ob.origin.xyz);
+    let d = vec3<real>(dir);
+    if (!(q_eval(ob.base, lo) > 0.0)) {
+        return 0.0;
+    }
+    var t = first_root_below(q_along(ob.base, lo, d), t_max);
+    for (var k = ob.range.x; k < ob.range.x + ob.range.y; k++) {
+        let pert = perturbations[k];
+        if (pert.factor.x < 0.0) {
+            if (!(q_eval(pert.q, lo) <= 0.0)) {
+                return 0.0;
+            }
+            t = first_root_below(q_along(pert.q, lo, d), t);
+        }
+    }
+    return t;
+}
+
 fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
     var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
     // The medium's object: the one of its material's list (material
@@ -938,17 +967,31 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
     if (!(dist > 0.0)) {
         return r;
     }
-    let seed = object_first_hit(oi, p, to_light / dist, 0.0, dist);
+    // Russian roulette by the attenuation of the straight way out, in two
+    // stages (integrator.rs `manifold_refraction`): first by d1, a lower
+    // bound on the crossing from closed forms (geometry `Object::exit_bound`:
+    // the base quadric's crossing, or a dent's support if sooner; 0 where p
+    // is outside the base or in a dent's support), so that most declined
+    // tries cost no exact intersection, then, the seed found, by q / q1.
+    let mm = materials[id - 1u];
+    let sigma = min3(mm.b.rgb + mm.c.rgb);
+    let ob = objects[oi];
+    let dir = to_light / dist;
+    let d1 = exit_bound(ob, p, dir, dist);
+    let q1 = exp(-sigma * d1);
+    if (!(q1 > 0.0) || (q1 < 1.0 && rand() >= q1)) {
+        return r;
+    }
+    let seed = object_first_hit(oi, p, dir, 0.0, dist);
     if (!(seed.x >= 0.0)) {
         return r;
     }
-    // Russian roulette by the attenuation of the straight way out.
-    let mm = materials[id - 1u];
-    let q = exp(-min3(mm.b.rgb + mm.c.rgb) * seed.x);
-    if (!(q > 0.0) || (q < 1.0 && rand() >= q)) {
+    let q2 = min(exp(-sigma * seed.x) / q1, 1.0);
+    if (!(q2 > 0.0) || (q2 < 1.0 && rand() >= q2)) {
         return r;
     }
-    let pr = manifold_project(oi, p + seed.x * to_light / dist, dist);
+    let q = q1 * q2;
+    let pr = manifold_project(oi, p + seed.x * dir, dist);
     if (pr.w == 0.0) {
         return r;
     }
@@ -960,7 +1003,6 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
     // resolution there and small beside a perturbation's support (at
     // 1e-3, a dent of radius 0.4 in a sphere of 1.6 rendered 2.5% dark
     // against the CPU; at 2e-4 within its noise).
-    let ob = objects[oi];
     let eps_n = 2e-4 * clamp(length(ob.bmax.xyz - ob.bmin.xyz), 1e-2, 10.0);
     var ok = false;
     // The last iterate's frame and Jacobian, for the spreading.
