@@ -12,9 +12,12 @@
 //! scene (default: the furnace, the gallery, the translucent scene) and for
 //! every model at once (`all`, the general kernels) the path tracer
 //! (`main`), the wavefront step (`trace`) and the real-time kernel
-//! (`realtime`), each specialized to the scene's material models and
-//! candidate list as `isolux render --gpu` runs it
-//! (`Features::of`, `Features::fit_to`). `--all` prints every
+//! (`realtime`), each specialized to the scene's material models,
+//! candidate list and media as `isolux render --gpu` runs it
+//! (`isolux_gpu::scene_features`, the rules `Gpu::prepare` follows; until
+//! 2026-12-04 this example compiled every scene's kernels with the null
+//! boundaries', refracted and manifold lights' code whether the scene
+//! needed it or not). `--all` prints every
 //! statistic the driver reports, not only those about registers, spills,
 //! code size, instructions, scratch and occupancy. `--dump DIR` also
 //! writes each scene's render kernel source to `DIR/<scene>.wgsl`, and
@@ -44,7 +47,6 @@
 //!     cargo run --release -p isolux-gpu --example kernel_stats
 //! ```
 use ash::vk;
-use isolux_gpu::layout::{GpuMaterials, GpuScene};
 use isolux_gpu::{render_source_variant, Features, Precision};
 use std::ffi::{CStr, CString};
 
@@ -105,20 +107,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut sets = Vec::new();
     for path in &scenes {
         let scene = isolux_scene::load(std::path::Path::new(path))?;
-        let materials = GpuMaterials::new(&scene.materials).map_err(|i| {
-            format!(
-                "{path}: material {} does not run on the GPU",
-                scene.material_names[i]
-            )
-        })?;
+        let features = isolux_gpu::scene_features(&scene).map_err(|e| format!("{path}: {e}"))?;
         let name = std::path::Path::new(path)
             .file_name()
             .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
-        let geometry = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
-        sets.push((
-            name,
-            Features::of(&materials.materials).fit_to(&geometry, scene.lights.len()),
-        ));
+        sets.push((name, features));
     }
     if sources.is_empty() {
         sets.push(("every model".to_string(), Features::ALL));

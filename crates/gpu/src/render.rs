@@ -880,6 +880,43 @@ pub fn medium_bits(scene: &Scene) -> u32 {
 const MEDIUM_SLOTS: [(u32, &str, usize); 3] =
     [(4, "eight", 14), (8, "four", 254), (16, "two", 65534)];
 
+/// The optional code the kernels of `scene` need (models, the candidate
+/// list and many lights' shadow rays by its size, null boundaries,
+/// refracted and manifold lights by its media), given its materials on
+/// the GPU, its geometry, its lights' flat media ([`refracted_media`]) and
+/// whether [`manifold_media`] listed any.
+fn needed(
+    scene: &Scene,
+    materials: &GpuMaterials,
+    geo: &GpuScene,
+    refracted: &[Option<(usize, isolux_render::FlatBoundary)>],
+    manifold: bool,
+) -> Features {
+    Features {
+        null_boundaries: scene.may_have_null_boundaries(),
+        refraction: refracted.iter().any(Option::is_some) || manifold,
+        manifold,
+        ..Features::of(&materials.materials).fit_to(geo, scene.lights.len())
+    }
+}
+
+/// The optional code of the kernels that render `scene` (tile lists on,
+/// as on GPUs), as [`Gpu::prepare`] decides it, without a GPU: what
+/// `kernel_stats` compiles, so that its figures are those of the kernels
+/// the scene runs. An error names a material the GPU does not run.
+pub fn scene_features(scene: &Scene) -> Result<Features, GpuError> {
+    let mut materials = GpuMaterials::new(&scene.materials).map_err(|i| {
+        GpuError::Setup(format!(
+            "material {:?} does not run on the GPU",
+            scene.material_names.get(i).map_or("?", String::as_str)
+        ))
+    })?;
+    let manifold = manifold_media(scene, &mut materials)?;
+    let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
+    let refracted = refracted_media(scene).map_err(GpuError::Setup)?;
+    Ok(needed(scene, &materials, &geo, &refracted, manifold))
+}
+
 /// Lists, for manifold next-event estimation of point lights through
 /// curved boundaries (`manifold_refraction` in render.wgsl, as the CPU's
 /// `RefractedLights::Manifold`), the objects of each random-walk medium
@@ -1263,7 +1300,6 @@ impl Gpu {
         let mut materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
         let manifold = manifold_media(scene, &mut materials)?;
         let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
-        let null_boundaries = scene.may_have_null_boundaries();
         // In the order they nest, outermost first (`medium_of`).
         let media: Vec<_> = scene
             .media_nested()
@@ -1349,7 +1385,7 @@ impl Gpu {
             layers: [0; 4],
             camera: [
                 medium_of(&media, scene.camera.position, bits),
-                null_boundaries as u32,
+                scene.may_have_null_boundaries() as u32,
                 (scene.integrator.medium_lights == MediumLightSampling::Equiangular) as u32,
                 bits,
             ],
@@ -1433,12 +1469,7 @@ impl Gpu {
         // No layers until a run needs them (the wavefront never does).
         let layers = self.output("sample layers (none yet)", 16);
         let bind = self.frame_bind_group(&buffers, &layers);
-        let needed = Features {
-            null_boundaries,
-            refraction: refracted.iter().any(Option::is_some) || manifold,
-            manifold,
-            ..Features::of(&materials.materials).fit_to(&geo, scene.lights.len())
-        };
+        let needed = needed(scene, &materials, &geo, &refracted, manifold);
         let random_walk = materials
             .materials
             .iter()
@@ -2122,6 +2153,26 @@ mod tests {
             std::path::Path::new("."),
         )
         .unwrap()
+    }
+
+    #[test]
+    fn scene_features_are_the_code_a_scene_needs() {
+        let load = |name: &str| {
+            let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes/");
+            isolux_scene::load(&std::path::Path::new(dir).join(name)).unwrap()
+        };
+        let gallery = scene_features(&load("gallery.toml")).unwrap();
+        assert!(!gallery.subsurface() && !gallery.null_boundaries && !gallery.refraction);
+        assert!(!gallery.manifold && gallery.tiles);
+        // A lamp beside curved random-walk media: manifold lights.
+        let drops = scene_features(&load("translucent-random-walk.toml")).unwrap();
+        assert!(drops.subsurface() && drops.refraction && drops.manifold);
+        assert!(!drops.null_boundaries);
+        // A lamp above flat water: refracted lights, no manifold solve.
+        let flat = scene_features(&load("shallows.toml")).unwrap();
+        assert!(flat.refraction && !flat.manifold && !flat.null_boundaries);
+        // Fog of index 1: null boundaries.
+        assert!(scene_features(&load("fog.toml")).unwrap().null_boundaries);
     }
 
     #[test]
