@@ -50,7 +50,7 @@ use crate::poly::{fmax, fmin, quadratic_crossings, sign, two_roots, Crossings, P
 use crate::quadric::Quadric;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{self, Isa};
-use isolux_core::{Aabb, DVec3, Ray};
+use isolux_core::{Aabb, DMat3, DVec3, Ray};
 use smallvec::SmallVec;
 
 /// One perturbation `f Q^3 [Q >= 0]`.
@@ -970,6 +970,25 @@ impl Object {
             }
         }
         g
+    }
+
+    /// The Hessian of `F'` at `p` (world coordinates), exact: `2 M` of the
+    /// base, and of each active perturbation `6 f Q grad Q grad Q^T + 6 f
+    /// Q^2 M_Q` (the second derivative of `f Q^3`, continuous across the
+    /// support's edge, where both terms vanish). The surface's curvature
+    /// (manifold next-event estimation's Jacobian).
+    pub fn hessian(&self, p: DVec3) -> DMat3 {
+        let p = p - self.origin;
+        let mut h = 2.0 * self.base.m;
+        for q in &self.perturbations {
+            let x = q.quadric.eval(p);
+            if x > 0.0 {
+                let g = q.quadric.gradient(p);
+                let outer = DMat3::from_cols(g * g.x, g * g.y, g * g.z);
+                h += 6.0 * q.factor * x * outer + 6.0 * q.factor * x * x * q.quadric.m;
+            }
+        }
+        h
     }
 
     /// Unit outward normal at `p` (`-grad F'` normalized).

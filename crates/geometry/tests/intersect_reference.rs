@@ -974,3 +974,30 @@ fn exit_bound_is_a_lower_bound_of_the_crossing() {
     );
     assert!(useful * 2 > rays, "{useful} of {rays} at least half way");
 }
+
+/// `Object::hessian` against central differences of `Object::gradient`,
+/// at random points of random objects (bumps, dents, supports' edges
+/// included: `f Q^3` has a continuous second derivative).
+#[test]
+fn hessian_matches_differences_of_the_gradient() {
+    let mut rng = Pcg32::new(78, 9);
+    for k in 0..300 {
+        let (obj, reference) = random_object(&mut rng);
+        let b = reference.region;
+        for _ in 0..20 {
+            let p = b.min
+                + (b.max - b.min) * DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            let h = obj.hessian(p);
+            let scale = (0..3).map(|i| h.col(i).length()).fold(1.0, f64::max);
+            for u in [DVec3::X, DVec3::Y, DVec3::Z] {
+                let eps = 1e-5;
+                let fd = (obj.gradient(p + eps * u) - obj.gradient(p - eps * u)) / (2.0 * eps);
+                assert!(
+                    (h * u - fd).length() <= 1e-5 * scale,
+                    "object {k} at {p}: {} against {fd}",
+                    h * u
+                );
+            }
+        }
+    }
+}

@@ -16,10 +16,10 @@
 //! constraint's two tangential components, starting where the straight
 //! segment from `p` to the light meets the surface, with each iterate
 //! projected back onto `F' = 0` (Newton steps along `grad F'`). The
-//! constraint's Jacobian is exact in the distances to `p` and the light
-//! and takes the normal's derivative (the surface's curvature) by
-//! central differences, so any `F'` the geometry crate evaluates works,
-//! perturbed surfaces included. Points found unreachable (beyond the
+//! constraint's Jacobian is exact, the normal's derivative (the
+//! surface's curvature) from the Hessian of `F'` (`Object::hessian`), so
+//! any `F'` the geometry crate evaluates works, perturbed surfaces
+//! included. Points found unreachable (beyond the
 //! refracted rays' reach, near the shadow edge of a convex boundary:
 //! most of the solves that fail) are dropped.
 //!
@@ -232,11 +232,13 @@ fn solve(
 /// The constraint's Jacobian at `x` (unit normal `n`) along the tangents
 /// of `f`, column `k` for a move along tangent `k`: with `h = n_out w_o +
 /// n_in w_i`, `dC = P (dh - (h . n) dn)`, `dw = -(u - (w . u) w) / r` for
-/// each unit direction `w` at distance `r` (exact), and the normal's
-/// derivative `dn` by central differences at `1e-6 (1 + |x|)` (the
-/// surface's curvature; off the surface by `O(eps^2)`, which the smooth
-/// gradient field does not mind). Exact in the distances, so that a
-/// point `p` close to the surface costs the solve no precision.
+/// each unit direction `w` at distance `r`, and the normal's derivative
+/// `dn = -(I - n n^T) H u / |grad F'|` from the exact Hessian `H` of `F'`
+/// ([`Object::hessian`]; the normal is `-grad F' / |grad F'|`). Exact, so
+/// that a point `p` close to the surface costs the solve no precision and
+/// no difference step needs choosing. (Until 2026-12-04 `dn` came from
+/// central differences of the normal: four gradients instead of one
+/// Hessian.)
 #[allow(clippy::too_many_arguments)]
 fn jacobian(
     obj: &Object,
@@ -250,16 +252,18 @@ fn jacobian(
 ) -> Option<[[f64; 2]; 2]> {
     let (to_l, to_p) = (light - x, p - x);
     let (rl, rp) = (to_l.length(), to_p.length());
-    if !(rl > 0.0) || !(rp > 0.0) {
+    let g = obj.gradient(x).length();
+    if !(rl > 0.0) || !(rp > 0.0) || !(g > 0.0) {
         return None;
     }
     let (wo, wi) = (to_l / rl, to_p / rp);
     let hn = (n_out * wo + n_in * wi).dot(n);
-    let eps = 1e-6 * (1.0 + (x - obj.origin()).abs().max_element());
+    let hess = obj.hessian(x);
     let mut jac = [[0.0; 2]; 2];
     for (k, u) in [f.s, f.t].into_iter().enumerate() {
         let dh = -n_out * (u - wo.dot(u) * wo) / rl - n_in * (u - wi.dot(u) * wi) / rp;
-        let dn = (obj.normal(x + eps * u) - obj.normal(x - eps * u)) / (2.0 * eps);
+        let hu = hess * u;
+        let dn = -(hu - hu.dot(n) * n) / g;
         let dc = dh - hn * dn;
         jac[0][k] = dc.dot(f.s);
         jac[1][k] = dc.dot(f.t);

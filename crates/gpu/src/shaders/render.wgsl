@@ -820,8 +820,8 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
 // along the normal, from the straight segment's crossing, each iterate
 // projected back onto F' = 0; the spreading `dOmega_L / dA_p` from the
 // implicit function theorem, `|(dx_1 x dx_2) . l| / D^3` (l = x - L)
-// for p moved by a unit across the arriving ray. The Jacobian is exact
-// but for the normal's derivative, by central differences.
+// for p moved by a unit across the arriving ray. The Jacobian is exact,
+// the normal's derivative from the Hessian (`object_curvature`).
 
 // F' of object oi at x (the GPU's coordinates) and its gradient.
 fn object_field(oi: u32, x_gpu: vec3<f32>) -> vec4<f32> {
@@ -874,12 +874,46 @@ fn manifold_constraint(n: vec3<f32>, x: vec3<f32>, p: vec3<f32>, light: vec3<f32
     return vec2<f32>(dot(tt, fr.s), dot(tt, fr.t));
 }
 
+// The gradient of object oi's F' at x and its Hessian times s and t
+// (geometry `Object::hessian`: 2 M of the base, and of each active
+// perturbation 6 f Q (grad Q . u) grad Q + 6 f Q^2 M_Q u), in one pass
+// over the perturbations.
+struct Curvature {
+    g: vec3<f32>,
+    hs: vec3<f32>,
+    ht: vec3<f32>,
+}
+
+fn object_curvature(oi: u32, x_gpu: vec3<f32>, s: vec3<f32>, t: vec3<f32>) -> Curvature {
+    let obj = objects[oi];
+    let x = vec3<real>(x_gpu - obj.origin.xyz);
+    let sr = vec3<real>(s);
+    let tr = vec3<real>(t);
+    var g = q_grad(obj.base, x);
+    var hs = 2.0 * q_m(obj.base, sr);
+    var ht = 2.0 * q_m(obj.base, tr);
+    let first = obj.range.x;
+    for (var k = first; k < first + obj.range.y; k++) {
+        let pert = perturbations[k];
+        let qv = q_eval(pert.q, x);
+        if (qv > 0.0) {
+            let f = real(pert.factor.x);
+            let gq = q_grad(pert.q, x);
+            g += 3.0 * f * qv * qv * gq;
+            hs += 6.0 * f * qv * (dot(gq, sr) * gq + qv * q_m(pert.q, sr));
+            ht += 6.0 * f * qv * (dot(gq, tr) * gq + qv * q_m(pert.q, tr));
+        }
+    }
+    return Curvature(vec3<f32>(g), vec3<f32>(hs), vec3<f32>(ht));
+}
+
 // The constraint's Jacobian at x (manifold.rs `jacobian`), its columns
-// for x moved along the tangents s and t: exact in the distances, the
-// normal's derivative by central differences at eps (one call site of
-// `object_field` for the four normals).
+// for x moved along the tangents s and t: exact, the normal's derivative
+// dn = -(I - n n^T) H u / |grad F'| from the Hessian (`object_curvature`;
+// until 2026-12-04 by central differences of the normal, whose step had
+// to be tuned against f32's resolution and the perturbations' size).
 fn manifold_jacobian(oi: u32, x: vec3<f32>, n: vec3<f32>, p: vec3<f32>, light: vec3<f32>,
-                     n_in: f32, n_out: f32, fr: Frame, eps: f32) -> mat2x2<f32> {
+                     n_in: f32, n_out: f32, fr: Frame) -> mat2x2<f32> {
     let to_l = light - x;
     let to_p = p - x;
     let rl = length(to_l);
@@ -887,16 +921,14 @@ fn manifold_jacobian(oi: u32, x: vec3<f32>, n: vec3<f32>, p: vec3<f32>, light: v
     let wo = to_l / rl;
     let wi = to_p / rp;
     let hn = dot(n_out * wo + n_in * wi, n);
-    var normals: array<vec3<f32>, 4>;
-    for (var k = 0u; k < 4u; k++) {
-        let u = select(fr.t, fr.s, k < 2u) * select(-eps, eps, (k & 1u) == 0u);
-        normals[k] = object_normal_at(oi, x + u);
-    }
+    let cv = object_curvature(oi, x, fr.s, fr.t);
+    let gl = length(cv.g);
     var cols: array<vec2<f32>, 2>;
     for (var k = 0u; k < 2u; k++) {
         let u = select(fr.t, fr.s, k == 0u);
+        let hu = select(cv.ht, cv.hs, k == 0u);
         let dh = -n_out * (u - dot(wo, u) * wo) / rl - n_in * (u - dot(wi, u) * wi) / rp;
-        let dn = (normals[2u * k] - normals[2u * k + 1u]) / (2.0 * eps);
+        let dn = -(hu - dot(hu, n) * n) / gl;
         let dc = dh - hn * dn;
         cols[k] = vec2<f32>(dot(dc, fr.s), dot(dc, fr.t));
     }
@@ -998,12 +1030,6 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
     var x = pr.xyz;
     var n = object_normal_at(oi, x);
     let tol = 1e-5 * (n1 + n2);
-    // The normal's derivative's step: 2e-4 of the object's box diagonal
-    // (within 1e-2 and 10 units, for unbounded objects), above f32's
-    // resolution there and small beside a perturbation's support (at
-    // 1e-3, a dent of radius 0.4 in a sphere of 1.6 rendered 2.5% dark
-    // against the CPU; at 2e-4 within its noise).
-    let eps_n = 2e-4 * clamp(length(ob.bmax.xyz - ob.bmin.xyz), 1e-2, 10.0);
     var ok = false;
     // The last iterate's frame and Jacobian, for the spreading.
     var fr: Frame;
@@ -1013,7 +1039,7 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
         fr = frame_from_normal(n);
         let c = manifold_constraint(n, x, p, light, n2, n1, fr);
         let norm = length(c);
-        let jac = manifold_jacobian(oi, x, n, p, light, n2, n1, fr, eps_n);
+        let jac = manifold_jacobian(oi, x, n, p, light, n2, n1, fr);
         ja = jac[0];
         jb = jac[1];
         if (norm < tol) {
