@@ -920,7 +920,7 @@ pub fn scene_features(scene: &Scene) -> Result<Features, GpuError> {
 /// Lists, for manifold next-event estimation of point lights through
 /// curved boundaries (`manifold_refraction` in render.wgsl, as the CPU's
 /// `RefractedLights::Manifold`), the objects of each random-walk medium
-/// that is not flat: in `materials`' data, `[count, objects...]` (as
+/// that is not flat, or is flat but reached so ([`flat_routes`]): in `materials`' data, `[count, objects...]` (as
 /// `f32`), whose offset `+ 1` goes to the medium's record's `c.w` (0:
 /// none; the GPU follows media by material, and finds the object the
 /// path is in among those that share it). Whether any was listed (and
@@ -932,7 +932,15 @@ fn manifold_media(scene: &Scene, materials: &mut GpuMaterials) -> Result<bool, G
     {
         return Ok(false);
     }
-    let flat: Vec<usize> = scene.flat_media().iter().map(|(i, _)| *i).collect();
+    // Flat media go by their lights' records, but for those the records
+    // cannot name (`flat_routes`).
+    let by_manifold = flat_routes(scene).map_err(GpuError::Setup)?.1;
+    let flat: Vec<usize> = scene
+        .flat_media()
+        .iter()
+        .map(|(i, _)| *i)
+        .filter(|i| !by_manifold.contains(i))
+        .collect();
     let mut listed = false;
     for mi in 0..scene.materials.len() {
         let objs: Vec<usize> = scene
@@ -973,16 +981,39 @@ fn bounded(b: &isolux_render::FlatBoundary) -> bool {
 /// plane (with or without `bounds`) that the light lies above (its
 /// object and plane, `Scene::flat_boundary`), whose inside it reaches by
 /// refraction through the plane (`refraction` in render.wgsl, as on the
-/// CPU); `Err` with why `--gpu` refuses the scene where the GPU cannot
-/// tell the medium from the path's (its media are materials, not
-/// objects: the medium's material also on another object; a light above
-/// two such media).
+/// CPU), where the light's record can name it: `None` for a light above
+/// no such medium, and, with `integrator.refracted_lights = "manifold"`,
+/// for a light whose flat media the GPU cannot tell by the record (the
+/// medium's material also on another object: its media are materials,
+/// not objects; a light above two flat media), which reaches them
+/// through the medium's list of objects instead (`flat_routes`,
+/// `manifold_media`: the kernels find the object holding the path among
+/// them and run the same closed form on its plane). With `"flat"` those
+/// are refused: `Err` with why.
 pub fn refracted_media(
     scene: &Scene,
 ) -> Result<Vec<Option<(usize, isolux_render::FlatBoundary)>>, String> {
+    flat_routes(scene).map(|(lights, _)| lights)
+}
+
+/// [`refracted_media`], and the flat media that some light reaches
+/// through their material's list of objects (listed with the curved
+/// media by [`manifold_media`]).
+#[allow(clippy::type_complexity)]
+fn flat_routes(
+    scene: &Scene,
+) -> Result<
+    (
+        Vec<Option<(usize, isolux_render::FlatBoundary)>>,
+        Vec<usize>,
+    ),
+    String,
+> {
     let flat = scene.flat_media();
-    let fix = "render without --gpu";
-    let mut out = Vec::new();
+    let manifold = scene.integrator.refracted_lights == isolux_render::RefractedLights::Manifold;
+    let fix = "set integrator.refracted_lights = \"manifold\" (the default), or render \
+               without --gpu";
+    let (mut out, mut by_manifold) = (Vec::new(), Vec::new());
     for (k, l) in scene.lights.iter().enumerate() {
         let above: Vec<_> = flat
             .iter()
@@ -992,28 +1023,39 @@ pub fn refracted_media(
             [] => out.push(None),
             [&(i, b)] => {
                 let mi = scene.object_material[i];
-                if let Some(j) = (0..scene.object_material.len())
+                let Some(j) = (0..scene.object_material.len())
                     .find(|&j| j != i && scene.object_material[j] == mi)
-                {
+                else {
+                    out.push(Some((i, b)));
+                    continue;
+                };
+                if !manifold {
                     return Err(format!(
                         "light[{k}] reaches the medium of object[{i}] through its flat surface, \
                          and object[{j}] has the same material: the GPU follows media by \
                          material and cannot tell them apart; give object[{i}] a material of \
-                         its own, or {fix}"
+                         its own, {fix}"
                     ));
                 }
-                out.push(Some((i, b)));
+                out.push(None);
+                by_manifold.push(i);
             }
             [&(i, _), &(j, _), ..] => {
-                return Err(format!(
-                    "light[{k}] lies above the flat surfaces of two random-walk media \
-                     (object[{i}] and object[{j}]): the GPU refracts a point light into one; \
-                     {fix}"
-                ))
+                if !manifold {
+                    return Err(format!(
+                        "light[{k}] lies above the flat surfaces of two random-walk media \
+                         (object[{i}] and object[{j}]): the GPU refracts a point light into \
+                         one by its record; {fix}"
+                    ));
+                }
+                out.push(None);
+                by_manifold.extend(above.iter().map(|(i, _)| *i));
             }
         }
     }
-    Ok(out)
+    by_manifold.sort_unstable();
+    by_manifold.dedup();
+    Ok((out, by_manifold))
 }
 
 /// Random-walk media of `scene` whose bounding boxes all overlap, one

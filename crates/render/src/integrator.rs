@@ -451,6 +451,14 @@ fn manifold_refraction(
     }
     let q = q1 * q2;
     let c = crate::manifold::connect_from(o, p, light, n2, n1, seed.p)?;
+    // On the surface as the object's box clips it (a quadric with
+    // `bounds`): beyond it the solution crosses no boundary. (The seed,
+    // clipped by the same box, refuses most such; a drop cut by a box
+    // through its cap renders the same with and without this test.)
+    let (b, tol) = (o.bbox(), 1e-7 * (1.0 + c.x.abs().max_element()));
+    if !((c.x + tol).cmpge(b.min).all() && (c.x - tol).cmple(b.max).all()) {
+        return None;
+    }
     let t = 1.0 - isolux_materials::fresnel::dielectric(c.cos_out, n2 / n1);
     let factor = t * c.spread / q;
     let inside = (c.x - p).length();

@@ -720,8 +720,11 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     if (u32(light.position.w) != outside) {
         return r;
     }
-    // Flat (the light's record names the medium) or curved (the medium's
-    // record lists its objects: manifold next-event estimation).
+    // Flat (the light's record names the medium) or found among the
+    // objects the medium's record lists (render.rs `manifold_media`): a
+    // curved one by manifold next-event estimation, a flat one the light's
+    // record cannot name (its material shared, or the light above two) by
+    // the same closed form as through the record.
     let flat = u32(light.intensity.w) == id;
     let objs = u32(materials[id - 1u].c.w);
     if (!flat && (!MANIFOLD || objs == 0u)) {
@@ -735,13 +738,32 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     if (n1 == n2) {
         return r;
     }
+    // The plane (outward normal, offset) and 1 + the object whose box
+    // clips it (0: none).
+    var plane = light.plane;
+    var boxed = light.flat.x;
     if (MANIFOLD && !flat) {
-        return manifold_refraction(objs - 1u, id, p, light.position.xyz, n1, n2);
+        let oi = medium_object(objs - 1u, p);
+        if (oi == NO_OBJECT) {
+            return r;
+        }
+        let ob = objects[oi];
+        let q = ob.base.c;
+        if (ob.range.y != 0u || any(q[0] != vec4<f32>(0.0)) || q[1].x != 0.0 || q[1].y != 0.0) {
+            return manifold_refraction(oi, id, p, light.position.xyz, n1, n2);
+        }
+        // F = 2 b . x + c > 0 inside (x from the object's origin): outward
+        // normal -b (scene.rs `flat_boundary`).
+        let b = vec3<f32>(q[1].z, q[1].w, q[2].x);
+        let lb = length(b);
+        let nrm = -b / lb;
+        plane = vec4<f32>(nrm, dot(nrm, ob.origin.xyz) + q[2].y / (2.0 * lb));
+        boxed = oi + 1u;
     }
-    let n = light.plane.xyz;
+    let n = plane.xyz;
     let lp = light.position.xyz;
-    let h1 = dot(n, lp) - light.plane.w;
-    let h2 = light.plane.w - dot(n, p);
+    let h1 = dot(n, lp) - plane.w;
+    let h2 = plane.w - dot(n, p);
     if (!(h1 > 0.0) || !(h2 > 0.0)) {
         return r;
     }
@@ -799,10 +821,10 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
         return r;
     }
     let c = p + s * along + h2 * n;
-    if (light.flat.x != 0u) {
+    if (boxed != 0u) {
         // A plane with bounds: the crossing must lie in its box (in the
         // object's frame, its faces rounded outward).
-        let ob = objects[light.flat.x - 1u];
+        let ob = objects[boxed - 1u];
         let lc = c - ob.origin.xyz;
         let tol = 1e-5 * (1.0 + max3(abs(lc)));
         if (any(lc < ob.bmin.xyz - tol) || any(lc > ob.bmax.xyz + tol)) {
@@ -973,27 +995,32 @@ fn exit_bound(ob: Object, p: vec3<f32>, dir: vec3<f32>, t_max: f32) -> f32 {
     return t;
 }
 
-fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
-    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
-    // The medium's object: the one of its material's list (material
-    // data: count, then the objects) that holds p.
+// The object of a medium's list (material data at `list`: count, then
+// the objects) that holds p: the one whose box holds p where F' > 0, else
+// (p beyond every box, where a path in the medium by its record can be:
+// bounds are no surfaces) one where F' > 0; NO_OBJECT if none.
+const NO_OBJECT: u32 = 0xffffffffu;
+fn medium_object(list: u32, p: vec3<f32>) -> u32 {
     let count = u32(material_data[list]);
-    var oi = u32(material_data[list + 1u]);
-    if (count > 1u) {
-        oi = 0xffffffffu;
+    if (count == 1u) {
+        return u32(material_data[list + 1u]);
+    }
+    for (var round = 0u; round < 2u; round++) {
         for (var k = 0u; k < count; k++) {
             let o = u32(material_data[list + 1u + k]);
             let obj = objects[o];
             let lc = p - obj.origin.xyz;
-            if (all(lc >= obj.bmin.xyz) && all(lc <= obj.bmax.xyz) && object_field(o, p).x > 0.0) {
-                oi = o;
-                break;
+            let boxed = all(lc >= obj.bmin.xyz) && all(lc <= obj.bmax.xyz);
+            if ((boxed || round == 1u) && object_field(o, p).x > 0.0) {
+                return o;
             }
         }
-        if (oi == 0xffffffffu) {
-            return r;
-        }
     }
+    return NO_OBJECT;
+}
+
+fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
+    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
     let to_light = light - p;
     let dist = length(to_light);
     if (!(dist > 0.0)) {
@@ -1074,6 +1101,13 @@ fn manifold_refraction(list: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f
         }
     }
     if (!ok) {
+        return r;
+    }
+    // On the surface as its box clips it (a quadric with `bounds`; faces
+    // rounded outward), as on the CPU.
+    let lc = x - ob.origin.xyz;
+    let btol = 1e-5 * (1.0 + max3(abs(lc)));
+    if (any(lc < ob.bmin.xyz - btol) || any(lc > ob.bmax.xyz + btol)) {
         return r;
     }
     let to_x = x - p;
