@@ -1029,9 +1029,8 @@ impl Object {
     /// is worth its cost.)
     pub fn exit_bound(&self, ray: &Ray, t_max: f64) -> f64 {
         let local = self.local(ray);
-        if !(self.base.eval(local.origin) > 0.0) {
-            return 0.0;
-        }
+        // Along the ray, ascending powers: the constant term is the value
+        // at the start.
         let first = |q: [f64; 3], t: f64| {
             quadratic_crossings(q)
                 .iter()
@@ -1039,12 +1038,17 @@ impl Object {
                 .find(|&r| r > 0.0 && r < t)
                 .unwrap_or(t)
         };
-        let mut t = first(self.base_along.along(&self.base, &local), t_max);
+        let base = self.base_along.along(&self.base, &local);
+        if !(base[0] > 0.0) {
+            return 0.0;
+        }
+        let mut t = first(base, t_max);
         for q in self.perturbations.iter().filter(|q| q.factor < 0.0) {
-            if !(q.quadric.eval(local.origin) <= 0.0) {
+            let dent = q.quadric.along(&local);
+            if !(dent[0] <= 0.0) {
                 return 0.0;
             }
-            t = first(q.quadric.along(&local), t);
+            t = first(dent, t);
         }
         t
     }
