@@ -979,17 +979,20 @@ fn first_root_below(c: vec3<real>, t: f32) -> f32 {
 fn exit_bound(ob: Object, p: vec3<f32>, dir: vec3<f32>, t_max: f32) -> f32 {
     let lo = vec3<real>(p - ob.origin.xyz);
     let d = vec3<real>(dir);
-    if (!(q_eval(ob.base, lo) > 0.0)) {
+    // Along the ray (A, B, C): C is the value at p.
+    let base = q_along(ob.base, lo, d);
+    if (!(base.z > 0.0)) {
         return 0.0;
     }
-    var t = first_root_below(q_along(ob.base, lo, d), t_max);
+    var t = first_root_below(base, t_max);
     for (var k = ob.range.x; k < ob.range.x + ob.range.y; k++) {
         let pert = perturbations[k];
         if (pert.factor.x < 0.0) {
-            if (!(q_eval(pert.q, lo) <= 0.0)) {
+            let dent = q_along(pert.q, lo, d);
+            if (!(dent.z <= 0.0)) {
                 return 0.0;
             }
-            t = first_root_below(q_along(pert.q, lo, d), t);
+            t = first_root_below(dent, t);
         }
     }
     return t;
@@ -1019,6 +1022,10 @@ fn medium_object(list: u32, p: vec3<f32>) -> u32 {
     return NO_OBJECT;
 }
 
+// Manifold next-event estimation of the light at `light` from p through
+// the curved surface of object oi, the boundary of medium id (1 + its
+// material; index n2 inside, n1 outside): integrator.rs
+// `manifold_refraction`, manifold.rs `connect_from`.
 fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
     var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
     let to_light = light - p;
