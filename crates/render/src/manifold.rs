@@ -45,7 +45,7 @@
 //! lose light, never add it. Paths that reflect inside before leaving,
 //! or cross two refracting surfaces, are left to the random walk.
 
-use isolux_core::{DVec3, Frame, Ray};
+use isolux_core::{DVec2, DVec3, Frame, Ray};
 use isolux_geometry::Object;
 
 /// A solved refracted connection from a point light to a point inside an
@@ -157,14 +157,6 @@ impl Solution {
     }
 }
 
-/// The length of a 2-vector. (Not `f64::hypot`, whose guard against
-/// overflow took a tenth of the solve's time: constraints are of the
-/// order of the indices and steps of the scene's size.)
-#[inline]
-fn len2(v: [f64; 2]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1]).sqrt()
-}
-
 /// `m^-1 d` for a 2 x 2 matrix `m`.
 fn inverse_times(m: &[[f64; 2]; 2], d: [f64; 2]) -> Option<[f64; 2]> {
     let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
@@ -192,20 +184,26 @@ fn solve(
 ) -> Option<Solution> {
     let scale = (light - p).length();
     let mut x = project(obj, seed, scale)?;
-    let mut n = obj.normal(x);
+    // The gradient at x, kept for the Jacobian; the normal is
+    // `Object::normal`'s, from it.
+    let mut g = obj.gradient(x);
     let tol = 1e-12 * (n_in + n_out);
     for _ in 0..MAX_ITERATIONS {
+        let n = (-g).normalize_or_zero();
         let frame = Frame::from_normal(n);
         let c = constraint(n, x, p, light, n_in, n_out, &frame)?;
-        let norm = len2(c);
-        let jac = jacobian(obj, x, n, p, light, n_in, n_out, &frame)?;
+        // (Lengths by glam, not `f64::hypot`, whose guard against overflow
+        // took a tenth of the solve's time: constraints are of the order of
+        // the indices and steps of the scene's size.)
+        let norm = DVec2::from(c).length();
+        let jac = jacobian(obj, x, n, g.length(), p, light, n_in, n_out, &frame)?;
         if norm < tol {
             return Some(Solution { x, frame, jac });
         }
         let [a, b] = inverse_times(&jac, c)?;
         let mut step = [-a, -b];
         // At most a quarter of the distance to p per step.
-        let len = len2(step);
+        let len = DVec2::from(step).length();
         let cap = 0.25 * (x - p).length();
         if len > cap {
             step = [step[0] * cap / len, step[1] * cap / len];
@@ -213,24 +211,26 @@ fn solve(
         let mut next = None;
         for _ in 0..12 {
             if let Some(y) = project(obj, x + step[0] * frame.s + step[1] * frame.t, scale) {
-                let ny = obj.normal(y);
+                let gy = obj.gradient(y);
+                let ny = (-gy).normalize_or_zero();
                 if let Some(cy) = constraint(ny, y, p, light, n_in, n_out, &Frame::from_normal(ny))
                 {
-                    if len2(cy) < norm {
-                        next = Some((y, ny));
+                    if DVec2::from(cy).length() < norm {
+                        next = Some((y, gy));
                         break;
                     }
                 }
             }
             step = [0.5 * step[0], 0.5 * step[1]];
         }
-        (x, n) = next?;
+        (x, g) = next?;
     }
     None
 }
 
 /// The constraint's Jacobian at `x` (unit normal `n`) along the tangents
-/// of `f`, column `k` for a move along tangent `k`: with `h = n_out w_o +
+/// of `f` (`g`: `|grad F'|` there), column `k` for a move along tangent
+/// `k`: with `h = n_out w_o +
 /// n_in w_i`, `dC = P (dh - (h . n) dn)`, `dw = -(u - (w . u) w) / r` for
 /// each unit direction `w` at distance `r`, and the normal's derivative
 /// `dn = -(I - n n^T) H u / |grad F'|` from the exact Hessian `H` of `F'`
@@ -244,6 +244,7 @@ fn jacobian(
     obj: &Object,
     x: DVec3,
     n: DVec3,
+    g: f64,
     p: DVec3,
     light: DVec3,
     n_in: f64,
@@ -252,7 +253,6 @@ fn jacobian(
 ) -> Option<[[f64; 2]; 2]> {
     let (to_l, to_p) = (light - x, p - x);
     let (rl, rp) = (to_l.length(), to_p.length());
-    let g = obj.gradient(x).length();
     if !(rl > 0.0) || !(rp > 0.0) || !(g > 0.0) {
         return None;
     }
