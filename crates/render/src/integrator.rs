@@ -377,8 +377,7 @@ fn refraction(
         };
     }
     let c = p + s * along + h2 * n;
-    let tol = 1e-9 * (1.0 + c.abs().max_element());
-    if (c.cmplt(b.bbox.min - tol) | c.cmpgt(b.bbox.max + tol)).any() {
+    if !in_box(&b.bbox, c, 1e-9) {
         return None;
     }
     let (l1, l2) = (
@@ -455,8 +454,7 @@ fn manifold_refraction(
     // `bounds`): beyond it the solution crosses no boundary. (The seed,
     // clipped by the same box, refuses most such; a drop cut by a box
     // through its cap renders the same with and without this test.)
-    let (b, tol) = (o.bbox(), 1e-7 * (1.0 + c.x.abs().max_element()));
-    if !((c.x + tol).cmpge(b.min).all() && (c.x - tol).cmple(b.max).all()) {
+    if !in_box(&o.bbox(), c.x, 1e-7) {
         return None;
     }
     let t = 1.0 - isolux_materials::fresnel::dielectric(c.cos_out, n2 / n1);
@@ -470,6 +468,13 @@ fn manifold_refraction(
         normal: c.normal,
         factor,
     })
+}
+
+/// Whether a crossing point `c` lies in the box `b` that clips its
+/// boundary, the faces rounded outward by `rel (1 + |c|_max)`.
+fn in_box(b: &isolux_core::Aabb, c: DVec3, rel: f64) -> bool {
+    let tol = rel * (1.0 + c.abs().max_element());
+    !(c.cmplt(b.min - tol) | c.cmpgt(b.max + tol)).any()
 }
 
 /// The irradiance of point light `light` arriving along a [`Refraction`]
