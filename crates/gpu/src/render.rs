@@ -868,15 +868,15 @@ pub fn medium_bits(scene: &Scene) -> u32 {
         .map(|(i, ..)| scene.object_material[i] + 1)
         .max()
         .unwrap_or(0);
-    [4, 8]
-        .into_iter()
-        .find(|&bits| largest < (1 << bits) - 1)
-        .unwrap_or(16)
+    MEDIUM_SLOTS
+        .iter()
+        .find(|(.., first)| largest <= *first)
+        .map_or(16, |(bits, ..)| *bits)
 }
 
-/// How many media of `bits`-bit slots the packed media hold, and the
-/// scene's materials a medium's must be among for them: each width of
-/// [`medium_bits`].
+/// Each width of [`medium_bits`]' slots, in bits, how many media they
+/// hold, and the scene's materials every medium's must be among for them
+/// (`1 +` its index below the slot's mask, `2^bits - 1`).
 const MEDIUM_SLOTS: [(u32, &str, usize); 3] =
     [(4, "eight", 14), (8, "four", 254), (16, "two", 65534)];
 
@@ -911,35 +911,39 @@ pub fn scene_features(scene: &Scene) -> Result<Features, GpuError> {
             scene.material_names.get(i).map_or("?", String::as_str)
         ))
     })?;
-    let manifold = manifold_media(scene, &mut materials)?;
+    let (refracted, listed) = flat_routes(scene).map_err(GpuError::Setup)?;
+    let manifold = manifold_media(scene, &listed, &mut materials)?;
     let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
-    let refracted = refracted_media(scene).map_err(GpuError::Setup)?;
     Ok(needed(scene, &materials, &geo, &refracted, manifold))
 }
 
 /// Lists, for manifold next-event estimation of point lights through
 /// curved boundaries (`manifold_refraction` in render.wgsl, as the CPU's
 /// `RefractedLights::Manifold`), the objects of each random-walk medium
-/// that is not flat, or is flat but reached so ([`flat_routes`]): in `materials`' data, `[count, objects...]` (as
+/// that is not flat, or is flat but in `listed`, those some light reaches
+/// so ([`flat_routes`]): in `materials`' data, `[count, objects...]` (as
 /// `f32`), whose offset `+ 1` goes to the medium's record's `c.w` (0:
 /// none; the GPU follows media by material, and finds the object the
 /// path is in among those that share it). Whether any was listed (and
 /// the scene has a point light): the kernels then carry the code. An
 /// offset past `2^24`, which `f32` cannot hold exactly, is refused.
-fn manifold_media(scene: &Scene, materials: &mut GpuMaterials) -> Result<bool, GpuError> {
+fn manifold_media(
+    scene: &Scene,
+    listed: &[usize],
+    materials: &mut GpuMaterials,
+) -> Result<bool, GpuError> {
     if scene.integrator.refracted_lights != isolux_render::RefractedLights::Manifold
         || scene.lights.is_empty()
     {
         return Ok(false);
     }
     // Flat media go by their lights' records, but for those the records
-    // cannot name (`flat_routes`).
-    let by_manifold = flat_routes(scene).map_err(GpuError::Setup)?.1;
+    // cannot name.
     let flat: Vec<usize> = scene
         .flat_media()
         .iter()
         .map(|(i, _)| *i)
-        .filter(|i| !by_manifold.contains(i))
+        .filter(|i| !listed.contains(i))
         .collect();
     let mut listed = false;
     for mi in 0..scene.materials.len() {
@@ -1340,7 +1344,8 @@ impl Gpu {
             })
             .collect();
         let mut materials = GpuMaterials::new(&used).expect("unsupported materials replaced");
-        let manifold = manifold_media(scene, &mut materials)?;
+        let (refracted, listed) = flat_routes(scene).map_err(GpuError::Setup)?;
+        let manifold = manifold_media(scene, &listed, &mut materials)?;
         let geo = GpuScene::with_materials_at(scene.geometry.objects(), &scene.object_material, at);
         // In the order they nest, outermost first (`medium_of`).
         let media: Vec<_> = scene
@@ -1349,7 +1354,6 @@ impl Gpu {
             .map(|(i, o, _)| (o.clone(), scene.object_material[i] as u32 + 1))
             .collect();
         let bits = medium_bits(scene);
-        let refracted = refracted_media(scene).map_err(GpuError::Setup)?;
         let lights: Vec<GpuLight> = scene
             .lights
             .iter()
@@ -2219,6 +2223,11 @@ mod tests {
 
     #[test]
     fn media_nest_as_deep_as_their_slots_hold() {
+        // The table's limits are the slots' masks less one (all ones is
+        // kept out).
+        for (bits, _, first) in MEDIUM_SLOTS {
+            assert_eq!(first, (1 << bits) - 2);
+        }
         // 4-bit slots: eight deep, as on the CPU.
         let eight = nested_spheres(8, 0);
         assert_eq!(medium_bits(&eight), 4);
