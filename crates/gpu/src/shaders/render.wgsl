@@ -709,6 +709,15 @@ struct Refraction {
     n: vec3<f32>, // the boundary's outward normal at c
 }
 
+// Whether a crossing point c lies in the box of object ob that clips its
+// boundary (in the object's frame, the faces rounded outward; integrator.rs
+// `in_box`).
+fn in_box(ob: Object, c: vec3<f32>) -> bool {
+    let lc = c - ob.origin.xyz;
+    let tol = 1e-5 * (1.0 + max3(abs(lc)));
+    return !(any(lc < ob.bmin.xyz - tol) || any(lc > ob.bmax.xyz + tol));
+}
+
 fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
     let light = lights[i];
@@ -822,12 +831,8 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     }
     let c = p + s * along + h2 * n;
     if (boxed != 0u) {
-        // A plane with bounds: the crossing must lie in its box (in the
-        // object's frame, its faces rounded outward).
-        let ob = objects[boxed - 1u];
-        let lc = c - ob.origin.xyz;
-        let tol = 1e-5 * (1.0 + max3(abs(lc)));
-        if (any(lc < ob.bmin.xyz - tol) || any(lc > ob.bmax.xyz + tol)) {
+        // A plane with bounds: the crossing must lie in its box.
+        if (!in_box(objects[boxed - 1u], c)) {
             return r;
         }
     }
@@ -1110,11 +1115,9 @@ fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32
     if (!ok) {
         return r;
     }
-    // On the surface as its box clips it (a quadric with `bounds`; faces
-    // rounded outward), as on the CPU.
-    let lc = x - ob.origin.xyz;
-    let btol = 1e-5 * (1.0 + max3(abs(lc)));
-    if (any(lc < ob.bmin.xyz - btol) || any(lc > ob.bmax.xyz + btol)) {
+    // On the surface as its box clips it (a quadric with `bounds`), as on
+    // the CPU.
+    if (!in_box(ob, x)) {
         return r;
     }
     let to_x = x - p;
