@@ -768,6 +768,19 @@ pub fn material_values_fit(
     )))
 }
 
+/// Whether the CPU would look for point lights' paths through glass in
+/// `scene` (`integrator.caustics = "manifold"`, a point light and a
+/// `dielectric` material), which the GPU's path tracer does not yet: it
+/// refuses such a scene rather than render it without the caustics.
+pub(crate) fn casts_caustics(scene: &Scene) -> bool {
+    scene.integrator.caustics == isolux_render::Caustics::Manifold
+        && !scene.lights.is_empty()
+        && scene
+            .materials
+            .iter()
+            .any(|m| matches!(m, isolux_materials::Material::Dielectric(_)))
+}
+
 /// Replaces every material of `scene` that is not on the GPU by a grey
 /// (0.5) diffuse, for comparisons and benchmarks that must run anyway;
 /// returns the replaced materials' names.
@@ -1306,6 +1319,13 @@ impl Gpu {
                     self.driver
                 )));
             }
+        }
+        if !realtime && casts_caustics(scene) {
+            return Err(GpuError::Setup(
+                "integrator.caustics = \"manifold\" (point lights through glass objects) is \
+                 not on the GPU yet: set it to \"none\", or render without --gpu"
+                    .to_string(),
+            ));
         }
         if let Some(why) = f32_shortfall(scene) {
             return Err(GpuError::Precision(why));

@@ -1958,3 +1958,38 @@ fn runtime_checks_change_nothing() {
     }
     gpu.set_runtime_checks(false);
 }
+
+/// `integrator.caustics = "manifold"` (point lights through glass, CPU
+/// only) is refused by name for path tracing, where the GPU would render
+/// the glass's shadow without its caustic; real time, which traces no
+/// paths through glass on either back end, still runs. A scene without
+/// glass, or without a point light, renders the same with either setting
+/// and is not refused.
+#[test]
+fn caustics_are_refused_by_the_gpus_path_tracer() {
+    let Some(gpu) = common::open("caustics") else {
+        return;
+    };
+    let mut gallery = common::example("gallery.toml");
+    gallery.film.width = 16;
+    gallery.film.height = 9;
+    gallery.integrator.caustics = isolux_render::Caustics::Manifold;
+    let Err(e) = gpu.prepare(&gallery) else {
+        panic!("caustics accepted")
+    };
+    assert!(
+        e.to_string()
+            .contains("integrator.caustics = \"manifold\" (point lights through glass objects) is not on the GPU"),
+        "{e}"
+    );
+    assert!(gpu.prepare_realtime(&gallery).is_ok());
+    let mut metals = common::example("metals.toml");
+    metals.film.width = 16;
+    metals.film.height = 9;
+    metals.integrator.caustics = isolux_render::Caustics::Manifold;
+    assert!(metals
+        .materials
+        .iter()
+        .all(|m| !matches!(m, Material::Dielectric(_))));
+    assert!(gpu.prepare(&metals).is_ok());
+}

@@ -1621,6 +1621,79 @@ fn a_lamp_above_a_drop_lights_the_floor_inside_through_the_curved_surface() {
     assert!(img.rgb.iter().flatten().all(|&v| v == 0.0));
 }
 
+/// `examples/tests/lamp-above-glass.toml`: a point light of intensity 20
+/// at `[0.3, 3, 0.2]` above a slab of glass (index 1.5, `y` from 1 to
+/// 1.5) over a diffuse floor (0.8) at `y = 0`, the camera under the
+/// slab, black sky, `max_depth` 1, `caustics = "manifold"`. The light
+/// reaches the floor only through both faces of the slab: each pixel's
+/// expected value is `rho / pi E cos theta_1` with `E = I T^2 G`, the
+/// light's ray at `theta_1` from the vertical landing at `R = (h_1 +
+/// h_2) tan theta_1 + d tan theta_2` from its foot (`n sin theta_1 = 1.5
+/// sin theta_2`, bisection), `G = sin theta_1 / (R cos theta_1
+/// dR/dtheta_1)` and `T = 1 - F(theta_1)` at either face. Then the same
+/// under water: everything inside a sphere of absorbing water (index
+/// 1.33, `sigma_a` 0.1), so the glass refracts by `1.5 / 1.33` and the
+/// water attenuates the camera ray and both legs outside the glass. With
+/// `caustics = "none"` (the default) the floor is black.
+#[test]
+fn a_lamp_above_a_glass_slab_lights_the_floor_through_both_faces() {
+    let (rho, d, h1, h2) = (0.8, 0.5, 1.5, 1.0);
+    let water = "[[material]]\nname = \"water\"\ntype = \"subsurface\"\n\
+                 sigma_s = [0.0, 0.0, 0.0]\nsigma_a = [0.1, 0.1, 0.1]\nior = 1.33\n\
+                 mode = \"random_walk\"\n[[object]]\nmaterial = \"water\"\n\
+                 base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 10.0 }\n";
+    for (n_out, sigma, extra) in [(1.0f64, 0.0, ""), (1.33, 0.1, water)] {
+        let n = 1.5 / n_out;
+        let s = scene(&(test_scene("lamp-above-glass.toml", &[]) + extra));
+        let light = s.lights[0].position;
+        let want = film_of(&s, |ray| {
+            let t = -ray.origin.y / ray.dir.y;
+            let q = ray.at(t);
+            if !(t > 0.0) || q.x.abs() > 1.5 || q.z.abs() > 1.5 {
+                return 0.0;
+            }
+            let foot = DVec3::new(light.x - q.x, 0.0, light.z - q.z).length();
+            let radius = |t1: f64| {
+                let s2 = t1.sin() / n;
+                (h1 + h2) * t1.tan() + d * s2 / (1.0 - s2 * s2).sqrt()
+            };
+            let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2 - 1e-9);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if radius(mid) < foot {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let t1 = 0.5 * (lo + hi);
+            let e = 1e-6;
+            let dr = (radius(t1 + e) - radius(t1 - e)) / (2.0 * e);
+            let g = t1.sin() / (foot * t1.cos() * dr);
+            let tr = 1.0 - fresnel(t1.cos(), n_out, 1.5);
+            let outside = t + (h1 + h2) / t1.cos();
+            (-sigma * outside).exp() * rho / std::f64::consts::PI * 20.0 * tr * tr * g * t1.cos()
+        });
+        let (got, want, se) = against(&render_with(&s, 2), &want);
+        eprintln!(
+            "lamp above a glass slab (n_out {n_out}): render {got} +- {se}, closed form {want}"
+        );
+        assert!(want > 0.1, "{want}");
+        assert!(
+            (got - want).abs() < 4.0 * se + 3e-3 * want,
+            "n_out {n_out}: render {got} +- {se}, closed form {want}"
+        );
+        let none = scene(
+            &(test_scene(
+                "lamp-above-glass.toml",
+                &[("caustics = \"manifold\"", "caustics = \"none\"")],
+            ) + extra),
+        );
+        let img = render_with(&none, 2);
+        assert!(img.rgb.iter().flatten().all(|&v| v == 0.0));
+    }
+}
+
 /// The irradiance at `q`, inside a sphere of radius `radius` about the
 /// origin (index `n2`, extinction `sigma`), from a light of intensity 20
 /// at `light` outside (index `n1`), normal to the refracted ray, and that

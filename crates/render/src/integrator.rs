@@ -57,7 +57,7 @@
 //! far from the world origin the scene lies.
 
 use crate::scene::FlatBoundary;
-use crate::{MediumLightSampling, PointLight, RefractedLights, Scene};
+use crate::{Caustics, MediumLightSampling, PointLight, RefractedLights, Scene};
 use isolux_core::sampling::{power_heuristic, Equiangular};
 use isolux_core::{DVec3, Frame, Pcg32, Ray, Rgb, PI};
 use isolux_geometry::{Culled, Hit};
@@ -169,6 +169,11 @@ fn direct_light(
         }
         if let Some(tr) = light_transmittance(scene, media, stack, origin, light.position) {
             l += fc * light.intensity * tr / dist2;
+        } else if media.caustics {
+            if let Some((wi, e)) = caustic(scene, media, stack, hit, origin, light) {
+                let (fc, _) = f_cos_pdf(wi, false);
+                l += fc * e;
+            }
         }
     }
     // Point lights behind the boundary of the medium around `p`.
@@ -468,6 +473,110 @@ fn manifold_refraction(
         normal: c.normal,
         factor,
     })
+}
+
+/// A point light's path to the surface point of `hit` through a glass
+/// object ([`Caustics::Manifold`]): where the shadow ray from `origin`
+/// (the point spawned toward the light) first enters an object of a
+/// smooth `dielectric` material and leaves it again before the light,
+/// the path through it that obeys Snell's law at both crossings
+/// ([`crate::manifold::connect_through`], seeded with the straight
+/// segment's crossings). Returns the direction `wi` from the point
+/// toward the exit crossing and the irradiance arriving along it
+/// (normal to it, per channel): `I T_0 T_1 G`, the Fresnel
+/// transmittances of both crossings and the spreading, attenuated by the
+/// medium around the point (`stack`'s innermost) on the way out and by
+/// [`light_transmittance`] from the entry crossing to the light. `None`
+/// where the shadow ray meets anything else first, the solve fails, or
+/// the solved path is blocked: its leg toward the point meets something
+/// before the exit crossing, or its leg inside meets anything before
+/// the entry crossing. No other strategy reaches a point light through
+/// glass, so nothing is weighted against it.
+fn caustic(
+    scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
+    hit: &Hit,
+    origin: DVec3,
+    light: &PointLight,
+) -> Option<(DVec3, Rgb)> {
+    let to_light = light.position - origin;
+    let dist = to_light.length();
+    if !(dist > 0.0) {
+        return None;
+    }
+    let ray = Ray::new(origin, to_light / dist);
+    let (obj, entry) = scene.geometry.intersect(&ray, 0.0, dist)?;
+    let Material::Dielectric(glass) = &scene.materials[scene.object_material[obj]] else {
+        return None;
+    };
+    let o = &scene.geometry.objects()[obj];
+    // Entering (the gradient of F' points inward), then leaving the same
+    // object short of the light.
+    if !(ray.dir.dot(o.gradient(entry.p)) > 0.0) {
+        return None;
+    }
+    let (exit_obj, exit) =
+        scene
+            .geometry
+            .intersect(&Ray::new(entry.spawn(ray.dir), ray.dir), 0.0, dist)?;
+    if exit_obj != obj {
+        return None;
+    }
+    let n_out = stack
+        .top()
+        .and_then(|m| object_medium(scene, m))
+        .map_or(1.0, |m| m.boundary.ior);
+    let chain = crate::manifold::connect_through(
+        o,
+        hit.p,
+        light.position,
+        glass.ior,
+        n_out,
+        [entry.p, exit.p],
+    )?;
+    let bbox = o.bbox();
+    if !chain.x.iter().all(|&x| in_box(&bbox, x, 1e-7)) {
+        return None;
+    }
+    // The leg from the point to the exit crossing x[0]: nothing before it.
+    let x = chain.x;
+    let to_x0 = x[0] - hit.p;
+    let wi = to_x0.try_normalize()?;
+    let from = hit.spawn(wi);
+    let leg = (x[0] - from).length();
+    let (first, at) = scene
+        .geometry
+        .intersect(&Ray::new(from, wi), 0.0, leg * (1.0 + 1e-6))?;
+    if first != obj || (at.p - x[0]).length() > 1e-6 * (1.0 + leg) {
+        return None;
+    }
+    // The leg inside, from x[0] to x[1]: nothing before x[1].
+    let inner = x[1] - x[0];
+    let span = inner.length();
+    let dir = inner / span;
+    let (first, at) =
+        scene
+            .geometry
+            .intersect(&Ray::new(at.spawn(dir), dir), 0.0, span * (1.0 + 1e-6))?;
+    if first != obj || (at.p - x[1]).length() > 1e-6 * (1.0 + span) {
+        return None;
+    }
+    // The leg from x[1] to the light.
+    let out = x[1] + chain.normal[1] * (1e-7 * (1.0 + x[1].abs().max_element()));
+    let beyond = light_transmittance(scene, media, stack, out, light.position)?;
+    let around = match stack.top().and_then(|m| object_medium(scene, m)) {
+        Some(m) => transmittance(m.sigma_t(), leg),
+        None => Rgb::WHITE,
+    };
+    let eta = glass.ior / n_out;
+    let t = chain
+        .cos_out
+        .iter()
+        .map(|&c| 1.0 - isolux_materials::fresnel::dielectric(c, eta))
+        .product::<f64>();
+    let factor = t * chain.spread;
+    (factor > 0.0 && factor.is_finite()).then(|| (wi, light.intensity * beyond * around * factor))
 }
 
 /// Whether a crossing point `c` lies in the box `b` that clips its
@@ -852,6 +961,10 @@ pub struct Media<'a> {
     /// through its boundary (`refraction`): a flat medium, or with
     /// [`RefractedLights::Manifold`] any random-walk medium, and a light.
     pub refracts: bool,
+    /// Whether point lights' shadow rays blocked by a glass object look
+    /// for the path through it (`caustic`): [`Caustics::Manifold`], a
+    /// light, and a `dielectric` material.
+    pub caustics: bool,
 }
 
 impl<'a> Media<'a> {
@@ -872,6 +985,12 @@ impl<'a> Media<'a> {
                 && (!flat.is_empty()
                     || (scene.integrator.refracted_lights == RefractedLights::Manifold
                         && scene.media().next().is_some())),
+            caustics: lit
+                && scene.integrator.caustics == Caustics::Manifold
+                && scene
+                    .materials
+                    .iter()
+                    .any(|m| matches!(m, Material::Dielectric(_))),
             lights,
             relative: scene
                 .materials

@@ -310,6 +310,282 @@ fn project(obj: &Object, y: DVec3, scale: f64) -> Option<DVec3> {
     None
 }
 
+/// A solved path from a point light through a transparent object, in at
+/// `x[1]` and out at `x[0]` toward `p` ([`connect_through`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Chain {
+    /// The crossing points: `x[0]` next to `p`, `x[1]` next to the light.
+    pub x: [DVec3; 2],
+    /// The outward unit normals there.
+    pub normal: [DVec3; 2],
+    /// The cosines, outside the object, between each crossing's ray and
+    /// its outward normal: toward `p` at `x[0]`, toward the light at
+    /// `x[1]` (the Fresnel transmittance of each crossing is a function
+    /// of it).
+    pub cos_out: [f64; 2],
+    /// The spreading `G = dOmega_L / dA_p` (per unit area normal to the
+    /// ray arriving at `p`), before the Fresnel transmittances and any
+    /// attenuation.
+    pub spread: f64,
+}
+
+/// The path of a point light at `light` to `p` through `obj`, a
+/// transparent object of index `n_in` in surroundings of index `n_out`
+/// that lies between them: the light enters at `x[1]`, crosses the
+/// inside in a straight line and leaves at `x[0]` toward `p`, Snell's law
+/// holding at both (the *caustic* a glass marble casts). The two
+/// crossings are found together by Newton's method on the four tangential
+/// components of the two constraints (each constraint `C_i`, the
+/// tangential part of `n_a w_a + n_b w_b` at `x_i`, depends on `x_i` and
+/// its two neighbours, so the Jacobian is block tridiagonal: Hanika et
+/// al. 2015, section 4), from `seeds`, where the straight segment from
+/// `p` to the light enters and leaves the object. The spreading follows
+/// from the same Jacobian as for one crossing: moving `p` by `u` moves the
+/// crossings by `-J^-1 (dC/dp) u`, and the crossing next to the light
+/// subtends `dOmega = |(dx_1 x dx_2) . l| / D^3` there.
+///
+/// `None` where the solve does not converge or its solution does not
+/// cross the object inward at `x[1]` and outward at `x[0]`. Whether the
+/// three segments are clear (and the inside one stays inside) is left to
+/// the caller, which knows the scene. One solution is found: behind a
+/// ball lens's focus, where several paths reach `p`, the one nearest the
+/// straight segment.
+pub fn connect_through(
+    obj: &Object,
+    p: DVec3,
+    light: DVec3,
+    n_in: f64,
+    n_out: f64,
+    seeds: [DVec3; 2],
+) -> Option<Chain> {
+    if !(n_in > 0.0) || !(n_out > 0.0) {
+        return None;
+    }
+    let scale = (light - p).length();
+    let (x, frames, jac) = solve_through(obj, p, light, n_in, n_out, seeds, scale)?;
+    let normal = [frames[0].n, frames[1].n];
+    // Crossing directions: out at x[0] toward p, in at x[1] from the light.
+    let (to_p, to_l) = ((p - x[0]).try_normalize()?, (light - x[1]).try_normalize()?);
+    let inner = (x[1] - x[0]).try_normalize()?;
+    let cos_out = [to_p.dot(normal[0]), to_l.dot(normal[1])];
+    let crosses = cos_out[0] > 0.0
+        && cos_out[1] > 0.0
+        && inner.dot(normal[0]) < 0.0
+        && inner.dot(normal[1]) > 0.0;
+    if !crosses {
+        return None;
+    }
+    // The spreading: only C_0 moves with p (through its w toward p).
+    let lp = (p - x[0]).length();
+    let f = Frame::from_normal(to_p);
+    let mut dx = [DVec3::ZERO; 2];
+    for (d, u) in dx.iter_mut().zip([f.s, f.t]) {
+        let dw = n_out * (u - to_p.dot(u) * to_p) / lp;
+        let rhs = [dw.dot(frames[0].s), dw.dot(frames[0].t), 0.0, 0.0];
+        let step = solve4(jac, rhs)?;
+        *d = -(step[2] * frames[1].s + step[3] * frames[1].t);
+    }
+    let l = x[1] - light;
+    let dl = l.length();
+    let spread = dx[0].cross(dx[1]).dot(l).abs() / (dl * dl * dl);
+    (spread > 0.0 && spread.is_finite()).then_some(Chain {
+        x,
+        normal,
+        cos_out,
+        spread,
+    })
+}
+
+/// The two crossings' residuals, in their frames' tangents: `C_0` at
+/// `x[0]` (neighbours `p`, outside, and `x[1]`, inside) and `C_1` at
+/// `x[1]` (neighbours `x[0]`, inside, and the light, outside).
+fn chain_constraints(
+    x: [DVec3; 2],
+    frames: &[Frame; 2],
+    p: DVec3,
+    light: DVec3,
+    n_in: f64,
+    n_out: f64,
+) -> Option<[f64; 4]> {
+    let ends = [(p, x[1]), (x[0], light)];
+    let etas = [(n_out, n_in), (n_in, n_out)];
+    let mut c = [0.0; 4];
+    for i in 0..2 {
+        let wa = (ends[i].0 - x[i]).try_normalize()?;
+        let wb = (ends[i].1 - x[i]).try_normalize()?;
+        let h = etas[i].0 * wa + etas[i].1 * wb;
+        let n = frames[i].n;
+        let t = h - h.dot(n) * n;
+        c[2 * i] = t.dot(frames[i].s);
+        c[2 * i + 1] = t.dot(frames[i].t);
+    }
+    Some(c)
+}
+
+/// The 4 x 4 Jacobian of [`chain_constraints`] in the crossings' tangent
+/// coordinates (column `2 j + k`: `x[j]` moved along its tangent `k`).
+/// The diagonal blocks are [`jacobian`]'s (both directions move with the
+/// point, the normal turns by the Hessian); the off-diagonal ones move
+/// only the direction toward the neighbour, the normal being fixed.
+#[allow(clippy::too_many_arguments)]
+fn chain_jacobian(
+    obj: &Object,
+    x: [DVec3; 2],
+    frames: &[Frame; 2],
+    grads: [f64; 2],
+    p: DVec3,
+    light: DVec3,
+    n_in: f64,
+    n_out: f64,
+) -> Option<[[f64; 4]; 4]> {
+    let ends = [(p, x[1]), (x[0], light)];
+    let etas = [(n_out, n_in), (n_in, n_out)];
+    let mut jac = [[0.0; 4]; 4];
+    for i in 0..2 {
+        let f = &frames[i];
+        let (ta, tb) = (ends[i].0 - x[i], ends[i].1 - x[i]);
+        let (ra, rb) = (ta.length(), tb.length());
+        if !(ra > 0.0) || !(rb > 0.0) || !(grads[i] > 0.0) {
+            return None;
+        }
+        let (wa, wb) = (ta / ra, tb / rb);
+        let (ea, eb) = etas[i];
+        let hn = (ea * wa + eb * wb).dot(f.n);
+        let hess = obj.hessian(x[i]);
+        // The neighbour that is a crossing (x[1] for C_0, x[0] for C_1),
+        // its direction w and distance from x[i], and its index.
+        let j = 1 - i;
+        let (wj, rj, ej) = if i == 0 { (wb, rb, eb) } else { (wa, ra, ea) };
+        for (k, u) in [f.s, f.t].into_iter().enumerate() {
+            let dh = -ea * (u - wa.dot(u) * wa) / ra - eb * (u - wb.dot(u) * wb) / rb;
+            let hu = hess * u;
+            let dn = -(hu - hu.dot(f.n) * f.n) / grads[i];
+            let dc = dh - hn * dn;
+            jac[2 * i][2 * i + k] = dc.dot(f.s);
+            jac[2 * i + 1][2 * i + k] = dc.dot(f.t);
+        }
+        let g = &frames[j];
+        for (k, u) in [g.s, g.t].into_iter().enumerate() {
+            let dc = ej * (u - wj.dot(u) * wj) / rj;
+            jac[2 * i][2 * j + k] = dc.dot(f.s);
+            jac[2 * i + 1][2 * j + k] = dc.dot(f.t);
+        }
+    }
+    Some(jac)
+}
+
+/// `m^-1 d` for a 4 x 4 matrix, by Gaussian elimination with partial
+/// pivoting (`None` for a singular one).
+fn solve4(mut m: [[f64; 4]; 4], mut d: [f64; 4]) -> Option<[f64; 4]> {
+    let size = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+    if !(size > 0.0) || !size.is_finite() {
+        return None;
+    }
+    for col in 0..4 {
+        let piv = (col..4).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs()))?;
+        if !(m[piv][col].abs() > 1e-14 * size) {
+            return None;
+        }
+        m.swap(col, piv);
+        d.swap(col, piv);
+        let pivot_row = m[col];
+        for row in col + 1..4 {
+            let f = m[row][col] / pivot_row[col];
+            for (v, p) in m[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *v -= f * p;
+            }
+            d[row] -= f * d[col];
+        }
+    }
+    let mut out = [0.0; 4];
+    for row in (0..4).rev() {
+        let s: f64 = (row + 1..4).map(|k| m[row][k] * out[k]).sum();
+        out[row] = (d[row] - s) / m[row][row];
+    }
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+/// Newton's method for [`connect_through`]: both crossings move together
+/// in their tangent planes and are projected back onto `F' = 0`, a step
+/// that does not reduce the residual being halved. Returns the
+/// crossings, their frames and the Jacobian at the solution.
+#[allow(clippy::type_complexity)]
+fn solve_through(
+    obj: &Object,
+    p: DVec3,
+    light: DVec3,
+    n_in: f64,
+    n_out: f64,
+    seeds: [DVec3; 2],
+    scale: f64,
+) -> Option<([DVec3; 2], [Frame; 2], [[f64; 4]; 4])> {
+    let mut x = [
+        project(obj, seeds[0], scale)?,
+        project(obj, seeds[1], scale)?,
+    ];
+    let mut g = [obj.gradient(x[0]), obj.gradient(x[1])];
+    let frames_of = |g: &[DVec3; 2]| g.map(|g| Frame::from_normal((-g).normalize_or_zero()));
+    let tol = 1e-12 * (n_in + n_out);
+    for _ in 0..MAX_ITERATIONS {
+        let frames = frames_of(&g);
+        let c = chain_constraints(x, &frames, p, light, n_in, n_out)?;
+        let norm = c.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let jac = chain_jacobian(
+            obj,
+            x,
+            &frames,
+            [g[0].length(), g[1].length()],
+            p,
+            light,
+            n_in,
+            n_out,
+        )?;
+        if norm < tol {
+            return Some((x, frames, jac));
+        }
+        let mut step = solve4(jac, c)?.map(|v| -v);
+        // Each crossing moves at most a quarter of its distance to its
+        // nearest neighbour per step.
+        let gap = (x[1] - x[0]).length();
+        for (i, near) in [
+            (p - x[0]).length().min(gap),
+            (light - x[1]).length().min(gap),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let len = DVec2::new(step[2 * i], step[2 * i + 1]).length();
+            if len > 0.25 * near {
+                step[2 * i] *= 0.25 * near / len;
+                step[2 * i + 1] *= 0.25 * near / len;
+            }
+        }
+        let mut next = None;
+        for _ in 0..12 {
+            let moved = [0, 1].map(|i| {
+                project(
+                    obj,
+                    x[i] + step[2 * i] * frames[i].s + step[2 * i + 1] * frames[i].t,
+                    scale,
+                )
+            });
+            if let [Some(y0), Some(y1)] = moved {
+                let y = [y0, y1];
+                let gy = [obj.gradient(y0), obj.gradient(y1)];
+                if let Some(cy) = chain_constraints(y, &frames_of(&gy), p, light, n_in, n_out) {
+                    if cy.iter().map(|v| v * v).sum::<f64>().sqrt() < norm {
+                        next = Some((y, gy));
+                        break;
+                    }
+                }
+            }
+            step = step.map(|v| 0.5 * v);
+        }
+        (x, g) = next?;
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -459,5 +735,167 @@ mod tests {
             "{} vs photon tracing {fluence}",
             c.spread
         );
+    }
+
+    /// Through a glass slab (two parallel planes, one object) the
+    /// spreading is a closed form: the light's ray at `theta_1` from the
+    /// vertical crosses the slab at `theta_2` (`n_out sin theta_1 = n_in
+    /// sin theta_2`) and lands at the radius `R = (h1 + h2) tan theta_1 +
+    /// d tan theta_2` around the light's foot, arriving at `theta_1`, so
+    /// `G = sin theta_1 / (R cos theta_1 dR/dtheta_1)`; straight below the
+    /// light `1 / (h1 + h2 + d n_out / n_in)^2`.
+    #[test]
+    fn spreading_through_a_slab_is_its_closed_form() {
+        for (d, n_in, n_out, light, p) in [
+            (
+                0.5,
+                1.5,
+                1.0,
+                DVec3::new(0.8, 2.0, -1.2),
+                DVec3::new(0.1, -1.5, 0.4),
+            ),
+            (
+                1.0,
+                1.33,
+                1.1,
+                DVec3::new(-1.0, 1.0, 0.0),
+                DVec3::new(1.5, -1.2, 1.0),
+            ),
+            (
+                0.2,
+                2.4,
+                1.0,
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(0.0, -0.6, 0.0),
+            ),
+        ] {
+            let slab = Quadric::from_coefficients([
+                0.0,
+                -1.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.25 * d * d,
+            ]);
+            let o = Object::new(slab, Vec::new(), None).unwrap();
+            let (h1, h2) = (light.y - 0.5 * d, -0.5 * d - p.y);
+            let foot = DVec3::new(light.x - p.x, 0.0, light.z - p.z).length();
+            let seeds = [
+                p + (light - p) * (h2 / (h1 + h2 + d)),
+                p + (light - p) * ((h2 + d) / (h1 + h2 + d)),
+            ];
+            let c = connect_through(&o, p, light, n_in, n_out, seeds).unwrap();
+            let radius = |t1: f64| {
+                let s2 = n_out / n_in * t1.sin();
+                (h1 + h2) * t1.tan() + d * s2 / (1.0 - s2 * s2).sqrt()
+            };
+            let want = if foot == 0.0 {
+                1.0 / (h1 + h2 + d * n_out / n_in).powi(2)
+            } else {
+                let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2 - 1e-9);
+                for _ in 0..200 {
+                    let mid = 0.5 * (lo + hi);
+                    if radius(mid) < foot {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                let t1 = 0.5 * (lo + hi);
+                let e = 1e-6;
+                let dr = (radius(t1 + e) - radius(t1 - e)) / (2.0 * e);
+                assert!((c.cos_out[1] - t1.cos()).abs() < 1e-9);
+                assert!((c.cos_out[0] - t1.cos()).abs() < 1e-9);
+                t1.sin() / (foot * t1.cos() * dr)
+            };
+            assert!(
+                (c.spread / want - 1.0).abs() < 1e-4,
+                "d {d} n {n_in}/{n_out}: {} vs {want}",
+                c.spread
+            );
+            assert!((c.x[0].y + 0.5 * d).abs() < 1e-9 && (c.x[1].y - 0.5 * d).abs() < 1e-9);
+        }
+    }
+
+    /// Through a glass sphere, off its axis, against photon tracing: rays
+    /// over the light's cone toward the sphere, refracted in and out
+    /// (Snell's law in vector form), their track lengths in a small ball
+    /// around `p` below it (the ball's mean fluence: the irradiance
+    /// normal to the single path through `p`, `p` lying before the
+    /// caustic, where one path reaches it).
+    #[test]
+    fn spreading_through_a_sphere_matches_photon_tracing() {
+        let (r, n_in, n_out) = (1.0, 1.5, 1.0);
+        let o = sphere(DVec3::ZERO, r);
+        let light = DVec3::new(0.3, 3.0, 0.2);
+        let p = DVec3::new(-0.2, -1.4, 0.05);
+        let dir = (light - p).normalize();
+        let seeds = [0, 1].map(|k| {
+            let b = p.dot(dir);
+            let disc = (b * b - (p.length_squared() - r * r)).sqrt();
+            p + (-b + if k == 0 { -disc } else { disc }) * dir
+        });
+        let c = connect_through(&o, p, light, n_in, n_out, seeds).unwrap();
+        let refract = |d: DVec3, nrm: DVec3, eta: f64| {
+            let ci = -d.dot(nrm);
+            let k = 1.0 - eta * eta * (1.0 - ci * ci);
+            (k > 0.0).then(|| eta * d + (eta * ci - k.sqrt()) * nrm)
+        };
+        let rho = 0.005;
+        // Photons over a narrow cone around the solution's first leg (the
+        // paths near it; other paths through the lens reach p as well,
+        // from elsewhere on the sphere, behind its caustic).
+        let axis = (c.x[1] - light).normalize();
+        let f = Frame::from_normal(axis);
+        let cos_max = 0.03f64.cos();
+        let omega = 2.0 * std::f64::consts::PI * (1.0 - cos_max);
+        let n = 1500;
+        let (mut track, mut count) = (0.0, 0);
+        for i in 0..n {
+            let ct = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / n as f64;
+            let st = (1.0 - ct * ct).sqrt();
+            for j in 0..n {
+                let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
+                let d = f.to_world(DVec3::new(st * phi.cos(), st * phi.sin(), ct));
+                let b = light.dot(d);
+                let disc = b * b - (light.length_squared() - r * r);
+                if disc <= 0.0 {
+                    continue;
+                }
+                let x = light + (-b - disc.sqrt()) * d;
+                let Some(t) = refract(d, x / r, n_out / n_in) else {
+                    continue;
+                };
+                // The far side: the chord of direction t from x.
+                let y = x - 2.0 * x.dot(t) * t;
+                let Some(out) = refract(t, -y / r, n_in / n_out) else {
+                    continue;
+                };
+                let m = (p - y).dot(out);
+                let q2 = (p - y).length_squared() - m * m;
+                if m > 0.0 && q2 < rho * rho {
+                    track += 2.0 * (rho * rho - q2).sqrt();
+                    count += 1;
+                }
+            }
+        }
+        let fluence =
+            track * (omega / (n * n) as f64) / (4.0 / 3.0 * std::f64::consts::PI * rho.powi(3));
+        eprintln!(
+            "spread {} against photon tracing {fluence} ({count} photons)",
+            c.spread
+        );
+        assert!(
+            (c.spread / fluence - 1.0).abs() < 0.005,
+            "{} vs photon tracing {fluence}",
+            c.spread
+        );
+        // A marble at the same place seen straight: the same light, no
+        // glass, reads 1 / |L - p|^2; the lens gathers it.
+        assert!(c.spread > 1.0 / (light - p).length_squared());
     }
 }

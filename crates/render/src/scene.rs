@@ -114,6 +114,32 @@ pub struct IntegratorSettings {
     /// How point lights reach the inside of random-walk media through
     /// their smooth boundaries (scene key `refracted_lights`).
     pub refracted_lights: RefractedLights,
+    /// Whether point lights reach surfaces through smooth glass objects
+    /// (scene key `caustics`).
+    pub caustics: Caustics,
+}
+
+/// Whether point lights reach surfaces through transparent objects
+/// (`dielectric` materials), casting caustics (scene key
+/// `integrator.caustics`). A point light seen through glass cannot be
+/// reached by a shadow ray (the glass bends it) nor by a path's sampled
+/// direction (a point is never hit), so without a solve the light a
+/// glass marble focuses on the floor is missing from the image, in every
+/// unidirectional path tracer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Caustics {
+    /// `"none"` (default): a `dielectric` object occludes point lights,
+    /// as it did before `"manifold"` existed; the GPU renders only this.
+    #[default]
+    None,
+    /// `"manifold"`: where a point light's shadow ray enters and leaves
+    /// one `dielectric` object, the path through it is found by manifold
+    /// next-event estimation over both crossings
+    /// ([`crate::manifold::connect_through`]): the caustic appears. One
+    /// path per light and point (behind a lens's focus, where several
+    /// reach it, the one nearest the straight segment). CPU only:
+    /// `render --gpu` refuses it by name.
+    Manifold,
 }
 
 /// How point lights outside a random-walk medium reach its inside
@@ -193,6 +219,7 @@ impl Default for IntegratorSettings {
             seed: 0,
             medium_lights: MediumLightSampling::Equiangular,
             refracted_lights: RefractedLights::Manifold,
+            caustics: Caustics::None,
         }
     }
 }

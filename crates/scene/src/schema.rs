@@ -15,8 +15,8 @@ use isolux_materials::{
 };
 use isolux_materials::{HeidrichSeidel, Plastic, Subsurface, SubsurfaceBrdf, Ward};
 use isolux_render::{
-    Camera, EnvMap, Environment, FilmSettings, IntegratorSettings, MediumLightSampling, PointLight,
-    RefractedLights, Scene,
+    Camera, Caustics, EnvMap, Environment, FilmSettings, IntegratorSettings, MediumLightSampling,
+    PointLight, RefractedLights, Scene,
 };
 use std::path::Path;
 
@@ -288,8 +288,15 @@ fn integrator(t: &Table) -> Result<IntegratorSettings> {
         "seed",
         "medium_light_sampling",
         "refracted_lights",
+        "caustics",
     ])?;
     let mut s = IntegratorSettings::default();
+    if let Some(v) = t.get("caustics") {
+        s.caustics = match v.choice(&["none", "manifold"])? {
+            "manifold" => Caustics::Manifold,
+            _ => Caustics::None,
+        };
+    }
     if let Some(v) = t.get("refracted_lights") {
         s.refracted_lights = match v.choice(&["manifold", "flat"])? {
             "flat" => RefractedLights::Flat,
