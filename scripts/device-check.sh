@@ -82,11 +82,17 @@ step 45 "$bin/isolux" bench gpu --skip-cpu "${size[@]}" "${repeat[@]}"
 if [ -x "$bin/isolux-baseline" ] && [ "${QUICK:-0}" != 1 ]; then
     echo "device-check: baseline $(cat .device/baseline) against $(cat .device/commit)"
     # The scene by its path here: the baseline's default is its build
-    # folder's (examples/ is unchanged since b93c7db).
+    # folder's. The gallery is b93c7db's but for the line `caustics =
+    # "none"` (2026-12-04), a key the baseline does not know and whose
+    # behaviour is its only one: its copy goes without it (beside the
+    # original, for the environment map's relative path).
+    old_gallery=examples/scenes/.gallery-baseline.toml
+    grep -v '^caustics = "none"' examples/scenes/gallery.toml >"$old_gallery"
     for _ in 1 2; do
-        step 90 "$bin/isolux-baseline" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
+        step 90 "$bin/isolux-baseline" bench gpu "$old_gallery" --skip-cpu "${size[@]}" "${repeat[@]}"
         step 45 "$bin/isolux" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
     done
+    rm -f "$old_gallery"
 fi
 step 280 "$bin/isolux" bench gpu --general --f64 --wavefront --per-sample --tiles --checked "${size[@]}" "${repeat[@]}"
 # The gallery's geometry with every material diffuse (examples/bench): how

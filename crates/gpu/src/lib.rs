@@ -315,6 +315,12 @@ pub struct Features {
     /// through flat boundaries alone leaves the solve out (RADV: the
     /// wavefront step of a scene with the solve is 43% larger).
     pub manifold: bool,
+    /// Point lights through glass objects by manifold next-event
+    /// estimation over both crossings (`CAUSTICS` in the WGSL; `caustic`
+    /// in `render.wgsl`), which only a scene with
+    /// `integrator.caustics = "manifold"`, a point light and a
+    /// `dielectric` material needs.
+    pub caustics: bool,
 }
 
 impl Features {
@@ -328,6 +334,7 @@ impl Features {
         null_boundaries: true,
         refraction: true,
         manifold: true,
+        caustics: true,
     };
     /// No material code at all (what the AOV kernel reaches) and no
     /// candidate list.
@@ -339,6 +346,7 @@ impl Features {
         null_boundaries: false,
         refraction: false,
         manifold: false,
+        caustics: false,
     };
 
     /// The code `materials` need: each record's model (a mix's leaves are
@@ -359,6 +367,7 @@ impl Features {
             null_boundaries: true,
             refraction: true,
             manifold: true,
+            caustics: true,
         }
     }
 
@@ -397,6 +406,7 @@ impl Features {
             && (self.null_boundaries || !needed.null_boundaries)
             && (self.refraction || !needed.refraction)
             && (self.manifold || !needed.manifold)
+            && (self.caustics || !needed.caustics)
     }
 
     /// The part of `self` that an entry point of the render module
@@ -449,7 +459,8 @@ impl std::fmt::Display for Features {
                 || self.tiles
                 || self.null_boundaries
                 || self.refraction
-                || self.manifold)
+                || self.manifold
+                || self.caustics)
         {
             let models = Features {
                 list: false,
@@ -458,6 +469,7 @@ impl std::fmt::Display for Features {
                 null_boundaries: false,
                 refraction: false,
                 manifold: false,
+                caustics: false,
                 ..*self
             };
             write!(f, "{models}")?;
@@ -478,6 +490,9 @@ impl std::fmt::Display for Features {
             }
             if self.manifold {
                 f.write_str(", manifold lights")?;
+            }
+            if self.caustics {
+                f.write_str(", caustics")?;
             }
             return Ok(());
         }
@@ -540,6 +555,7 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
         )
         + &format!("const REFRACTION: bool = {};\n", features.refraction)
         + &format!("const MANIFOLD: bool = {};\n", features.manifold)
+        + &format!("const CAUSTICS: bool = {};\n", features.caustics)
         + include_str!("shaders/render.wgsl")
         + include_str!("shaders/realtime.wgsl")
 }
@@ -1309,6 +1325,7 @@ mod tests {
             null_boundaries: list,
             refraction: list,
             manifold: list,
+            caustics: list,
         };
         let mut sets = vec![Features::NONE, Features::ALL];
         sets.extend(tag::ALL.iter().map(|(_, t)| set(1 << t, false)));
@@ -1356,6 +1373,7 @@ mod tests {
             null_boundaries: false,
             refraction: false,
             manifold: false,
+            caustics: false,
             ..Features::ALL
         };
         assert_eq!(
@@ -1401,7 +1419,7 @@ mod tests {
         assert_eq!(
             sss.to_string(),
             "subsurface, candidate list, many lights, tile lists, null boundaries, \
-             refracted lights, manifold lights"
+             refracted lights, manifold lights, caustics"
         );
         // Kernels with the null boundaries' loop cover those without.
         let plain = Features {
@@ -1434,7 +1452,7 @@ mod tests {
         assert_eq!(
             many.to_string(),
             "17 models with wave, candidate list, many lights, tile lists, null boundaries, \
-             refracted lights, manifold lights"
+             refracted lights, manifold lights, caustics"
         );
         // The kernels differ by their constants: a model left out, or the
         // subsurface integrator, is dead code.

@@ -768,10 +768,10 @@ pub fn material_values_fit(
     )))
 }
 
-/// Whether the CPU would look for point lights' paths through glass in
-/// `scene` (`integrator.caustics = "manifold"`, a point light and a
-/// `dielectric` material), which the GPU's path tracer does not yet: it
-/// refuses such a scene rather than render it without the caustics.
+/// Whether point lights' paths through glass are looked for in `scene`
+/// (`integrator.caustics = "manifold"`, a point light and a `dielectric`
+/// material, as on the CPU): the kernels then carry `caustic`
+/// ([`Features::caustics`]).
 pub(crate) fn casts_caustics(scene: &Scene) -> bool {
     scene.integrator.caustics == isolux_render::Caustics::Manifold
         && !scene.lights.is_empty()
@@ -909,6 +909,7 @@ fn needed(
         null_boundaries: scene.may_have_null_boundaries(),
         refraction: refracted.iter().any(Option::is_some) || manifold,
         manifold,
+        caustics: casts_caustics(scene),
         ..Features::of(&materials.materials).fit_to(geo, scene.lights.len())
     }
 }
@@ -1319,13 +1320,6 @@ impl Gpu {
                     self.driver
                 )));
             }
-        }
-        if !realtime && casts_caustics(scene) {
-            return Err(GpuError::Setup(
-                "integrator.caustics = \"manifold\" (point lights through glass objects) is \
-                 not on the GPU yet: set it to \"none\", or render without --gpu"
-                    .to_string(),
-            ));
         }
         if let Some(why) = f32_shortfall(scene) {
             return Err(GpuError::Precision(why));

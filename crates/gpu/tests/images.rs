@@ -1351,7 +1351,11 @@ fn same_paths(name: &str, (la, a): (&str, &Image), (lb, b): (&str, &Image)) {
 /// candidates (the others keep theirs in a bit mask) and whose hierarchy
 /// of 600 supports the skip links walk (layout.rs,
 /// `skip_links_walk_the_hierarchy_as_a_stack_would`, checks the walk
-/// itself).
+/// itself). On Mesa 22.3 (CI's lavapipe) the general kernel of that
+/// sphere leaves out the caustics' code, which it never runs (no glass):
+/// with it the driver's loop miscompile darkens the sphere by 0.9% in
+/// both modes, real time included, where the code is unreachable (docs/gpu.md,
+/// "Known defect"); the specialized kernels and the CPU agree.
 #[test]
 fn specialized_kernels_trace_the_general_kernels_paths() {
     use isolux_gpu::Features;
@@ -1383,7 +1387,15 @@ fn specialized_kernels_trace_the_general_kernels_paths() {
                 };
                 assert_ne!(frame.features(), Features::ALL, "{name}");
                 if general {
-                    frame.set_features(Features::ALL).unwrap();
+                    let all = if gpu.miscompiles_loops() && name == "600 bumps" {
+                        Features {
+                            caustics: false,
+                            ..Features::ALL
+                        }
+                    } else {
+                        Features::ALL
+                    };
+                    frame.set_features(all).unwrap();
                 }
                 frame.run(&gpu, 4);
                 let (img, stats) = frame.image(&gpu).unwrap();
@@ -1959,37 +1971,51 @@ fn runtime_checks_change_nothing() {
     gpu.set_runtime_checks(false);
 }
 
-/// `integrator.caustics = "manifold"` (point lights through glass, CPU
-/// only) is refused by name for path tracing, where the GPU would render
-/// the glass's shadow without its caustic; real time, which traces no
-/// paths through glass on either back end, still runs. A scene without
-/// glass, or without a point light, renders the same with either setting
-/// and is not refused.
+/// Caustics (`integrator.caustics = "manifold"`): a lamp lights a floor
+/// through a glass slab (`examples/tests/lamp-above-glass.toml`; the
+/// CPU's closed form in `crates/isolux/tests/analytic.rs`, 0.40040), in
+/// air and under absorbing water: the GPU's mean against the closed
+/// form, and GPU against CPU within noise; the same for a glass sphere and
+/// a perturbed glass blob over a floor under a lamp
+/// (`examples/scenes/caustics.toml`, small). With `"none"` the slab's
+/// floor is black on the GPU too. The kernels carry the solve only where
+/// a scene asks for it (the default) and has glass and a point light.
 #[test]
-fn caustics_are_refused_by_the_gpus_path_tracer() {
-    let Some(gpu) = common::open("caustics") else {
+fn caustics_match_the_cpu() {
+    let Some(gpu) = common::open("GPU image tests") else {
         return;
     };
+    let slab = common::test_scene_text("lamp-above-glass.toml");
+    let scene = isolux_scene::parse_str(&slab, Path::new("glass.toml"), Path::new(".")).unwrap();
+    let m = image_mean(&gpu_image(&gpu, &scene));
+    eprintln!("floor under a glass slab: GPU {m}");
+    assert!((m - 0.40040).abs() < 0.01 * 0.40040, "{m}");
+    let water = "[[material]]\nname = \"water\"\ntype = \"subsurface\"\n\
+                 sigma_s = [0.0, 0.0, 0.0]\nsigma_a = [0.1, 0.1, 0.1]\nior = 1.33\n\
+                 mode = \"random_walk\"\n[[object]]\nmaterial = \"water\"\n\
+                 base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 10.0 }\n";
+    let mut example = common::example("caustics.toml");
+    example.film.width = 96;
+    example.film.height = 64;
+    example.film.spp = 16;
+    for (name, src) in [
+        ("floor under a glass slab", slab.clone()),
+        ("floor under a glass slab under water", slab.clone() + water),
+    ] {
+        let mut scene =
+            isolux_scene::parse_str(&src, Path::new("glass.toml"), Path::new(".")).unwrap();
+        assert!(isolux_gpu::scene_features(&scene).unwrap().caustics);
+        assert_matches_cpu(&gpu, &mut scene, name, 0.01);
+    }
+    assert_matches_cpu(&gpu, &mut example, "caustics.toml", 0.01);
+    let none = slab.replace("caustics = \"manifold\"", "caustics = \"none\"");
+    let scene = isolux_scene::parse_str(&none, Path::new("glass.toml"), Path::new(".")).unwrap();
+    assert!(!isolux_gpu::scene_features(&scene).unwrap().caustics);
+    assert_eq!(image_mean(&gpu_image(&gpu, &scene)), 0.0);
+    // The gallery has glass and a point light, and keeps "none" for its
+    // benchmark; without that line it would carry the solve.
     let mut gallery = common::example("gallery.toml");
-    gallery.film.width = 16;
-    gallery.film.height = 9;
+    assert!(!isolux_gpu::scene_features(&gallery).unwrap().caustics);
     gallery.integrator.caustics = isolux_render::Caustics::Manifold;
-    let Err(e) = gpu.prepare(&gallery) else {
-        panic!("caustics accepted")
-    };
-    assert!(
-        e.to_string()
-            .contains("integrator.caustics = \"manifold\" (point lights through glass objects) is not on the GPU"),
-        "{e}"
-    );
-    assert!(gpu.prepare_realtime(&gallery).is_ok());
-    let mut metals = common::example("metals.toml");
-    metals.film.width = 16;
-    metals.film.height = 9;
-    metals.integrator.caustics = isolux_render::Caustics::Manifold;
-    assert!(metals
-        .materials
-        .iter()
-        .all(|m| !matches!(m, Material::Dielectric(_))));
-    assert!(gpu.prepare(&metals).is_ok());
+    assert!(isolux_gpu::scene_features(&gallery).unwrap().caustics);
 }

@@ -124,22 +124,23 @@ pub struct IntegratorSettings {
 /// `integrator.caustics`). A point light seen through glass cannot be
 /// reached by a shadow ray (the glass bends it) nor by a path's sampled
 /// direction (a point is never hit), so without a solve the light a
-/// glass marble focuses on the floor is missing from the image, in every
-/// unidirectional path tracer.
+/// glass marble focuses on the floor is missing from the image, as in
+/// every unidirectional path tracer.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Caustics {
-    /// `"none"` (default): a `dielectric` object occludes point lights,
-    /// as it did before `"manifold"` existed; the GPU renders only this.
-    #[default]
-    None,
-    /// `"manifold"`: where a point light's shadow ray enters and leaves
-    /// one `dielectric` object, the path through it is found by manifold
-    /// next-event estimation over both crossings
+    /// `"manifold"` (default): where a point light's shadow ray enters
+    /// and leaves one `dielectric` object, the path through it is found
+    /// by manifold next-event estimation over both crossings
     /// ([`crate::manifold::connect_through`]): the caustic appears. One
     /// path per light and point (behind a lens's focus, where several
-    /// reach it, the one nearest the straight segment). CPU only:
-    /// `render --gpu` refuses it by name.
+    /// reach it, the one nearest the straight segment). Both back ends.
+    #[default]
     Manifold,
+    /// `"none"`: a `dielectric` object occludes point lights, the
+    /// behaviour before 2026-12-04 (kept to compare against, and by the
+    /// gallery, whose GPU figures are measured against that behaviour's
+    /// since 2026-11-24).
+    None,
 }
 
 /// How point lights outside a random-walk medium reach its inside
@@ -219,7 +220,7 @@ impl Default for IntegratorSettings {
             seed: 0,
             medium_lights: MediumLightSampling::Equiangular,
             refracted_lights: RefractedLights::Manifold,
-            caustics: Caustics::None,
+            caustics: Caustics::Manifold,
         }
     }
 }

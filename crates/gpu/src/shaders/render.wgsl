@@ -320,10 +320,13 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
     // The point lights again, through the flat boundary of the medium
     // around p (`refraction`).
     let n_refr = select(0u, n_lights, REFRACTION && SUBSURFACE && !first && path.medium != 0u);
+    // And through glass objects (`caustic`).
+    let n_caus = select(0u, n_lights, CAUSTICS && !first);
     let n_env = select(0u, 1u, (what & GATHER_ENV) != 0u && env_map);
     let n_cos = select(0u, 1u, (what & GATHER_COSINE) != 0u);
     let n_mirror = select(0u, 1u, mirror.w > 0.0);
-    let n = n_lights + n_refr + n_env + n_cos + n_mirror;
+    let k_env = n_lights + n_refr + n_caus;
+    let n = k_env + n_env + n_cos + n_mirror;
     bsdf = no_sample();
     for (var i = 0u; i <= n; i++) {
         var wi: vec3<f32>;
@@ -339,6 +342,8 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var refracted = false;
         var refr_c = vec3<f32>(0.0);
         var refr_n = vec3<f32>(0.0);
+        var refr_cross = true; // the second leg starts beyond a medium's boundary
+        var li = i - n_lights; // the light of a refracted connection
         if (i == n) {
             // The BSDF sample, scored below unless its draw was (a plain
             // material's specular or closed-form sample) or failed.
@@ -384,7 +389,23 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             refracted = true;
             refr_c = r.c;
             refr_n = r.n;
-        } else if (i < n_lights + n_refr + n_env) {
+        } else if (i < k_env) {
+            li = i - n_lights - n_refr;
+            let c = caustic(li, p, ng);
+            if (!(c.factor > 0.0)) {
+                continue;
+            }
+            wi = c.wi;
+            origin = offset_origin(p, ng, wi);
+            // To the exit crossing, short of the glass; then from the
+            // entry crossing to the light, in the same media.
+            t_max = dot(c.x0 - origin, wi) * (1.0 - 1e-4) - spawn_offset(c.x0);
+            rad = lights[li].intensity.rgb * c.factor * medium_extinction(path.medium, c.inside);
+            refracted = true;
+            refr_cross = false;
+            refr_c = c.x1;
+            refr_n = c.n1;
+        } else if (i < k_env + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
                 continue;
@@ -393,7 +414,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             origin = offset_origin(p, ng, wi);
             rad = env_eval(wi);
             light_pdf = s.w;
-        } else if (i < n_lights + n_refr + n_env + n_cos) {
+        } else if (i < k_env + n_env + n_cos) {
             let local = cosine_hemisphere(rand2());
             if (local.z <= 0.0) {
                 continue;
@@ -448,8 +469,8 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         // is in and passes null boundaries (`shadow_transmittance`).
         var lit = true;
         if (!first) {
-            let tr = connection_transmittance(origin, wi, t_max, i < n_lights, refracted, refr_c, refr_n,
-                                              i - n_lights);
+            let tr = connection_transmittance(origin, wi, t_max, i < n_lights, refracted, refr_cross,
+                                              refr_c, refr_n, li);
             rad *= tr;
             lit = max3(tr) > 0.0;
         }
@@ -1147,25 +1168,272 @@ fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32
     return Refraction(to_x / lx, lx, x, factor, n);
 }
 
+// ---- Caustics: point lights through glass (manifold.rs `connect_through`)
+//
+// With `integrator.caustics = "manifold"` (`CAUSTICS`, lib.rs
+// `Features::caustics`), a point light whose shadow ray from p first enters
+// a `dielectric` object and leaves it again short of the light lights p
+// through it (integrator.rs `caustic`): the path p -> x0 -> x1 -> light
+// obeying Snell's law at both crossings, by Newton's method on the two
+// crossings' four tangential constraint components together (the
+// Jacobian's diagonal blocks `manifold_jacobian`'s, the off-diagonal ones
+// moving only the direction toward the other crossing), seeded with the
+// straight segment's crossings; the spreading from the same Jacobian.
+
+// A solved path through glass: `wi` from p toward the exit crossing `x0`
+// at distance `inside`, the entry crossing `x1` (outward normal `n1`) from
+// where the last leg runs to the light, and `factor`, the two Fresnel
+// transmittances times the spreading (0: none).
+struct Caustic {
+    wi: vec3<f32>,
+    inside: f32,
+    x0: vec3<f32>,
+    factor: f32,
+    x1: vec3<f32>,
+    n1: vec3<f32>,
+}
+
+// m^-1 v for the 4 x 4 matrix of rows m, by Gaussian elimination with
+// partial pivoting; w of the result's `ok` false if singular.
+struct Solved4 {
+    x: vec4<f32>,
+    ok: bool,
+}
+
+fn solve4(m_in: array<vec4<f32>, 4>, v_in: vec4<f32>) -> Solved4 {
+    var m = m_in;
+    var v = v_in;
+    var size = 0.0;
+    for (var r = 0u; r < 4u; r++) {
+        size = max(size, max3(abs(m[r].xyz)));
+        size = max(size, abs(m[r].w));
+    }
+    if (!(size > 0.0) || !finite(size)) {
+        return Solved4(vec4<f32>(0.0), false);
+    }
+    for (var c = 0u; c < 4u; c++) {
+        var piv = c;
+        for (var r = c + 1u; r < 4u; r++) {
+            if (abs(m[r][c]) > abs(m[piv][c])) {
+                piv = r;
+            }
+        }
+        if (!(abs(m[piv][c]) > 1e-7 * size)) {
+            return Solved4(vec4<f32>(0.0), false);
+        }
+        let row = m[piv];
+        m[piv] = m[c];
+        m[c] = row;
+        let vp = v[piv];
+        v[piv] = v[c];
+        v[c] = vp;
+        for (var r = c + 1u; r < 4u; r++) {
+            let f = m[r][c] / row[c];
+            m[r] -= f * row;
+            v[r] -= f * vp;
+        }
+    }
+    var x = vec4<f32>(0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let r = 3u - k;
+        x[r] = (v[r] - dot(m[r], x)) / m[r][r];
+    }
+    return Solved4(x, finite3(x.xyz) && finite(x.w));
+}
+
+// The two crossings' constraints (vertex 0: neighbours p, outside, and
+// x1, inside; vertex 1: x0, inside, and the light, outside), as one vec4.
+fn chain_constraints(oi: u32, x0: vec3<f32>, x1: vec3<f32>, p: vec3<f32>, light: vec3<f32>,
+                     n_in: f32, n_out: f32) -> vec4<f32> {
+    let n0 = object_normal_at(oi, x0);
+    let n1 = object_normal_at(oi, x1);
+    let c0 = manifold_constraint(n0, x0, p, x1, n_out, n_in, frame_from_normal(n0));
+    let c1 = manifold_constraint(n1, x1, x0, light, n_in, n_out, frame_from_normal(n1));
+    return vec4<f32>(c0, c1);
+}
+
+// The 4 x 4 Jacobian of `chain_constraints` by rows, for the crossings
+// moved along their frames' tangents (columns: x0 along f0.s, f0.t, then
+// x1 along f1.s, f1.t).
+fn chain_jacobian(oi: u32, x0: vec3<f32>, x1: vec3<f32>, f0: Frame, f1: Frame, p: vec3<f32>,
+                  light: vec3<f32>, n_in: f32, n_out: f32) -> array<vec4<f32>, 4> {
+    let j00 = manifold_jacobian(oi, x0, f0.n, p, x1, n_out, n_in, f0);
+    let j11 = manifold_jacobian(oi, x1, f1.n, x0, light, n_in, n_out, f1);
+    let inner = x1 - x0;
+    let r = length(inner);
+    let w = inner / r;
+    // dC0/dx1: only x0's direction toward x1 moves; dC1/dx0 likewise (its
+    // direction toward x0 is -w, and (u - (w.u) w) is even in w).
+    let a0 = n_in * (f1.s - dot(w, f1.s) * w) / r;
+    let a1 = n_in * (f1.t - dot(w, f1.t) * w) / r;
+    let b0 = n_in * (f0.s - dot(w, f0.s) * w) / r;
+    let b1 = n_in * (f0.t - dot(w, f0.t) * w) / r;
+    return array<vec4<f32>, 4>(
+        vec4<f32>(j00[0].x, j00[1].x, dot(a0, f0.s), dot(a1, f0.s)),
+        vec4<f32>(j00[0].y, j00[1].y, dot(a0, f0.t), dot(a1, f0.t)),
+        vec4<f32>(dot(b0, f1.s), dot(b1, f1.s), j11[0].x, j11[1].x),
+        vec4<f32>(dot(b0, f1.t), dot(b1, f1.t), j11[0].y, j11[1].y),
+    );
+}
+
+// Point light k's path to p (geometric normal ng) through a glass object,
+// where its shadow ray meets one first (integrator.rs `caustic`).
+fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
+    var r = Caustic(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+    let light = lights[k].position.xyz;
+    let origin = offset_origin(p, ng, light - p);
+    let to = light - origin;
+    let dist = length(to);
+    if (!(dist > 0.0)) {
+        return r;
+    }
+    let dir = to / dist;
+    let h = scene_hit(origin, dir, dist);
+    if (!(h.x >= 0.0)) {
+        return r;
+    }
+    let oi = hit_object;
+    let mm = materials[objects[oi].range.z];
+    let e0 = origin + h.x * dir;
+    // A dielectric entered (the gradient of F' points inward) ...
+    if (mm.tag.x != MAT_DIELECTRIC || !(dot(dir, object_field(oi, e0).yzw) > 0.0)) {
+        return r;
+    }
+    // ... and left short of the light.
+    let beyond = offset_origin(e0, h.yzw, dir);
+    let h2 = scene_hit(beyond, dir, dot(light - beyond, dir));
+    if (!(h2.x >= 0.0) || hit_object != oi) {
+        return r;
+    }
+    let e1 = beyond + h2.x * dir;
+    let n_in = mm.a.x;
+    var n_out = 1.0;
+    let top = medium_top();
+    if (SUBSURFACE && top != 0u) {
+        n_out = materials[top - 1u].a.x;
+    }
+    let p0 = manifold_project(oi, e0, dist);
+    let p1 = manifold_project(oi, e1, dist);
+    if (p0.w == 0.0 || p1.w == 0.0) {
+        return r;
+    }
+    var x0 = p0.xyz;
+    var x1 = p1.xyz;
+    let tol = 1e-5 * (n_in + n_out);
+    var ok = false;
+    var f0: Frame;
+    var f1: Frame;
+    var jac: array<vec4<f32>, 4>;
+    for (var it = 0u; it < 16u; it++) {
+        f0 = frame_from_normal(object_normal_at(oi, x0));
+        f1 = frame_from_normal(object_normal_at(oi, x1));
+        let c = chain_constraints(oi, x0, x1, p, light, n_in, n_out);
+        let norm = length(c);
+        jac = chain_jacobian(oi, x0, x1, f0, f1, p, light, n_in, n_out);
+        if (norm < tol) {
+            ok = true;
+            break;
+        }
+        let sol = solve4(jac, c);
+        if (!sol.ok) {
+            break;
+        }
+        var step = -sol.x;
+        // Each crossing moves at most a quarter of the way to its nearest
+        // neighbour per step.
+        let gap = length(x1 - x0);
+        let cap0 = 0.25 * min(length(p - x0), gap);
+        let cap1 = 0.25 * min(length(light - x1), gap);
+        if (length(step.xy) > cap0) {
+            step = vec4<f32>(step.xy * (cap0 / length(step.xy)), step.zw);
+        }
+        if (length(step.zw) > cap1) {
+            step = vec4<f32>(step.xy, step.zw * (cap1 / length(step.zw)));
+        }
+        var moved = false;
+        for (var hh = 0u; hh < 8u; hh++) {
+            let y0 = manifold_project(oi, x0 + step.x * f0.s + step.y * f0.t, dist);
+            let y1 = manifold_project(oi, x1 + step.z * f1.s + step.w * f1.t, dist);
+            if (y0.w != 0.0 && y1.w != 0.0
+                && length(chain_constraints(oi, y0.xyz, y1.xyz, p, light, n_in, n_out)) < norm) {
+                x0 = y0.xyz;
+                x1 = y1.xyz;
+                moved = true;
+                break;
+            }
+            step *= 0.5;
+        }
+        if (!moved) {
+            break;
+        }
+    }
+    let ob = objects[oi];
+    if (!ok || !in_box(ob, x0) || !in_box(ob, x1)) {
+        return r;
+    }
+    let to_x0 = x0 - p;
+    let lp = length(to_x0);
+    let inner = normalize(x1 - x0);
+    let to_p = -to_x0 / lp;
+    let cos0 = dot(to_p, f0.n);
+    let cos1 = dot(normalize(light - x1), f1.n);
+    if (!(lp > 0.0) || !(cos0 > 0.0) || !(cos1 > 0.0) || !(dot(inner, f0.n) < 0.0)
+        || !(dot(inner, f1.n) > 0.0)) {
+        return r;
+    }
+    // Nothing inside the glass between the crossings.
+    let o_in = offset_origin(x0, f0.n, inner);
+    let t_in = dot(x1 - o_in, inner) * (1.0 - 1e-4) - spawn_offset(x1);
+    if (t_in > 0.0 && occluded(o_in, inner, t_in)) {
+        return r;
+    }
+    // The spreading: the entry crossing's motion for p moved across the
+    // arriving ray (only C0 moves with p).
+    let across = frame_from_normal(to_p);
+    var dx: array<vec3<f32>, 2>;
+    for (var j = 0u; j < 2u; j++) {
+        let u = select(across.t, across.s, j == 0u);
+        let dw = n_out * (u - dot(to_p, u) * to_p) / lp;
+        let sol = solve4(jac, vec4<f32>(dot(dw, f0.s), dot(dw, f0.t), 0.0, 0.0));
+        if (!sol.ok) {
+            return r;
+        }
+        dx[j] = -(sol.x.z * f1.s + sol.x.w * f1.t);
+    }
+    let l = x1 - light;
+    let d2 = dot(l, l);
+    let spread = abs(dot(cross(dx[0], dx[1]), l)) / (sqrt(d2) * d2);
+    let eta = n_in / n_out;
+    let factor = (1.0 - fresnel_dielectric(cos0, eta)) * (1.0 - fresnel_dielectric(cos1, eta)) * spread;
+    if (!(factor > 0.0) || !finite(factor)) {
+        return r;
+    }
+    return Caustic(-to_p, lp, x0, factor, x1, f1.n);
+}
+
 // The transmittance of a light's connection from o along d to t_max
 // (`as_light`: a point light's shadow ray, `shadow_transmittance`), and
 // where `refracted` (a `Refraction`'s, to light i, ending at c on the
 // innermost medium's boundary, flat or curved, of outward normal cn,
 // short of it) also beyond the boundary, from c to the light in the
-// media after crossing. One call site of `shadow_transmittance` per
-// caller.
+// media after crossing (`crosses`; a `Caustic`'s second leg, from the
+// glass's entry crossing c, stays in the same media). One call site of
+// `shadow_transmittance` per caller.
 fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bool,
-                            refracted: bool, c: vec3<f32>, cn: vec3<f32>, i: u32) -> vec3<f32> {
+                            refracted: bool, crosses: bool, c: vec3<f32>, cn: vec3<f32>,
+                            i: u32) -> vec3<f32> {
     let med = path.medium;
     var tr = vec3<f32>(1.0);
     var oo = o;
     var dd = d;
     var tt = t_max;
     var lit = as_light;
-    let legs = select(1u, 2u, REFRACTION && refracted);
+    let legs = select(1u, 2u, (REFRACTION || CAUSTICS) && refracted);
     for (var leg = 0u; leg < legs; leg++) {
         if (leg == 1u) {
-            path.medium = medium_crossed(med, medium_top());
+            if (crosses) {
+                path.medium = medium_crossed(med, medium_top());
+            }
             oo = c + cn * spawn_offset(c);
             let to = lights[i].position.xyz - oo;
             tt = length(to);
@@ -1303,7 +1571,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
                 wl = dl / dist;
                 rad = light.intensity.rgb / dist2;
             }
-            let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, refr.c, refr.n, i);
+            let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, true, refr.c, refr.n, i);
             l += rad * tr * w * hg_phase(dot(wl, d), g);
         }
     }
