@@ -516,10 +516,12 @@ fn caustic(
     if !(ray.dir.dot(o.gradient(entry.p)) > 0.0) {
         return None;
     }
-    let (exit_obj, exit) =
-        scene
-            .geometry
-            .intersect(&Ray::new(entry.spawn(ray.dir), ray.dir), 0.0, dist)?;
+    let inside = entry.spawn(ray.dir);
+    let (exit_obj, exit) = scene.geometry.intersect(
+        &Ray::new(inside, ray.dir),
+        0.0,
+        (light.position - inside).dot(ray.dir),
+    )?;
     if exit_obj != obj {
         return None;
     }
