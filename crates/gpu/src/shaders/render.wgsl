@@ -397,9 +397,10 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             }
             wi = c.wi;
             origin = offset_origin(p, ng, wi);
-            // To the exit crossing, short of the glass; then from the
-            // entry crossing to the light, in the same media.
-            t_max = dot(c.x0 - origin, wi) * (1.0 - 1e-4) - spawn_offset(c.x0);
+            // The way to the exit crossing is clear (`caustic` found the
+            // glass first there); from the entry crossing to the light, in
+            // the same media, the shadow ray's second leg.
+            t_max = 0.0;
             rad = lights[li].intensity.rgb * c.factor * medium_extinction(path.medium, c.inside);
             refracted = true;
             refr_cross = false;
@@ -1385,6 +1386,17 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     let o_in = offset_origin(x0, f0.n, inner);
     let t_in = dot(x1 - o_in, inner) * (1.0 - 1e-4) - spawn_offset(x1);
     if (t_in > 0.0 && occluded(o_in, inner, t_in)) {
+        return r;
+    }
+    // The leg from p to the exit crossing: the first surface it meets is
+    // the glass, at x0 (as on the CPU). A test of the segment short of x0
+    // instead lost light at grazing exits (the caustic's outer rim),
+    // where f32's x0, a little off the surface, lies a hundred times
+    // farther along the ray.
+    let o_p = offset_origin(p, ng, -to_p);
+    let leg = dot(x0 - o_p, -to_p);
+    let h0 = scene_hit(o_p, -to_p, leg * (1.0 + 1e-3) + spawn_offset(x0));
+    if (!(h0.x >= 0.0) || hit_object != oi || length(o_p - h0.x * to_p - x0) > 1e-3 * (1.0 + leg)) {
         return r;
     }
     // The spreading: the entry crossing's motion for p moved across the
