@@ -320,14 +320,18 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
     // The point lights again, through the flat boundary of the medium
     // around p (`refraction`).
     let n_refr = select(0u, n_lights, REFRACTION && SUBSURFACE && !first && path.medium != 0u);
-    // And through glass objects (`caustic`).
-    let n_caus = select(0u, n_lights, CAUSTICS && !first);
+    // With caustics each light's gather is followed by one through the
+    // glass that blocked its shadow ray, if glass did (`caustic`; tried,
+    // as on the CPU, only where the shadow ray was traced and blocked).
+    let caus = CAUSTICS && !first;
+    let n_pl = select(n_lights, 2u * n_lights, caus);
+    let k_env = n_pl + n_refr;
     let n_env = select(0u, 1u, (what & GATHER_ENV) != 0u && env_map);
     let n_cos = select(0u, 1u, (what & GATHER_COSINE) != 0u);
     let n_mirror = select(0u, 1u, mirror.w > 0.0);
-    let k_env = n_lights + n_refr + n_caus;
     let n = k_env + n_env + n_cos + n_mirror;
     bsdf = no_sample();
+    var blocked = false; // the last light's shadow ray met something
     for (var i = 0u; i <= n; i++) {
         var wi: vec3<f32>;
         var wl: vec3<f32>;
@@ -343,7 +347,8 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var refr_c = vec3<f32>(0.0);
         var refr_n = vec3<f32>(0.0);
         var refr_cross = true; // the second leg starts beyond a medium's boundary
-        var li = i - n_lights; // the light of a refracted connection
+        var plain = false;     // a point light's straight shadow ray
+        var li = 0u;           // the light of a light's gather
         if (i == n) {
             // The BSDF sample, scored below unless its draw was (a plain
             // material's specular or closed-form sample) or failed.
@@ -357,40 +362,11 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             mm = shading_material(sm, mi);
             wl = d.wi;
             flags = d.flags;
-        } else if (i < n_lights) {
-            let light = lights[i];
-            origin = offset_origin(p, ng, light.position.xyz - p);
-            let d = light.position.xyz - origin;
-            let dist2 = dot(d, d);
-            if (!(dist2 > 0.0)) {
+        } else if (i < n_pl && caus && (i & 1u) == 1u) {
+            li = i >> 1u;
+            if (!blocked) {
                 continue;
             }
-            t_max = sqrt(dist2);
-            wi = d / t_max;
-            rad = light.intensity.rgb / dist2;
-            if (first) {
-                // Occluded: no need to shade it.
-                if (((shadow_lights >> i) & 1u) == 0u) {
-                    continue;
-                }
-            }
-        } else if (i < n_lights + n_refr) {
-            let r = refraction(i - n_lights, p);
-            if (!(r.factor > 0.0)) {
-                continue;
-            }
-            wi = r.wi;
-            origin = offset_origin(p, ng, wi);
-            // To the crossing point, short of the boundary; the medium
-            // attenuates the way there.
-            t_max = dot(r.c - origin, wi) * (1.0 - 1e-4) - spawn_offset(r.c);
-            rad = lights[i - n_lights].intensity.rgb * r.factor
-                * medium_extinction(path.medium, r.inside);
-            refracted = true;
-            refr_c = r.c;
-            refr_n = r.n;
-        } else if (i < k_env) {
-            li = i - n_lights - n_refr;
             let c = caustic(li, p, ng);
             if (!(c.factor > 0.0)) {
                 continue;
@@ -406,6 +382,42 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             refr_cross = false;
             refr_c = c.x1;
             refr_n = c.n1;
+        } else if (i < n_pl) {
+            li = select(i, i >> 1u, caus);
+            plain = true;
+            blocked = false;
+            let light = lights[li];
+            origin = offset_origin(p, ng, light.position.xyz - p);
+            let d = light.position.xyz - origin;
+            let dist2 = dot(d, d);
+            if (!(dist2 > 0.0)) {
+                continue;
+            }
+            t_max = sqrt(dist2);
+            wi = d / t_max;
+            rad = light.intensity.rgb / dist2;
+            if (first) {
+                // Occluded: no need to shade it.
+                if (((shadow_lights >> li) & 1u) == 0u) {
+                    continue;
+                }
+            }
+        } else if (i < k_env) {
+            li = i - n_pl;
+            let r = refraction(li, p);
+            if (!(r.factor > 0.0)) {
+                continue;
+            }
+            wi = r.wi;
+            origin = offset_origin(p, ng, wi);
+            // To the crossing point, short of the boundary; the medium
+            // attenuates the way there.
+            t_max = dot(r.c - origin, wi) * (1.0 - 1e-4) - spawn_offset(r.c);
+            rad = lights[li].intensity.rgb * r.factor
+                * medium_extinction(path.medium, r.inside);
+            refracted = true;
+            refr_c = r.c;
+            refr_n = r.n;
         } else if (i < k_env + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
@@ -470,10 +482,11 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         // is in and passes null boundaries (`shadow_transmittance`).
         var lit = true;
         if (!first) {
-            let tr = connection_transmittance(origin, wi, t_max, i < n_lights, refracted, refr_cross,
+            let tr = connection_transmittance(origin, wi, t_max, plain, refracted, refr_cross,
                                               refr_c, refr_n, li);
             rad *= tr;
             lit = max3(tr) > 0.0;
+            blocked = plain && !lit;
         }
         if (lit) {
             l += fc * rad;
