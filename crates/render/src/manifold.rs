@@ -595,6 +595,71 @@ mod tests {
         Object::new(Quadric::sphere(center, r), Vec::new(), None).unwrap()
     }
 
+    /// Snell's law in vector form for a unit direction `d` meeting a
+    /// surface of unit normal `nrm` facing against it, `eta` the ratio of
+    /// the indices before and after; `None` under total internal
+    /// reflection.
+    fn refract(d: DVec3, nrm: DVec3, eta: f64) -> Option<DVec3> {
+        let ci = -d.dot(nrm);
+        let k = 1.0 - eta * eta * (1.0 - ci * ci);
+        (k > 0.0).then(|| eta * d + (eta * ci - k.sqrt()) * nrm)
+    }
+
+    /// The angle from the vertical in `[0, pi/2)` at which the landing
+    /// radius `radius(theta)`, increasing, reaches `foot` (bisection).
+    fn landing_angle(radius: impl Fn(f64) -> f64, foot: f64) -> f64 {
+        let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2 - 1e-9);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if radius(mid) < foot {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
+    /// Photon tracing for the spreading tests: rays from the light over a
+    /// stratified `n x n` grid of the cone about `axis` out to `cos_max`,
+    /// each followed by `trace` to its last straight segment (its start
+    /// and unit direction; `None`: lost), and their track lengths in the
+    /// ball of radius `rho` around `p`: the ball's mean fluence per unit
+    /// intensity, which equals the irradiance normal to the single path
+    /// through `p`, and the number of photons that crossed the ball.
+    fn photon_fluence(
+        axis: DVec3,
+        cos_max: f64,
+        n: usize,
+        p: DVec3,
+        rho: f64,
+        trace: impl Fn(DVec3) -> Option<(DVec3, DVec3)>,
+    ) -> (f64, usize) {
+        let f = Frame::from_normal(axis);
+        let omega = 2.0 * std::f64::consts::PI * (1.0 - cos_max);
+        let (mut track, mut count) = (0.0, 0);
+        for i in 0..n {
+            let ct = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / n as f64;
+            let st = (1.0 - ct * ct).sqrt();
+            for j in 0..n {
+                let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
+                let d = f.to_world(DVec3::new(st * phi.cos(), st * phi.sin(), ct));
+                let Some((x, t)) = trace(d) else {
+                    continue;
+                };
+                let m = (p - x).dot(t);
+                let q2 = (p - x).length_squared() - m * m;
+                if m > 0.0 && q2 < rho * rho {
+                    track += 2.0 * (rho * rho - q2).sqrt();
+                    count += 1;
+                }
+            }
+        }
+        let fluence =
+            track * (omega / (n * n) as f64) / (4.0 / 3.0 * std::f64::consts::PI * rho.powi(3));
+        (fluence, count)
+    }
+
     /// On the axis of a sphere the spreading is the paraxial closed
     /// form: a light at distance `s` before the vertex has its image at
     /// `s'` (`n_out / s + n_in / s' = (n_in - n_out) / R`), and the beam
@@ -658,16 +723,7 @@ mod tests {
                 let s2 = n_out / n_in * t1.sin();
                 h1 * t1.tan() + h2 * s2 / (1.0 - s2 * s2).sqrt()
             };
-            let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2 - 1e-9);
-            for _ in 0..200 {
-                let mid = 0.5 * (lo + hi);
-                if radius(mid) < d {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            let t1 = 0.5 * (lo + hi);
+            let t1 = landing_angle(radius, d);
             let s2 = n_out / n_in * t1.sin();
             let cos2 = (1.0 - s2 * s2).sqrt();
             let e = 1e-6;
@@ -694,41 +750,18 @@ mod tests {
         let light = DVec3::new(0.3, 3.0, 0.2);
         let p = DVec3::new(0.35, -0.2, 0.1);
         let c = connect(&o, p, light, n_in, n_out).unwrap();
-        let rho = 0.04;
         let axis = -light.normalize();
-        let f = Frame::from_normal(axis);
         let cos_max = (1.0 - r * r / light.length_squared()).sqrt();
-        let omega = 2.0 * std::f64::consts::PI * (1.0 - cos_max);
-        let n = 1500;
-        let mut track = 0.0;
-        for i in 0..n {
-            let ct = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / n as f64;
-            let st = (1.0 - ct * ct).sqrt();
-            for j in 0..n {
-                let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
-                let d = f.to_world(DVec3::new(st * phi.cos(), st * phi.sin(), ct));
-                // Enter the sphere.
-                let b = light.dot(d);
-                let disc = b * b - (light.length_squared() - r * r);
-                if disc <= 0.0 {
-                    continue;
-                }
-                let x = light + (-b - disc.sqrt()) * d;
-                let nrm = x / r;
-                let eta = n_out / n_in;
-                let ci = -d.dot(nrm);
-                let k = 1.0 - eta * eta * (1.0 - ci * ci);
-                let t = eta * d + (eta * ci - k.sqrt()) * nrm;
-                // Its track in the ball around p.
-                let m = (p - x).dot(t);
-                let q2 = (p - x).length_squared() - m * m;
-                if q2 < rho * rho {
-                    track += 2.0 * (rho * rho - q2).sqrt();
-                }
+        let (fluence, _) = photon_fluence(axis, cos_max, 1500, p, 0.04, |d| {
+            // Into the sphere: the track from the entry on.
+            let b = light.dot(d);
+            let disc = b * b - (light.length_squared() - r * r);
+            if disc <= 0.0 {
+                return None;
             }
-        }
-        let fluence =
-            track * (omega / (n * n) as f64) / (4.0 / 3.0 * std::f64::consts::PI * rho.powi(3));
+            let x = light + (-b - disc.sqrt()) * d;
+            Some((x, refract(d, x / r, n_out / n_in)?))
+        });
         eprintln!("spread {} against photon tracing {fluence}", c.spread);
         assert!(
             (c.spread / fluence - 1.0).abs() < 0.005,
@@ -796,16 +829,7 @@ mod tests {
             let want = if foot == 0.0 {
                 1.0 / (h1 + h2 + d * n_out / n_in).powi(2)
             } else {
-                let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2 - 1e-9);
-                for _ in 0..200 {
-                    let mid = 0.5 * (lo + hi);
-                    if radius(mid) < foot {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
-                let t1 = 0.5 * (lo + hi);
+                let t1 = landing_angle(radius, foot);
                 let e = 1e-6;
                 let dr = (radius(t1 + e) - radius(t1 - e)) / (2.0 * e);
                 assert!((c.cos_out[1] - t1.cos()).abs() < 1e-9);
@@ -840,51 +864,22 @@ mod tests {
             p + (-b + if k == 0 { -disc } else { disc }) * dir
         });
         let c = connect_through(&o, p, light, n_in, n_out, seeds).unwrap();
-        let refract = |d: DVec3, nrm: DVec3, eta: f64| {
-            let ci = -d.dot(nrm);
-            let k = 1.0 - eta * eta * (1.0 - ci * ci);
-            (k > 0.0).then(|| eta * d + (eta * ci - k.sqrt()) * nrm)
-        };
-        let rho = 0.005;
         // Photons over a narrow cone around the solution's first leg (the
         // paths near it; other paths through the lens reach p as well,
         // from elsewhere on the sphere, behind its caustic).
         let axis = (c.x[1] - light).normalize();
-        let f = Frame::from_normal(axis);
-        let cos_max = 0.03f64.cos();
-        let omega = 2.0 * std::f64::consts::PI * (1.0 - cos_max);
-        let n = 1500;
-        let (mut track, mut count) = (0.0, 0);
-        for i in 0..n {
-            let ct = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / n as f64;
-            let st = (1.0 - ct * ct).sqrt();
-            for j in 0..n {
-                let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
-                let d = f.to_world(DVec3::new(st * phi.cos(), st * phi.sin(), ct));
-                let b = light.dot(d);
-                let disc = b * b - (light.length_squared() - r * r);
-                if disc <= 0.0 {
-                    continue;
-                }
-                let x = light + (-b - disc.sqrt()) * d;
-                let Some(t) = refract(d, x / r, n_out / n_in) else {
-                    continue;
-                };
-                // The far side: the chord of direction t from x.
-                let y = x - 2.0 * x.dot(t) * t;
-                let Some(out) = refract(t, -y / r, n_in / n_out) else {
-                    continue;
-                };
-                let m = (p - y).dot(out);
-                let q2 = (p - y).length_squared() - m * m;
-                if m > 0.0 && q2 < rho * rho {
-                    track += 2.0 * (rho * rho - q2).sqrt();
-                    count += 1;
-                }
+        let (fluence, count) = photon_fluence(axis, 0.03f64.cos(), 1500, p, 0.005, |d| {
+            let b = light.dot(d);
+            let disc = b * b - (light.length_squared() - r * r);
+            if disc <= 0.0 {
+                return None;
             }
-        }
-        let fluence =
-            track * (omega / (n * n) as f64) / (4.0 / 3.0 * std::f64::consts::PI * rho.powi(3));
+            let x = light + (-b - disc.sqrt()) * d;
+            let t = refract(d, x / r, n_out / n_in)?;
+            // The far side: the chord of direction t from x.
+            let y = x - 2.0 * x.dot(t) * t;
+            Some((y, refract(t, -y / r, n_in / n_out)?))
+        });
         eprintln!(
             "spread {} against photon tracing {fluence} ({count} photons)",
             c.spread
@@ -934,46 +929,13 @@ mod tests {
             .intersect(&Ray::new(entry.spawn(dir), dir), 0.0, f64::INFINITY)
             .unwrap();
         let c = connect_through(&o, p, light, n_in, n_out, [entry.p, exit.p]).unwrap();
-        // Snell's law in vector form, n facing against d.
-        let refract = |d: DVec3, nrm: DVec3, eta: f64| {
-            let ci = -d.dot(nrm);
-            let k = 1.0 - eta * eta * (1.0 - ci * ci);
-            (k > 0.0).then(|| eta * d + (eta * ci - k.sqrt()) * nrm)
-        };
-        let rho = 0.005;
-        let f = Frame::from_normal((c.x[1] - light).normalize());
-        let cos_max = 0.015f64.cos();
-        let omega = 2.0 * std::f64::consts::PI * (1.0 - cos_max);
-        let n = 800;
-        let (mut track, mut count) = (0.0, 0);
-        for i in 0..n {
-            let ct = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / n as f64;
-            let st = (1.0 - ct * ct).sqrt();
-            for j in 0..n {
-                let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
-                let d = f.to_world(DVec3::new(st * phi.cos(), st * phi.sin(), ct));
-                let Some(a) = o.intersect(&Ray::new(light, d), 0.0, f64::INFINITY) else {
-                    continue;
-                };
-                let Some(t) = refract(d, a.n, n_out / n_in) else {
-                    continue;
-                };
-                let Some(b) = o.intersect(&Ray::new(a.spawn(t), t), 0.0, f64::INFINITY) else {
-                    continue;
-                };
-                let Some(out) = refract(t, -b.n, n_in / n_out) else {
-                    continue;
-                };
-                let m = (p - b.p).dot(out);
-                let q2 = (p - b.p).length_squared() - m * m;
-                if m > 0.0 && q2 < rho * rho {
-                    track += 2.0 * (rho * rho - q2).sqrt();
-                    count += 1;
-                }
-            }
-        }
-        let fluence =
-            track * (omega / (n * n) as f64) / (4.0 / 3.0 * std::f64::consts::PI * rho.powi(3));
+        let axis = (c.x[1] - light).normalize();
+        let (fluence, count) = photon_fluence(axis, 0.015f64.cos(), 800, p, 0.005, |d| {
+            let a = o.intersect(&Ray::new(light, d), 0.0, f64::INFINITY)?;
+            let t = refract(d, a.n, n_out / n_in)?;
+            let b = o.intersect(&Ray::new(a.spawn(t), t), 0.0, f64::INFINITY)?;
+            Some((b.p, refract(t, -b.n, n_in / n_out)?))
+        });
         eprintln!(
             "spread {} against photon tracing {fluence} ({count} photons)",
             c.spread
