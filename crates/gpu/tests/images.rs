@@ -1267,7 +1267,9 @@ fn path_kernel_follows_the_scene_unless_chosen() {
 /// dipole and random-walk media (a path's medium, channel, events and
 /// dipole entry point cross the steps in `WfPath`), and on the glass
 /// furnace, whose paths of thousands of bounces end in the last step,
-/// and at a film size that is not a multiple of the 8 x 8 blocks (the
+/// on the caustics example (a light's caustic gathered after its shadow
+/// ray, in the same step), and at a film size that is not a multiple of
+/// the 8 x 8 blocks (the
 /// padded pixels of the last block row and column trace nothing).
 #[test]
 fn wavefront_traces_the_megakernels_paths() {
@@ -1282,6 +1284,7 @@ fn wavefront_traces_the_megakernels_paths() {
             common::example("translucent-random-walk.toml"),
         ),
         ("glass furnace", glass_furnace(100_000)),
+        ("caustics", common::example("caustics.toml")),
     ] {
         scene.film.width = 61;
         scene.film.height = 35;
