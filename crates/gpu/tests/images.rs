@@ -1269,8 +1269,8 @@ fn path_kernel_follows_the_scene_unless_chosen() {
 /// furnace, whose paths of thousands of bounces end in the last step,
 /// on the caustics example (a light's caustic gathered after its shadow
 /// ray, in the same step), and at a film size that is not a multiple of
-/// the 8 x 8 blocks (the
-/// padded pixels of the last block row and column trace nothing).
+/// the 8 x 8 blocks (the padded pixels of the last block row and column
+/// trace nothing).
 #[test]
 fn wavefront_traces_the_megakernels_paths() {
     let Some(gpu) = common::open("GPU image tests") else {
