@@ -768,19 +768,6 @@ pub fn material_values_fit(
     )))
 }
 
-/// Whether point lights' paths through glass are looked for in `scene`
-/// (`integrator.caustics = "manifold"`, a point light and a `dielectric`
-/// material, as on the CPU): the kernels then carry `caustic`
-/// ([`Features::caustics`]).
-pub(crate) fn casts_caustics(scene: &Scene) -> bool {
-    scene.integrator.caustics == isolux_render::Caustics::Manifold
-        && !scene.lights.is_empty()
-        && scene
-            .materials
-            .iter()
-            .any(|m| matches!(m, isolux_materials::Material::Dielectric(_)))
-}
-
 /// Replaces every material of `scene` that is not on the GPU by a grey
 /// (0.5) diffuse, for comparisons and benchmarks that must run anyway;
 /// returns the replaced materials' names.
@@ -909,7 +896,7 @@ fn needed(
         null_boundaries: scene.may_have_null_boundaries(),
         refraction: refracted.iter().any(Option::is_some) || manifold,
         manifold,
-        caustics: casts_caustics(scene),
+        caustics: scene.casts_caustics(),
         ..Features::of(&materials.materials).fit_to(geo, scene.lights.len())
     }
 }

@@ -57,7 +57,7 @@
 //! far from the world origin the scene lies.
 
 use crate::scene::FlatBoundary;
-use crate::{Caustics, MediumLightSampling, PointLight, RefractedLights, Scene};
+use crate::{MediumLightSampling, PointLight, RefractedLights, Scene};
 use isolux_core::sampling::{power_heuristic, Equiangular};
 use isolux_core::{DVec3, Frame, Pcg32, Ray, Rgb, PI};
 use isolux_geometry::{Culled, Hit};
@@ -476,7 +476,7 @@ fn manifold_refraction(
 }
 
 /// A point light's path to the surface point of `hit` through a glass
-/// object ([`Caustics::Manifold`]): where the shadow ray from `origin`
+/// object ([`crate::Caustics::Manifold`]): where the shadow ray from `origin`
 /// (the point spawned toward the light) first enters an object of a
 /// smooth `dielectric` material and leaves it again before the light,
 /// the path through it that obeys Snell's law at both crossings
@@ -964,8 +964,7 @@ pub struct Media<'a> {
     /// [`RefractedLights::Manifold`] any random-walk medium, and a light.
     pub refracts: bool,
     /// Whether point lights' shadow rays blocked by a glass object look
-    /// for the path through it (`caustic`): [`Caustics::Manifold`], a
-    /// light, and a `dielectric` material.
+    /// for the path through it (`caustic`, [`Scene::casts_caustics`]).
     pub caustics: bool,
 }
 
@@ -987,12 +986,7 @@ impl<'a> Media<'a> {
                 && (!flat.is_empty()
                     || (scene.integrator.refracted_lights == RefractedLights::Manifold
                         && scene.media().next().is_some())),
-            caustics: lit
-                && scene.integrator.caustics == Caustics::Manifold
-                && scene
-                    .materials
-                    .iter()
-                    .any(|m| matches!(m, Material::Dielectric(_))),
+            caustics: scene.casts_caustics(),
             lights,
             relative: scene
                 .materials

@@ -365,6 +365,19 @@ impl Scene {
             .collect()
     }
 
+    /// Whether point lights' shadow rays that glass blocks look for the
+    /// path through it ([`Caustics::Manifold`], a point light and a
+    /// `dielectric` material), on both back ends (the GPU's kernels then
+    /// carry the solve).
+    pub fn casts_caustics(&self) -> bool {
+        self.integrator.caustics == Caustics::Manifold
+            && !self.lights.is_empty()
+            && self
+                .materials
+                .iter()
+                .any(|m| matches!(m, isolux_materials::Material::Dielectric(_)))
+    }
+
     /// Whether the scene may hold a *null boundary*: a random-walk medium
     /// of index 1 (fog in air), or two random-walk objects of the same
     /// index whose bounding boxes overlap (one may lie in the other).
