@@ -292,9 +292,9 @@ fn integrator(t: &Table) -> Result<IntegratorSettings> {
     ])?;
     let mut s = IntegratorSettings::default();
     if let Some(v) = t.get("caustics") {
-        s.caustics = match v.choice(&["none", "manifold"])? {
-            "manifold" => Caustics::Manifold,
-            _ => Caustics::None,
+        s.caustics = match v.choice(&["manifold", "none"])? {
+            "none" => Caustics::None,
+            _ => Caustics::Manifold,
         };
     }
     if let Some(v) = t.get("refracted_lights") {

@@ -300,6 +300,7 @@ fn bad_scenes_are_rejected_with_file_line_column_and_key() {
         ("[[light]]\ntype = \"spot\"\n", "s.toml:2:8: light[0].type: unknown value \"spot\" (valid: point)"),
         ("[integrator]\nmedium_light_sampling = \"uniform\"\n", "s.toml:2:25: integrator.medium_light_sampling: unknown value \"uniform\" (valid: equiangular, distance)"),
         ("[integrator]\nrefracted_lights = \"none\"\n", "s.toml:2:20: integrator.refracted_lights: unknown value \"none\" (valid: manifold, flat)"),
+        ("[integrator]\ncaustics = \"photons\"\n", "s.toml:2:12: integrator.caustics: unknown value \"photons\" (valid: manifold, none)"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\n", "s.toml:1:1: light[0].intensity: missing required key"),
         ("[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, -1, 1]\n", "s.toml:4:13: light[0].intensity: components must be non-negative"),
         ("[environment]\ntype = \"map\"\nfile = \"nope.hdr\"\n", "s.toml:3:8: environment.file: ./nope.hdr: file not found"),
