@@ -398,7 +398,8 @@ pub fn connect_through(
 
 /// The two crossings' residuals, in their frames' tangents: `C_0` at
 /// `x[0]` (neighbours `p`, outside, and `x[1]`, inside) and `C_1` at
-/// `x[1]` (neighbours `x[0]`, inside, and the light, outside).
+/// `x[1]` (neighbours `x[0]`, inside, and the light, outside), each
+/// [`constraint`]'s with its neighbours for `p` and the light.
 fn chain_constraints(
     x: [DVec3; 2],
     frames: &[Frame; 2],
@@ -407,26 +408,18 @@ fn chain_constraints(
     n_in: f64,
     n_out: f64,
 ) -> Option<[f64; 4]> {
-    let ends = [(p, x[1]), (x[0], light)];
-    let etas = [(n_out, n_in), (n_in, n_out)];
-    let mut c = [0.0; 4];
-    for i in 0..2 {
-        let wa = (ends[i].0 - x[i]).try_normalize()?;
-        let wb = (ends[i].1 - x[i]).try_normalize()?;
-        let h = etas[i].0 * wa + etas[i].1 * wb;
-        let n = frames[i].n;
-        let t = h - h.dot(n) * n;
-        c[2 * i] = t.dot(frames[i].s);
-        c[2 * i + 1] = t.dot(frames[i].t);
-    }
-    Some(c)
+    let [a, b] = [
+        constraint(frames[0].n, x[0], p, x[1], n_out, n_in, &frames[0])?,
+        constraint(frames[1].n, x[1], x[0], light, n_in, n_out, &frames[1])?,
+    ];
+    Some([a[0], a[1], b[0], b[1]])
 }
 
 /// The 4 x 4 Jacobian of [`chain_constraints`] in the crossings' tangent
 /// coordinates (column `2 j + k`: `x[j]` moved along its tangent `k`).
 /// The diagonal blocks are [`jacobian`]'s (both directions move with the
 /// point, the normal turns by the Hessian); the off-diagonal ones move
-/// only the direction toward the neighbour, the normal being fixed.
+/// only the direction toward the other crossing, the normal being fixed.
 #[allow(clippy::too_many_arguments)]
 fn chain_jacobian(
     obj: &Object,
@@ -438,35 +431,43 @@ fn chain_jacobian(
     n_in: f64,
     n_out: f64,
 ) -> Option<[[f64; 4]; 4]> {
-    let ends = [(p, x[1]), (x[0], light)];
-    let etas = [(n_out, n_in), (n_in, n_out)];
+    let diagonal = [
+        jacobian(
+            obj,
+            x[0],
+            frames[0].n,
+            grads[0],
+            p,
+            x[1],
+            n_out,
+            n_in,
+            &frames[0],
+        )?,
+        jacobian(
+            obj,
+            x[1],
+            frames[1].n,
+            grads[1],
+            x[0],
+            light,
+            n_in,
+            n_out,
+            &frames[1],
+        )?,
+    ];
+    // The direction between the crossings and its length (the direction
+    // from x[1] is -w, and `u - (w . u) w` is even in w).
+    let inner = x[1] - x[0];
+    let r = inner.length();
+    let w = inner / r;
     let mut jac = [[0.0; 4]; 4];
     for i in 0..2 {
-        let f = &frames[i];
-        let (ta, tb) = (ends[i].0 - x[i], ends[i].1 - x[i]);
-        let (ra, rb) = (ta.length(), tb.length());
-        if !(ra > 0.0) || !(rb > 0.0) || !(grads[i] > 0.0) {
-            return None;
+        let (f, g, j) = (&frames[i], &frames[1 - i], 1 - i);
+        for row in 0..2 {
+            jac[2 * i + row][2 * i..2 * i + 2].copy_from_slice(&diagonal[i][row]);
         }
-        let (wa, wb) = (ta / ra, tb / rb);
-        let (ea, eb) = etas[i];
-        let hn = (ea * wa + eb * wb).dot(f.n);
-        let hess = obj.hessian(x[i]);
-        // The neighbour that is a crossing (x[1] for C_0, x[0] for C_1),
-        // its direction w and distance from x[i], and its index.
-        let j = 1 - i;
-        let (wj, rj, ej) = if i == 0 { (wb, rb, eb) } else { (wa, ra, ea) };
-        for (k, u) in [f.s, f.t].into_iter().enumerate() {
-            let dh = -ea * (u - wa.dot(u) * wa) / ra - eb * (u - wb.dot(u) * wb) / rb;
-            let hu = hess * u;
-            let dn = -(hu - hu.dot(f.n) * f.n) / grads[i];
-            let dc = dh - hn * dn;
-            jac[2 * i][2 * i + k] = dc.dot(f.s);
-            jac[2 * i + 1][2 * i + k] = dc.dot(f.t);
-        }
-        let g = &frames[j];
         for (k, u) in [g.s, g.t].into_iter().enumerate() {
-            let dc = ej * (u - wj.dot(u) * wj) / rj;
+            let dc = n_in * (u - w.dot(u) * w) / r;
             jac[2 * i][2 * j + k] = dc.dot(f.s);
             jac[2 * i + 1][2 * j + k] = dc.dot(f.t);
         }
