@@ -511,9 +511,9 @@ fn caustic(
         return None;
     };
     let o = &scene.geometry.objects()[obj];
-    // Entering (the gradient of F' points inward), then leaving the same
-    // object short of the light.
-    if !(ray.dir.dot(o.gradient(entry.p)) > 0.0) {
+    // Entering (against the outward normal), then leaving the same object
+    // short of the light.
+    if !(ray.dir.dot(entry.n) < 0.0) {
         return None;
     }
     let inside = entry.spawn(ray.dir);
@@ -525,10 +525,8 @@ fn caustic(
     if exit_obj != obj {
         return None;
     }
-    let n_out = stack
-        .top()
-        .and_then(|m| object_medium(scene, m))
-        .map_or(1.0, |m| m.boundary.ior);
+    let around = stack.top().and_then(|m| object_medium(scene, m));
+    let n_out = around.map_or(1.0, |m| m.boundary.ior);
     let chain = crate::manifold::connect_through(
         o,
         hit.p,
@@ -541,36 +539,30 @@ fn caustic(
     if !chain.x.iter().all(|&x| in_box(&bbox, x, 1e-7)) {
         return None;
     }
-    // The leg from the point to the exit crossing x[0]: nothing before it.
+    // The first surface the ray from `from` along `dir` meets within
+    // `span` (and a little beyond) is the glass, at `to`: the hit there.
+    let reaches = |from: DVec3, dir: DVec3, span: f64, to: DVec3| {
+        let (first, at) =
+            scene
+                .geometry
+                .intersect(&Ray::new(from, dir), 0.0, span * (1.0 + 1e-6))?;
+        (first == obj && (at.p - to).length() <= 1e-6 * (1.0 + span)).then_some(at)
+    };
+    // The leg from the point to the exit crossing x[0], then the leg
+    // inside, from x[0] to x[1].
     let x = chain.x;
-    let to_x0 = x[0] - hit.p;
-    let wi = to_x0.try_normalize()?;
+    let wi = (x[0] - hit.p).try_normalize()?;
     let from = hit.spawn(wi);
     let leg = (x[0] - from).length();
-    let (first, at) = scene
-        .geometry
-        .intersect(&Ray::new(from, wi), 0.0, leg * (1.0 + 1e-6))?;
-    if first != obj || (at.p - x[0]).length() > 1e-6 * (1.0 + leg) {
-        return None;
-    }
-    // The leg inside, from x[0] to x[1]: nothing before x[1].
+    let at = reaches(from, wi, leg, x[0])?;
     let inner = x[1] - x[0];
     let span = inner.length();
     let dir = inner / span;
-    let (first, at) =
-        scene
-            .geometry
-            .intersect(&Ray::new(at.spawn(dir), dir), 0.0, span * (1.0 + 1e-6))?;
-    if first != obj || (at.p - x[1]).length() > 1e-6 * (1.0 + span) {
-        return None;
-    }
+    reaches(at.spawn(dir), dir, span, x[1])?;
     // The leg from x[1] to the light.
     let out = x[1] + chain.normal[1] * (1e-7 * (1.0 + x[1].abs().max_element()));
     let beyond = light_transmittance(scene, media, stack, out, light.position)?;
-    let around = match stack.top().and_then(|m| object_medium(scene, m)) {
-        Some(m) => transmittance(m.sigma_t(), leg),
-        None => Rgb::WHITE,
-    };
+    let around = around.map_or(Rgb::WHITE, |m| transmittance(m.sigma_t(), leg));
     let eta = glass.ior / n_out;
     let t = chain
         .cos_out
