@@ -1256,13 +1256,12 @@ fn solve4(m_in: array<vec4<f32>, 4>, v_in: vec4<f32>) -> Solved4 {
 }
 
 // The two crossings' constraints (vertex 0: neighbours p, outside, and
-// x1, inside; vertex 1: x0, inside, and the light, outside), as one vec4.
-fn chain_constraints(oi: u32, x0: vec3<f32>, x1: vec3<f32>, p: vec3<f32>, light: vec3<f32>,
-                     n_in: f32, n_out: f32) -> vec4<f32> {
-    let n0 = object_normal_at(oi, x0);
-    let n1 = object_normal_at(oi, x1);
-    let c0 = manifold_constraint(n0, x0, p, x1, n_out, n_in, frame_from_normal(n0));
-    let c1 = manifold_constraint(n1, x1, x0, light, n_in, n_out, frame_from_normal(n1));
+// x1, inside; vertex 1: x0, inside, and the light, outside) in their
+// frames f0, f1 (normals f0.n, f1.n), as one vec4.
+fn chain_constraints(x0: vec3<f32>, x1: vec3<f32>, f0: Frame, f1: Frame, p: vec3<f32>,
+                     light: vec3<f32>, n_in: f32, n_out: f32) -> vec4<f32> {
+    let c0 = manifold_constraint(f0.n, x0, p, x1, n_out, n_in, f0);
+    let c1 = manifold_constraint(f1.n, x1, x0, light, n_in, n_out, f1);
     return vec4<f32>(c0, c1);
 }
 
@@ -1309,8 +1308,8 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     let oi = hit_object;
     let mm = materials[objects[oi].range.z];
     let e0 = origin + h.x * dir;
-    // A dielectric entered (the gradient of F' points inward) ...
-    if (mm.tag.x != MAT_DIELECTRIC || !(dot(dir, object_field(oi, e0).yzw) > 0.0)) {
+    // A dielectric entered (against the hit's outward normal) ...
+    if (mm.tag.x != MAT_DIELECTRIC || !(dot(dir, h.yzw) < 0.0)) {
         return r;
     }
     // ... and left short of the light.
@@ -1333,15 +1332,18 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     }
     var x0 = p0.xyz;
     var x1 = p1.xyz;
+    // Their normals, carried from the step that found them.
+    var n0 = object_normal_at(oi, x0);
+    var n1 = object_normal_at(oi, x1);
     let tol = 1e-5 * (n_in + n_out);
     var ok = false;
     var f0: Frame;
     var f1: Frame;
     var jac: array<vec4<f32>, 4>;
     for (var it = 0u; it < 16u; it++) {
-        f0 = frame_from_normal(object_normal_at(oi, x0));
-        f1 = frame_from_normal(object_normal_at(oi, x1));
-        let c = chain_constraints(oi, x0, x1, p, light, n_in, n_out);
+        f0 = frame_from_normal(n0);
+        f1 = frame_from_normal(n1);
+        let c = chain_constraints(x0, x1, f0, f1, p, light, n_in, n_out);
         let norm = length(c);
         jac = chain_jacobian(oi, x0, x1, f0, f1, p, light, n_in, n_out);
         if (norm < tol) {
@@ -1368,12 +1370,19 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
         for (var hh = 0u; hh < 8u; hh++) {
             let y0 = manifold_project(oi, x0 + step.x * f0.s + step.y * f0.t, dist);
             let y1 = manifold_project(oi, x1 + step.z * f1.s + step.w * f1.t, dist);
-            if (y0.w != 0.0 && y1.w != 0.0
-                && length(chain_constraints(oi, y0.xyz, y1.xyz, p, light, n_in, n_out)) < norm) {
-                x0 = y0.xyz;
-                x1 = y1.xyz;
-                moved = true;
-                break;
+            if (y0.w != 0.0 && y1.w != 0.0) {
+                let m0 = object_normal_at(oi, y0.xyz);
+                let m1 = object_normal_at(oi, y1.xyz);
+                let cy = chain_constraints(y0.xyz, y1.xyz, frame_from_normal(m0),
+                                           frame_from_normal(m1), p, light, n_in, n_out);
+                if (length(cy) < norm) {
+                    x0 = y0.xyz;
+                    x1 = y1.xyz;
+                    n0 = m0;
+                    n1 = m1;
+                    moved = true;
+                    break;
+                }
             }
             step *= 0.5;
         }
