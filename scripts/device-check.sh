@@ -27,44 +27,9 @@
 # adapter (lavapipe included).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-out=${OUT:-/tmp/device-check}
-mkdir -p "$out"
-exec > >(tee "$out/device-check.log") 2>&1
-
-if [ ! -d .device/bin ]; then
-    echo "device-check: no .device/ here: run scripts/device-prepare.sh and carry .device" >&2
-    exit 2
-fi
-echo "device-check: commit $(cat .device/commit), $(date -u +%FT%TZ)"
-if ! ldconfig -p | grep -q libvulkan.so.1; then
-    for f in .device/gl/*.deb; do dpkg -x "$f" /; done
-    ldconfig
-fi
-icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-[ -e "$icd" ] && export VK_DRIVER_FILES=$icd
-src=$(cat .device/source-dir)
-if [ ! -e "$src" ]; then
-    mkdir -p "$(dirname "$src")"
-    ln -s "$PWD" "$src"
-fi
-bin=/tmp/isolux-bin
-mkdir -p "$bin"
-for f in .device/bin/*.gz; do
-    gunzip -c "$f" >"$bin/$(basename "$f" .gz)"
-    chmod +x "$bin/$(basename "$f" .gz)"
-done
-nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv || true
-nproc
-
-step() {
-    local limit=$1
-    shift
-    echo
-    echo "==== $* (limit ${limit} s)"
-    local t0=$SECONDS
-    timeout "$limit" "$@"
-    echo "==== rc $? after $((SECONDS - t0)) s"
-}
+log=device-check.log
+# shellcheck source=scripts/device-env.sh
+. scripts/device-env.sh
 
 size=(--width 1920 --height 1080)
 repeat=(--repeat 10)

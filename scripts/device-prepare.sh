@@ -16,6 +16,8 @@
 #   BASELINE= bash scripts/device-prepare.sh    # no baseline
 #   # then, with the device tool:
 #   #   run(command = "bash scripts/device-check.sh", carry = [".device"], timeout_s = 560)
+#   #   and at once, while the machine is warm, with the device time left:
+#   #   run(command = "bash scripts/device-extra.sh", carry = [".device"])
 #
 # `.device/` is ignored through .git/info/exclude (this script adds it), so
 # it never lands in a commit. See docs/gpu.md, "For the next session with
