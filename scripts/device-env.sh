@@ -15,10 +15,11 @@ if [ ! -d .device/bin ]; then
     exit 2
 fi
 echo "$log: commit $(cat .device/commit), $(date -u +%FT%TZ)"
-if ! ldconfig -p | grep -q libvulkan.so.1; then
-    for f in .device/gl/*.deb; do dpkg -x "$f" /; done
-    ldconfig
-fi
+# The Vulkan loader and libglvnd (NVIDIA's Vulkan driver lives in
+# libGLX_nvidia.so.0, which without libGLdispatch cannot hand the loader
+# vkCreateInstance: "Found no drivers", seen on an H200, 2026-12-04).
+for f in .device/gl/*.deb; do dpkg -x "$f" /; done
+ldconfig
 icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 [ -e "$icd" ] && export VK_DRIVER_FILES=$icd
 src=$(cat .device/source-dir)

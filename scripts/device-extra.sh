@@ -11,7 +11,8 @@
 #      the gallery does not exercise: caustics through glass
 #      (caustics.toml), lamps under water with a random-walk medium
 #      (underwater.toml) and a translucent random walk
-#      (translucent-random-walk.toml), each at its own film size;
+#      (translucent-random-walk.toml), at 1920 x 1080 (`bench gpu`'s
+#      default size, whatever the scene's film);
 #   3. the caustics scene rendered on the GPU to $OUT/caustics-gpu.exr at
 #      240 x 160, 64 spp, for comparison with the CPU's image here
 #      (docs/gpu.md, "Caustics").

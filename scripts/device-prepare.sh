@@ -11,7 +11,7 @@
 # last measurement reads as a ratio of one session's figures (the
 # machines are shared, and a freshly started one reads slow).
 #
-#   bash scripts/device-prepare.sh              # baseline: b93c7db, the last commit measured on an H100
+#   bash scripts/device-prepare.sh              # baseline: 6f93828, the last commit measured on NVIDIA (an H200, 2026-12-04)
 #   BASELINE=<commit> bash scripts/device-prepare.sh
 #   BASELINE= bash scripts/device-prepare.sh    # no baseline
 #   # then, with the device tool:
@@ -30,12 +30,15 @@ grep -qx '/.device/' "$exclude" 2>/dev/null || echo '/.device/' >>"$exclude"
 rm -rf .device
 mkdir -p .device/bin .device/gl
 
-echo "device-prepare: Vulkan loader package"
+echo "device-prepare: Vulkan loader and libglvnd packages"
 lists=/tmp/device-apt-lists
 mkdir -p "$lists/partial"
 apt_opts=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 "-oDir::State::Lists=$lists")
 apt-get "${apt_opts[@]}" update -qq
-(cd .device/gl && apt-get "${apt_opts[@]}" download libvulkan1)
+# libglvnd beside the loader: NVIDIA's Vulkan driver is libGLX_nvidia.so.0,
+# which without libGLdispatch hands the loader no vkCreateInstance ("Found
+# no drivers"; an H200, 2026-12-04).
+(cd .device/gl && apt-get "${apt_opts[@]}" download libvulkan1 libglvnd0 libglx0 libgl1 libegl1 libopengl0 libgles2)
 
 echo "device-prepare: release binaries"
 cargo build --release -p isolux
@@ -50,7 +53,7 @@ gzip -f .device/bin/kernel_stats
 # sharing one target folder can link one's crates into the other's
 # binary: cargo names path crates' artifacts by their path relative to
 # the workspace).
-baseline=${BASELINE-b93c7db}
+baseline=${BASELINE-6f93828}
 if [ -n "$baseline" ]; then
     echo "device-prepare: baseline $baseline"
     base_src=/tmp/isolux-baseline-src
