@@ -60,8 +60,9 @@ pub struct BenchArgs {
     #[arg(long)]
     pub general: bool,
     /// `gpu`: also time the wavefront path tracer (one dispatch per
-    /// bounce over the paths still alive), in a column beside the
-    /// megakernel, with their ratio (`-` in the real-time mode).
+    /// bounce over the paths still alive; what `render --gpu` runs by
+    /// default), in a column beside the megakernel, with their ratio
+    /// (`-` in the real-time mode).
     #[arg(long)]
     pub wavefront: bool,
     /// `gpu`: also time the frames with one dispatch per sample (as before
@@ -459,8 +460,9 @@ fn wave(repeat: u32) -> Result<()> {
 /// GPU's own time of the same frame from timestamps (where the adapter
 /// offers them), so the two differ by what the host and the driver cost.
 /// The path tracer's columns time the megakernel, and `--wavefront` the
-/// wavefront beside it (a render picks between them by the scene,
-/// `isolux_gpu::PathKernel::Auto`). "First frame" is the wall time of
+/// wavefront beside it, which a render runs by default
+/// (`isolux_gpu::PathKernel::Auto`; the megakernel's columns stay
+/// comparable with earlier measurements). "First frame" is the wall time of
 /// the first frame of the mode's specialized f32 kernels, which compiles them, unless an earlier row
 /// of the run did (direct light runs the path tracer's kernel) or the
 /// driver's shader cache holds them (Mesa's and NVIDIA's keep compiled
@@ -555,9 +557,9 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             } else {
                 gpu.prepare(&scene)?
             };
-            // The GPU columns time the megakernel, whatever a render
-            // would pick for the scene (`PathKernel::Auto`); `--wavefront`
-            // adds the wavefront's.
+            // The GPU columns time the megakernel, although a render
+            // runs the wavefront (`PathKernel::Auto`); `--wavefront` adds
+            // the wavefront's.
             frame.set_wavefront(false);
             // Wall time from queueing the frame to the idle queue, and the
             // GPU's own time of the same frames (timestamps), best of each.
