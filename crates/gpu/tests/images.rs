@@ -2030,3 +2030,119 @@ fn caustics_match_the_cpu() {
     gallery.integrator.caustics = isolux_render::Caustics::Manifold;
     assert!(isolux_gpu::scene_features(&gallery).unwrap().caustics);
 }
+
+/// `examples/scenes/underwater.toml` and variants of it, each taking one
+/// of its parts away, GPU against CPU: the table a device session reads
+/// to find which part an adapter gets wrong. On an NVIDIA H200
+/// (2026-12-04, commit 6f93828) the scene rendered without its sky
+/// (image mean 0.028 against the CPU's 0.391, megakernel and wavefront
+/// alike; docs/gpu.md, "NVIDIA: open defects"), while lavapipe matches.
+/// Each variant's GPU image is rendered four ways: the default kernels,
+/// with wgpu's run-time checks (array indices clamped, loops bounded:
+/// a difference there points at an index out of bounds or a loop that
+/// never ends), without the camera rays' tile lists (the default on
+/// GPUs, not on CPU drivers), and with the intersection in f64 (where
+/// the adapter offers it: a difference there points at f32's
+/// intersection). `ISOLUX_UNDERWATER_VARIANTS` (names, comma-separated)
+/// runs some of them. Ignored: about 8 minutes on lavapipe (each
+/// column compiles its kernels), a minute on NVIDIA.
+#[test]
+#[ignore]
+fn underwater_variants_match_the_cpu() {
+    let Some(mut gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes");
+    let base = std::fs::read_to_string(dir.join("underwater.toml")).unwrap();
+    let light = base.find("[[light]]").unwrap();
+    let env = base.find("[environment]").unwrap();
+    let jelly = base.rfind("[[object]]").unwrap();
+    let edit = |from: &str, to: &str| {
+        assert!(base.contains(from), "{from}");
+        base.replace(from, to)
+    };
+    let integrator = "[integrator]\nmax_depth = 8\nseed = 3\n";
+    let variants: Vec<(&str, String)> = vec![
+        ("as is", base.clone()),
+        ("no lamp", format!("{}{}", &base[..light], &base[env..])),
+        ("no jellyfish", base[..jelly].to_string()),
+        (
+            "no marble",
+            edit(
+                "material = \"glass\"\nbase = { type = \"sphere\", center = [0.35",
+                "material = \"stone\"\nbase = { type = \"sphere\", center = [0.35",
+            ),
+        ),
+        (
+            "grey water",
+            edit(
+                "sigma_s = [0.03, 0.04, 0.05]   # per unit (metres, say): clear sea water, scaled up\nsigma_a = [0.45, 0.07, 0.03]",
+                "sigma_s = [0.04, 0.04, 0.04]\nsigma_a = [0.1, 0.1, 0.1]",
+            ),
+        ),
+        (
+            "water that does not scatter",
+            edit(
+                "sigma_s = [0.03, 0.04, 0.05]",
+                "sigma_s = [0.0, 0.0, 0.0]",
+            ),
+        ),
+        (
+            "distance sampling",
+            edit(integrator, &format!("{integrator}medium_light_sampling = \"distance\"\n")),
+        ),
+        (
+            "flat refraction",
+            edit(integrator, &format!("{integrator}refracted_lights = \"flat\"\n")),
+        ),
+        (
+            "no caustics",
+            edit(integrator, &format!("{integrator}caustics = \"none\"\n")),
+        ),
+    ];
+    let only = std::env::var("ISOLUX_UNDERWATER_VARIANTS").ok();
+    eprintln!("| variant | CPU | GPU | GPU, run-time checks | GPU, no tile lists | GPU, f64 |");
+    eprintln!("|---|---:|---:|---:|---:|---:|");
+    let mut worst: (f64, &str) = (0.0, "");
+    for (name, text) in &variants {
+        if only
+            .as_deref()
+            .is_some_and(|o| !o.split(',').any(|n| n.trim() == *name))
+        {
+            continue;
+        }
+        let mut scene =
+            isolux_scene::parse_str(text, &dir.join("underwater-variant.toml"), &dir).unwrap();
+        (scene.film.width, scene.film.height, scene.film.spp) = (48, 32, 64);
+        let cpu = image_mean(&cpu_image(&scene));
+        let gpu_mean = |gpu: &Gpu, tiles: bool| {
+            let mut frame = gpu.prepare(&scene).unwrap();
+            if !tiles {
+                frame.set_tile_lists(false);
+            }
+            frame.run(gpu, scene.film.spp);
+            let (img, _) = frame.image(gpu).unwrap();
+            assert!(img.rgb.iter().flatten().all(|c| c.is_finite()), "{name}");
+            image_mean(&img)
+        };
+        let plain = gpu_mean(&gpu, true);
+        gpu.set_runtime_checks(true);
+        let checked = gpu_mean(&gpu, true);
+        gpu.set_runtime_checks(false);
+        let untiled = gpu_mean(&gpu, false);
+        let wide = gpu
+            .set_precision(isolux_gpu::Precision::F64)
+            .ok()
+            .map(|()| gpu_mean(&gpu, true));
+        gpu.set_precision(isolux_gpu::Precision::F32).unwrap();
+        let f64_cell = wide.map_or("-".to_string(), |m| format!("{m:.5}"));
+        eprintln!("| {name} | {cpu:.5} | {plain:.5} | {checked:.5} | {untiled:.5} | {f64_cell} |");
+        for g in [plain, checked, untiled].into_iter().chain(wide) {
+            let off = (g - cpu).abs() / cpu;
+            if off > worst.0 {
+                worst = (off, name);
+            }
+        }
+    }
+    assert!(worst.0 < 0.05, "{}: {:.1}% off", worst.1, 100.0 * worst.0);
+}
