@@ -184,15 +184,28 @@ impl Precision {
     }
 }
 
-/// `geometry.wgsl` computing in `precision` (the alias `real` and its
-/// machine epsilon `REAL_EPS`).
+/// The longest stretch of a ray that `object_hit` walks in f32
+/// (`REAL_SPAN` in `geometry.wgsl`): a segment's polynomial is built in
+/// the segment's own parameter, its coefficients scaled by its length to
+/// the power of their degree, so a quadric's over a span of 1e30 (a ray
+/// to `t_max = 3e38` through an object unbounded along it: an infinite
+/// slab, cylinder or cone) overflowed f32 and its hits were lost (a
+/// lamp's light reached under an infinite slab through every ray; every
+/// upward ray of `conformance.rs`'s slab test missed it at `t_max` 1e30,
+/// 3884 of 4000 at 1e20). 1e15 keeps a quadric's coefficients within
+/// f32 (`l^2` 1e30) while a hit beyond it, 1e15 units from the camera,
+/// is at the horizon; f64 walks the whole ray.
+pub const REAL_SPAN_F32: f64 = 1e15;
+
+/// `geometry.wgsl` computing in `precision` (the alias `real`, its
+/// machine epsilon `REAL_EPS` and the longest span walked, `REAL_SPAN`).
 pub fn geometry_source(precision: Precision) -> String {
-    let eps = match precision {
-        Precision::F32 => f32::EPSILON as f64,
-        Precision::F64 => f64::EPSILON,
+    let (eps, span) = match precision {
+        Precision::F32 => (f32::EPSILON as f64, REAL_SPAN_F32),
+        Precision::F64 => (f64::EPSILON, NO_ROOT as f64),
     };
     format!(
-        "alias real = {};\nconst REAL_EPS: real = {eps:e};\n",
+        "alias real = {};\nconst REAL_EPS: real = {eps:e};\nconst REAL_SPAN: real = {span:e};\n",
         precision.wgsl()
     ) + include_str!("shaders/geometry.wgsl")
 }

@@ -898,3 +898,59 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
     }
     gpu.set_precision(isolux_gpu::Precision::F32).unwrap();
 }
+
+/// Objects unbounded along a ray (an infinite slab, an infinite
+/// cylinder) hit by rays of unbounded length (`t_max` 1e30, as camera
+/// rays and a medium's equiangular flights have): the walk's span was
+/// the whole ray, and a quadric's polynomial over it, its coefficients
+/// scaled by the span squared, overflowed f32: every one of 4000 upward
+/// rays missed the slab (3884 at `t_max` 1e20), and a lamp above the slab
+/// lit the fog beneath it on the GPU. Walked no farther than
+/// `REAL_SPAN_F32` (1e15), every ray hits where the CPU's does, within
+/// 1e-5 relative.
+#[test]
+fn unbounded_quadrics_are_hit_along_unbounded_rays() {
+    let Some(gpu) = common::open("unbounded quadrics") else {
+        return;
+    };
+    let slab = Quadric::from_coefficients([0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.25, 0.0, -1.5]);
+    let cylinder = Quadric::cylinder(DVec3::new(0.3, 0.0, -0.2), DVec3::new(0.0, 0.6, 0.8), 0.7);
+    let mut rng = Pcg32::new(7, 7);
+    for (name, quadric, below) in [("slab", slab, true), ("cylinder", cylinder, false)] {
+        let object = Object::new(quadric, vec![], None).unwrap();
+        let rays: Vec<(DVec3, DVec3)> = (0..2000)
+            .map(|_| {
+                let mut from = DVec3::new(
+                    20.0 * rng.next_f64() - 10.0,
+                    rng.next_f64() * 0.9 - 2.0,
+                    20.0 * rng.next_f64() - 10.0,
+                );
+                let mut d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
+                if below {
+                    d.y = d.y.abs();
+                } else {
+                    // From outside, toward a point of the axis.
+                    while quadric.eval(from) >= 0.0 {
+                        from += DVec3::new(1.0, 0.0, 0.0);
+                    }
+                    let axis = DVec3::new(0.0, 0.6, 0.8);
+                    let on_axis =
+                        DVec3::new(0.3, 0.0, -0.2) + (20.0 * rng.next_f64() - 10.0) * axis;
+                    d = (on_axis - from).normalize();
+                }
+                (from, from + d)
+            })
+            .collect();
+        let mut worst: f64 = 0.0;
+        for (t, c) in single_object_hits(&gpu, &object, &rays) {
+            let tc = c.unwrap_or_else(|| panic!("{name}: the CPU hits every ray"));
+            assert!(
+                t >= 0.0,
+                "{name}: the GPU missed a ray the CPU hits at {tc}"
+            );
+            worst = worst.max((t - tc).abs() / tc);
+        }
+        eprintln!("{name}: 2000 rays, largest relative |t_gpu - t_cpu| {worst:.1e}");
+        assert!(worst < 5e-5, "{name}: {worst:e}");
+    }
+}

@@ -493,6 +493,9 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         let reach = max(max(abs(o_obj.x), abs(o_obj.y)), max(abs(o_obj.z), abs(entry.y)));
         end = min(t1, entry.y + 16.0 * REAL_EPS * reach);
     }
+    // No longer than `REAL_SPAN` (lib.rs `REAL_SPAN_F32`): the segments'
+    // polynomials scale with powers of their length.
+    end = min(end, shift + REAL_SPAN);
     let o = o_obj + shift * d;
     let span = vec2<real>(0.0, end - shift);
     let first = obj.range.x;
