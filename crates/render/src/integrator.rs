@@ -638,7 +638,8 @@ fn medium_lights<'s>(
 /// The light of `light` scattered at `p` inside the media `stack` (phase
 /// Henyey-Greenstein with `g`) toward a path travelling along `dir`:
 /// `I p(wl . dir) T / d^2` at distance `d` in direction `wl`, with
-/// transmittance `T` ([`light_transmittance`]).
+/// transmittance `T` ([`light_transmittance`]); `None` where the shadow
+/// ray is blocked.
 fn light_scattered_at(
     scene: &Scene,
     media: &Media,
@@ -647,15 +648,36 @@ fn light_scattered_at(
     p: DVec3,
     dir: DVec3,
     g: f64,
-) -> Rgb {
+) -> Option<Rgb> {
     let Some((wl, _, dist2)) = light.toward(p) else {
-        return Rgb::BLACK;
+        return Some(Rgb::BLACK);
     };
-    match light_transmittance(scene, media, stack, p, light.position) {
-        Some(tr) => {
-            let phase = isolux_materials::subsurface::phase::hg(wl.dot(dir), g);
-            light.intensity * tr * (phase / dist2)
-        }
+    let tr = light_transmittance(scene, media, stack, p, light.position)?;
+    let phase = isolux_materials::subsurface::phase::hg(wl.dot(dir), g);
+    Some(light.intensity * tr * (phase / dist2))
+}
+
+/// The light of `light` that reaches `p`, a scattering point inside the
+/// media `stack`, through glass ([`caustic`], from the point itself: no
+/// surface to leave), scattered toward a path travelling along `dir`:
+/// `E p(wi . dir)` with `E` the caustic's irradiance along `wi`.
+fn caustic_scattered_at(
+    scene: &Scene,
+    media: &Media,
+    stack: &MediumStack,
+    light: &PointLight,
+    p: DVec3,
+    dir: DVec3,
+    g: f64,
+) -> Rgb {
+    let at = Hit {
+        t: 0.0,
+        p,
+        n: dir,
+        offset: 0.0,
+    };
+    match caustic(scene, media, stack, &at, p, light) {
+        Some((wi, e)) => e * isolux_materials::subsurface::phase::hg(wi.dot(dir), g),
         None => Rgb::BLACK,
     }
 }
@@ -702,7 +724,12 @@ impl Flight {
 /// flight inside the media `stack` at distance `t` along it
 /// ([`light_scattered_at`] per light of [`medium_lights`]). With
 /// equiangular sampling on, each light's share is weighted against
-/// [`equiangular_light`]'s sample of it by the power heuristic.
+/// [`equiangular_light`]'s sample of it by the power heuristic. Where a
+/// light's shadow ray is blocked and the scene casts caustics, its light
+/// through glass ([`caustic_scattered_at`]), unweighted: the scattering
+/// points alone sample it (the equiangular sample's shadow ray meets the
+/// glass and gathers nothing through it), as surfaces gather caustics
+/// only by their next-event estimation.
 fn medium_light(
     scene: &Scene,
     media: &Media,
@@ -719,8 +746,12 @@ fn medium_light(
             Some(e) => power_heuristic(flight.density(t), e.pdf(t)),
             None => 1.0,
         };
-        if w > 0.0 {
-            l += light_scattered_at(scene, media, stack, light, p, dir, flight.g) * w;
+        match light_scattered_at(scene, media, stack, light, p, dir, flight.g) {
+            Some(lit) => l += lit * w,
+            None if media.caustics => {
+                l += caustic_scattered_at(scene, media, stack, light, p, dir, flight.g);
+            }
+            None => {}
         }
     }
     // Point lights behind the medium's boundary.
@@ -763,8 +794,11 @@ fn equiangular_light(
         let through = flight.sigma_s * flight.transmittance(t) * (w / pdf);
         if !through.is_black() && through.is_finite() {
             let p = flight.ray.at(t);
-            l += light_scattered_at(scene, media, stack, light, p, flight.ray.dir, flight.g)
-                * through;
+            if let Some(lit) =
+                light_scattered_at(scene, media, stack, light, p, flight.ray.dir, flight.g)
+            {
+                l += lit * through;
+            }
         }
     }
     l
@@ -1392,6 +1426,112 @@ pub fn radiance_culled(
 mod tests {
     use super::*;
     use isolux_geometry::{Aggregate, Object, Quadric};
+
+    /// A scattering point inside a medium gathers a point light through
+    /// glass: a lamp above a glass slab (index 1.5, y in [1, 1.5]), both
+    /// inside water (index 1.33, extinction 0.1, isotropic), lights points
+    /// of the water under the slab with the irradiance of the slab's
+    /// closed form (crates/isolux/tests/analytic.rs, the floor under the
+    /// same slab): `I T^2 G exp(-sigma_t (h1 + h2) / cos t1)` normal to
+    /// the ray, with `G = sin t1 / (R cos t1 dR/dt1)`, `R = (h1 + h2) tan
+    /// t1 + d tan t2` the foot's distance, `T` the Fresnel transmittance
+    /// of index 1.5 / 1.33 at each face, times the phase 1 / (4 pi); within
+    /// 1e-5. `medium_light` at such a point returns the same (the straight
+    /// shadow ray meets the glass), and nothing with caustics off.
+    #[test]
+    fn scattering_points_gather_lamps_through_glass() {
+        let (d, light) = (0.5, DVec3::new(0.3, 3.0, 0.2));
+        let (n_glass, n_water, sigma_t) = (1.5, 1.33, 0.1);
+        let water = Subsurface::new(
+            Rgb::splat(0.05),
+            Rgb::splat(0.05),
+            0.0,
+            n_water,
+            SubsurfaceMode::RandomWalk,
+        );
+        let slab =
+            Quadric::from_coefficients([0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.25, 0.0, -1.5]);
+        let mut scene = Scene {
+            geometry: Aggregate::new(vec![
+                Object::new(slab, vec![], None).unwrap(),
+                Object::new(Quadric::sphere(DVec3::ZERO, 10.0), vec![], None).unwrap(),
+            ]),
+            materials: vec![
+                Material::Dielectric(isolux_materials::Dielectric { ior: n_glass }),
+                Material::Subsurface(water),
+            ],
+            object_material: vec![0, 1],
+            lights: vec![PointLight {
+                position: light,
+                intensity: Rgb::splat(20.0),
+            }],
+            ..Default::default()
+        };
+        scene.integrator.caustics = crate::Caustics::Manifold;
+        let camera = DVec3::new(0.0, 0.6, 1.5);
+        let media = Media::new(&scene, camera);
+        assert!(media.caustics);
+        let mut stack = MediumStack::default();
+        stack.push(1);
+        let eta = n_glass / n_water;
+        let h1 = light.y - 1.5;
+        for q in [
+            DVec3::new(0.0, 0.4, 0.0),
+            DVec3::new(0.5, 0.2, -0.3),
+            DVec3::new(-0.7, 0.8, 0.4),
+        ] {
+            let h2 = 1.0 - q.y;
+            let foot = DVec3::new(light.x - q.x, 0.0, light.z - q.z).length();
+            let radius = |t1: f64| {
+                let s2 = t1.sin() / eta;
+                (h1 + h2) * t1.tan() + d * s2 / (1.0 - s2 * s2).sqrt()
+            };
+            let (mut lo, mut hi) = (0.0, PI / 2.0 - 1e-9);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if radius(mid) < foot {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let t1 = 0.5 * (lo + hi);
+            let e = 1e-6;
+            let dr = (radius(t1 + e) - radius(t1 - e)) / (2.0 * e);
+            let g = t1.sin() / (foot * t1.cos() * dr);
+            let tr = 1.0 - isolux_materials::fresnel::dielectric(t1.cos(), eta);
+            let want = 20.0 * tr * tr * g * (-sigma_t * (h1 + h2) / t1.cos()).exp() / (4.0 * PI);
+            let dir = DVec3::new(0.0, -0.6, -1.5).normalize();
+            let got = caustic_scattered_at(&scene, &media, &stack, &scene.lights[0], q, dir, 0.0);
+            assert!(
+                (got.r / want - 1.0).abs() < 1e-5 && got.r == got.g && got.g == got.b,
+                "{q}: {got:?} against {want}"
+            );
+            // The same through the scattering point's next-event
+            // estimation, and nothing without caustics.
+            let t = 0.7;
+            let flight = Flight {
+                ray: Ray::new(q - dir * t, dir),
+                t_end: 2.0,
+                sigma_t: Rgb::splat(sigma_t),
+                sigma_s: Rgb::splat(0.05),
+                g: 0.0,
+                ratio: Rgb::WHITE,
+            };
+            let mut rng = Pcg32::new(1, 1);
+            let nee = medium_light(&scene, &media, &stack, &flight, t, true, &mut rng);
+            assert!(
+                (nee.r / want - 1.0).abs() < 1e-5,
+                "{q}: {nee:?} against {want}"
+            );
+            let off = Media {
+                caustics: false,
+                ..media.clone()
+            };
+            let none = medium_light(&scene, &off, &stack, &flight, t, true, &mut rng);
+            assert!(none.is_black(), "{none:?}");
+        }
+    }
 
     /// The refracted inverse square law conserves the light's flux: a
     /// point light of intensity 1 at height `h1` above a half-space of

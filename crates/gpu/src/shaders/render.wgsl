@@ -1543,13 +1543,34 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
         if (equi && medium_tries(i)) {
             e = equiangular(o, d, t_end, light.position.xyz);
         }
+        // Whether the scattering point's shadow ray met something.
+        var blocked = false;
         // k = 0: the equiangular sample; k = 1: the scattering point; k =
-        // 2: the scattering point lit through the medium's flat boundary.
-        for (var k = 0u; k < 3u; k++) {
+        // 2: the scattering point lit through the medium's flat boundary;
+        // k = 3 (with CAUSTICS): the scattering point lit through glass
+        // that blocked its shadow ray (`caustic`, integrator.rs
+        // `caustic_scattered_at`), unweighted: the scattering points alone
+        // sample that light.
+        for (var k = 0u; k < select(3u, 4u, CAUSTICS); k++) {
             var tk = t;
             var w = vec3<f32>(0.0);
             var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
-            if (k == 2u) {
+            var leaves = true; // the second leg starts beyond the boundary
+            if (k == 3u) {
+                if (!blocked) {
+                    continue;
+                }
+                let c = caustic(i, o + t * d, vec3<f32>(0.0));
+                if (!(c.factor > 0.0)) {
+                    continue;
+                }
+                // As a refraction: to the exit crossing (checked by
+                // `caustic`), then from the entry crossing to the light in
+                // the same media.
+                refr = Refraction(c.wi, c.inside, c.x1, c.factor, c.n1);
+                leaves = false;
+                w = ss * tr_t / density_t;
+            } else if (k == 2u) {
                 if (!REFRACTION || !scatter || !(density_t > 0.0)) {
                     continue;
                 }
@@ -1589,7 +1610,11 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
             var wl: vec3<f32>;
             var dist: f32;
             var rad: vec3<f32>;
-            if (k == 2u) {
+            if (k == 3u) {
+                wl = refr.wi;
+                dist = 0.0;
+                rad = light.intensity.rgb * refr.factor * exp(-st * refr.inside);
+            } else if (k == 2u) {
                 // To the crossing point, short of the boundary; the medium
                 // attenuates the way there.
                 wl = refr.wi;
@@ -1605,7 +1630,10 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
                 wl = dl / dist;
                 rad = light.intensity.rgb / dist2;
             }
-            let tr = connection_transmittance(p, wl, dist, k < 2u, k == 2u, true, refr.c, refr.n, i);
+            let tr = connection_transmittance(p, wl, dist, k < 2u, k >= 2u, leaves, refr.c, refr.n, i);
+            if (k == 1u) {
+                blocked = !(max3(tr) > 0.0);
+            }
             l += rad * tr * w * hg_phase(dot(wl, d), g);
         }
     }
