@@ -579,14 +579,17 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
 /// speed (docs/gpu.md, "The wavefront path tracer").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PathKernel {
-    /// The wavefront, for every scene (since 2026-12-04): on an NVIDIA
-    /// H200 it path traces the gallery in 0.62 of the megakernel's time
-    /// (84.6 against 136.2 ms at 1080p, 16 spp; direct light 0.55), on
-    /// lavapipe in 0.95-1.03 of it, the dipole's 0.88-1.02 and random
-    /// walks' 0.52-0.57 (docs/gpu.md, "The wavefront path tracer"); and
-    /// Mesa 22.3's lavapipe miscompiles a `wave` material's second run in
-    /// the megakernel's loop ("Known defect"), which the wavefront's one
-    /// bounce per dispatch avoids.
+    /// On GPUs the wavefront, for every scene (since 2026-12-04): on an
+    /// NVIDIA H200 it path traces the gallery in 0.62 of the megakernel's
+    /// time (84.6 against 136.2 ms at 1080p, 16 spp; direct light 0.55).
+    /// On CPU drivers (lavapipe), where the two take the same time on
+    /// surfaces (the gallery 0.95-1.03, the dipole 0.88-1.02) and the
+    /// wavefront's two kernels take twice the megakernel's compile time
+    /// (tens of seconds each there), the wavefront only for scenes with a
+    /// random-walk medium (0.52-0.57 of the megakernel's time) or a `wave`
+    /// material, whose second run in the megakernel's loop Mesa 22.3
+    /// miscompiles ("Known defect"; docs/gpu.md, "The wavefront path
+    /// tracer").
     #[default]
     Auto,
     /// One kernel runs each path to its end (`main`).
@@ -699,7 +702,8 @@ pub struct Gpu {
     path_kernel: PathKernel,
     f64_supported: bool,
     /// The adapter is a CPU (lavapipe): frames default to kernels without
-    /// tile lists ([`Features::tiles`]).
+    /// tile lists ([`Features::tiles`]) and path trace surfaces with the
+    /// megakernel ([`PathKernel::Auto`]).
     cpu: bool,
     /// Adapter name and back end, for reports.
     pub adapter: String,
@@ -901,6 +905,12 @@ impl Gpu {
     /// How frames prepared now path trace.
     pub fn path_kernel(&self) -> PathKernel {
         self.path_kernel
+    }
+
+    /// Whether the adapter is a CPU driver (lavapipe), whose frames
+    /// default to other kernels ([`Features::tiles`], [`PathKernel::Auto`]).
+    pub fn is_cpu(&self) -> bool {
+        self.cpu
     }
 
     /// The device, for callers that draw with it (the viewer).

@@ -1541,7 +1541,7 @@ impl Gpu {
             aov,
             samples: 0,
             wavefront: match self.path_kernel() {
-                crate::PathKernel::Auto => true,
+                crate::PathKernel::Auto => !self.cpu || random_walk || needed.wave(),
                 crate::PathKernel::Megakernel => false,
                 crate::PathKernel::Wavefront => true,
             },

@@ -61,8 +61,8 @@ pub struct BenchArgs {
     pub general: bool,
     /// `gpu`: also time the wavefront path tracer (one dispatch per
     /// bounce over the paths still alive; what `render --gpu` runs by
-    /// default), in a column beside the megakernel, with their ratio
-    /// (`-` in the real-time mode).
+    /// default on GPUs), in a column beside the megakernel, with their
+    /// ratio (`-` in the real-time mode).
     #[arg(long)]
     pub wavefront: bool,
     /// `gpu`: also time the frames with one dispatch per sample (as before
@@ -460,7 +460,7 @@ fn wave(repeat: u32) -> Result<()> {
 /// GPU's own time of the same frame from timestamps (where the adapter
 /// offers them), so the two differ by what the host and the driver cost.
 /// The path tracer's columns time the megakernel, and `--wavefront` the
-/// wavefront beside it, which a render runs by default
+/// wavefront beside it, which a render runs by default on GPUs
 /// (`isolux_gpu::PathKernel::Auto`; the megakernel's columns stay
 /// comparable with earlier measurements). "First frame" is the wall time of
 /// the first frame of the mode's specialized f32 kernels, which compiles them, unless an earlier row
@@ -557,9 +557,9 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             } else {
                 gpu.prepare(&scene)?
             };
-            // The GPU columns time the megakernel, although a render
-            // runs the wavefront (`PathKernel::Auto`); `--wavefront` adds
-            // the wavefront's.
+            // The GPU columns time the megakernel, although a render on
+            // a GPU runs the wavefront (`PathKernel::Auto`); `--wavefront`
+            // adds the wavefront's.
             frame.set_wavefront(false);
             // Wall time from queueing the frame to the idle queue, and the
             // GPU's own time of the same frames (timestamps), best of each.

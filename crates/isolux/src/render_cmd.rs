@@ -88,8 +88,9 @@ pub struct RenderArgs {
     /// path to its end. The same paths and random numbers, so the same
     /// image; which is faster depends on the scene and the device
     /// (`isolux bench gpu --wavefront` times both; docs/gpu.md). The
-    /// default (0.62x the megakernel's time on the gallery on an NVIDIA
-    /// H200, 0.5-1.0x on lavapipe).
+    /// default on GPUs (0.62x the megakernel's time on the gallery on an
+    /// NVIDIA H200); on CPU drivers (lavapipe) for scenes with a
+    /// random-walk `subsurface` medium or a `wave` material.
     #[arg(long, requires = "gpu", conflicts_with = "realtime")]
     pub wavefront: bool,
     /// With `--gpu`: path trace with the megakernel, whatever the scene
