@@ -15,7 +15,7 @@
 #   BASELINE=<commit> bash scripts/device-prepare.sh
 #   BASELINE= bash scripts/device-prepare.sh    # no baseline
 #   # then, with the device tool:
-#   #   run(command = "bash scripts/device-check.sh", carry = [".device"], timeout_s = 560)
+#   #   run(command = "bash scripts/device-check.sh", carry = [".device"], timeout_s = 590)
 #   #   and at once, while the machine is warm, with the device time left:
 #   #   run(command = "bash scripts/device-extra.sh", carry = [".device"])
 #
