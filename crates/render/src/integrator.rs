@@ -1486,16 +1486,7 @@ mod tests {
                 let s2 = t1.sin() / eta;
                 (h1 + h2) * t1.tan() + d * s2 / (1.0 - s2 * s2).sqrt()
             };
-            let (mut lo, mut hi) = (0.0, PI / 2.0 - 1e-9);
-            for _ in 0..100 {
-                let mid = 0.5 * (lo + hi);
-                if radius(mid) < foot {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            let t1 = 0.5 * (lo + hi);
+            let t1 = crate::manifold::tests::landing_angle(radius, foot);
             let e = 1e-6;
             let dr = (radius(t1 + e) - radius(t1 - e)) / (2.0 * e);
             let g = t1.sin() / (foot * t1.cos() * dr);

@@ -588,7 +588,7 @@ fn solve_through(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use isolux_geometry::Quadric;
 
@@ -608,7 +608,7 @@ mod tests {
 
     /// The angle from the vertical in `[0, pi/2)` at which the landing
     /// radius `radius(theta)`, increasing, reaches `foot` (bisection).
-    fn landing_angle(radius: impl Fn(f64) -> f64, foot: f64) -> f64 {
+    pub(crate) fn landing_angle(radius: impl Fn(f64) -> f64, foot: f64) -> f64 {
         let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2 - 1e-9);
         for _ in 0..200 {
             let mid = 0.5 * (lo + hi);
