@@ -11,7 +11,7 @@ mkdir -p "$out"
 exec > >(tee "$out/$log") 2>&1
 
 if [ ! -d .device/bin ]; then
-    echo "device-check: no .device/ here: run scripts/device-prepare.sh and carry .device" >&2
+    echo "$log: no .device/ here: run scripts/device-prepare.sh and carry .device" >&2
     exit 2
 fi
 echo "$log: commit $(cat .device/commit), $(date -u +%FT%TZ)"

@@ -25,9 +25,11 @@ log=device-extra.log
 
 repeat=(--repeat 5)
 sizes=("480 270" "960 540" "3840 2160")
+scene_run=(--repeat 3)
 if [ "${QUICK:-0}" = 1 ]; then
     repeat=(--repeat 1)
     sizes=("32 18")
+    scene_run=(--width 32 --height 18 --repeat 1)
 fi
 # The first seconds warm the GPU up (a fresh clock reads slow), though
 # this call follows device-check.sh's on a machine still warm.
@@ -36,11 +38,7 @@ for wh in "${sizes[@]}"; do
     step 60 "$bin/isolux" bench gpu --skip-cpu --width "$w" --height "$h" "${repeat[@]}"
 done
 for scene in caustics underwater translucent-random-walk; do
-    if [ "${QUICK:-0}" = 1 ]; then
-        step 60 "$bin/isolux" bench gpu "examples/scenes/$scene.toml" --width 32 --height 18 --repeat 1
-    else
-        step 90 "$bin/isolux" bench gpu "examples/scenes/$scene.toml" --repeat 3
-    fi
+    step 90 "$bin/isolux" bench gpu "examples/scenes/$scene.toml" "${scene_run[@]}"
 done
 step 60 "$bin/isolux" render --gpu -q examples/scenes/caustics.toml \
     --width 240 --height 160 --spp 64 -o "$out/caustics-gpu.exr"
