@@ -2,10 +2,11 @@
 # Runs on a lent NVIDIA machine (the `device` tool), over the folder that
 # scripts/device-prepare.sh filled here, everything issue 7 asks to be
 # measured on real hardware, in one call:
-#   1. `isolux bench gpu --general --f64 --wavefront --checked` on the
-#      gallery at 1920 x 1080 (real-time 4 spp, path traced 16 spp, direct
-#      light; the specialized and the general kernels, f32 and f64, the
-#      megakernel and the wavefront path tracer, the kernels with and
+#   1. `isolux bench gpu --general --f64 --wavefront --sorted --checked`
+#      on the gallery at 1920 x 1080 (real-time 4 spp, path traced 16 spp,
+#      direct light; the specialized and the general kernels, f32 and f64,
+#      the megakernel, the wavefront path tracer and the sorted wavefront
+#      with and without its sort by material, the kernels with and
 #      without wgpu's run-time checks, and the CPU on all cores; the
 #      columns of `--per-sample` and `--tiles` were 1.00-1.02 on an H200,
 #      2026-12-04, and are left out for time), then
@@ -73,7 +74,7 @@ if [ -x "$bin/isolux-baseline" ] && [ "${QUICK:-0}" != 1 ]; then
     step 45 "$bin/isolux" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
     rm -f "$old_gallery"
 fi
-step 240 "$bin/isolux" bench gpu --general --f64 --wavefront --checked "${size[@]}" "${repeat[@]}"
+step 240 "$bin/isolux" bench gpu --general --f64 --wavefront --sorted --checked "${size[@]}" "${repeat[@]}"
 # The gallery's geometry with every material diffuse (examples/bench): how
 # much of the frame the material library costs on this GPU.
 step 60 "$bin/isolux" bench gpu examples/bench/gallery-diffuse.toml --skip-cpu "${size[@]}" "${few[@]}"

@@ -12,7 +12,9 @@
 #      (caustics.toml), lamps under water with a random-walk medium
 #      (underwater.toml) and a translucent random walk
 #      (translucent-random-walk.toml), at 1920 x 1080 (`bench gpu`'s
-#      default size, whatever the scene's film);
+#      default size, whatever the scene's film), the megakernel, the
+#      wavefront and the sorted wavefront (`-` where a medium leaves the
+#      sort out);
 #   3. the caustics scene rendered on the GPU to $OUT/caustics-gpu.exr at
 #      240 x 160, 64 spp, for comparison with the CPU's image here
 #      (docs/gpu.md, "Caustics").
@@ -25,11 +27,11 @@ log=device-extra.log
 
 repeat=(--repeat 5)
 sizes=("480 270" "960 540" "3840 2160")
-scene_run=(--repeat 3)
+scene_run=(--wavefront --sorted --repeat 3)
 if [ "${QUICK:-0}" = 1 ]; then
     repeat=(--repeat 1)
     sizes=("32 18")
-    scene_run=(--width 32 --height 18 --repeat 1)
+    scene_run=(--wavefront --sorted --width 32 --height 18 --repeat 1)
 fi
 # The first seconds warm the GPU up (a fresh clock reads slow), though
 # this call follows device-check.sh's on a machine still warm.

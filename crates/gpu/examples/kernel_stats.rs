@@ -11,8 +11,9 @@
 //! Kernels: the intersection alone (the conformance kernel), then for each
 //! scene (default: the furnace, the gallery, the translucent scene) and for
 //! every model at once (`all`, the general kernels) the path tracer
-//! (`main`), the wavefront step (`trace`) and the real-time kernel
-//! (`realtime`), each specialized to the scene's material models,
+//! (`main`), the wavefront step (`trace`, `trace_last`), the sorted
+//! wavefront's two large kernels (`trace_extend`, `trace_shade`) and the
+//! real-time kernel (`realtime`), each specialized to the scene's models,
 //! candidate list and media as `isolux render --gpu` runs it
 //! (`isolux_gpu::scene_features`, the rules `Gpu::prepare` follows; until
 //! 2026-12-04 this example compiled every scene's kernels with the null
@@ -62,6 +63,16 @@ const KEYWORDS: [&str; 10] = [
     "occupancy",
     "local memory",
     "stack",
+];
+
+/// The render module's entry points each scene's row lists.
+const ENTRIES: [&str; 6] = [
+    "main",
+    "trace",
+    "trace_last",
+    "trace_extend",
+    "trace_shade",
+    "realtime",
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -124,7 +135,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let file = std::path::Path::new(dir).join(format!("{stem}.wgsl"));
             std::fs::write(&file, &src).map_err(|e| format!("{}: {e}", file.display()))?;
         }
-        for entry in ["main", "trace", "trace_last", "realtime"] {
+        for entry in ENTRIES {
             kernels.push((
                 format!("{name}: {entry}"),
                 features.to_string(),
@@ -136,7 +147,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     for file in &sources {
         let src = std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))?;
-        for entry in ["main", "trace", "trace_last", "realtime"] {
+        for entry in ENTRIES {
             kernels.push((
                 format!("{file}: {entry}"),
                 "-".to_string(),

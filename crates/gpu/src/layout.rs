@@ -1047,14 +1047,15 @@ pub struct GpuParams {
     pub env: [f32; 4],
     /// `[map width, map height, 0, 0]`.
     pub env_size: [u32; 4],
-    /// The wavefront path tracer's `[step, 0, first padded pixel of the
-    /// tile, paths in the tile]` (`trace` and `trace_last` in render.wgsl,
-    /// whose entry point says whether a step is the last; zero for the
-    /// other kernels).
+    /// The wavefront path tracer's `[step, steps, first padded pixel of
+    /// the tile, paths in the tile]` (`trace` and `trace_last` in
+    /// render.wgsl, whose entry point says whether a step is the last, and
+    /// the sorted wavefront's kernels; zero for the other kernels).
     pub wave: [u32; 4],
     /// `[sample layers of the dispatch, 1 when `resolve` replaces the
     /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
-    /// render.wgsl).
+    /// render.wgsl); in the wavefront's steps `[0, 0, 1 when the sorted
+    /// wavefront sorts by material, 0]` (`trace_extend`).
     pub layers: [u32; 4],
     /// `[the random-walk media the camera is in, null boundaries,
     /// equiangular sampling, medium slot bits]`: `1 +` the material of the

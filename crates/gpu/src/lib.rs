@@ -88,8 +88,13 @@ pub const ENV_MAP: u32 = 1;
 /// its entry points (`Gpu::render_layout`).
 pub const RENDER_BINDINGS: usize = 15;
 /// Storage buffers of the wavefront's group 1 (paths, queues, step
-/// counters).
-pub const WAVEFRONT_BINDINGS: usize = 3;
+/// counters, the sorted wavefront's hits).
+pub const WAVEFRONT_BINDINGS: usize = 4;
+
+/// Bins of the sorted wavefront's sort by material (`WF_BINS` in
+/// render.wgsl): material records below `WF_BINS - 1` their own, the rest
+/// the last.
+pub const WF_BINS: u32 = 64;
 
 /// WGSL constants generated from the Rust values above and the tags of
 /// [`layout`].
@@ -122,7 +127,7 @@ pub fn prelude() -> String {
         render::TILE_LIST_MAX + 1
     );
     s += &format!(
-        "const MAX_MEDIUM_EVENTS: u32 = {}u;\n",
+        "const MAX_MEDIUM_EVENTS: u32 = {}u;\nconst WF_BINS: u32 = {WF_BINS}u;\n",
         isolux_render::integrator::MAX_MEDIUM_EVENTS
     );
     s += &format!(
@@ -436,7 +441,7 @@ impl Features {
     fn reached_by(self, entry: &str) -> Features {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE, SUBSURFACE, SUBSURFACE_BRDF};
         match entry {
-            "main" | "trace" | "trace_last" => self,
+            "main" | "trace" | "trace_last" | "trace_shade" => self,
             "realtime" => {
                 let mut models = self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE));
                 if self.has(SUBSURFACE) {
@@ -596,6 +601,14 @@ pub enum PathKernel {
     Megakernel,
     /// One dispatch per bounce over the paths still alive (`trace`).
     Wavefront,
+    /// The wavefront with each bounce in four dispatches, its hits shaded
+    /// in order of their material (`trace_extend`, `trace_prefix`,
+    /// `trace_scatter`, `trace_shade`; docs/gpu.md "The sorted
+    /// wavefront"): the same image, for a GPU's SIMT groups to shade one
+    /// material each. Not measured on a GPU yet, so not a default. A
+    /// scene with the subsurface integrator (media, dipoles) runs
+    /// [`PathKernel::Wavefront`].
+    Sorted,
 }
 
 /// Errors of the GPU back end.
@@ -1014,6 +1027,19 @@ impl Gpu {
         self.render_entry(if last { "trace_last" } else { "trace" }, features)
     }
 
+    /// The sorted wavefront's kernels of one step, in their order:
+    /// `trace_extend`, `trace_prefix`, `trace_scatter`, `trace_shade`
+    /// ([`PathKernel::Sorted`]).
+    fn sorted_pipelines(&self, features: Features) -> [wgpu::ComputePipeline; 4] {
+        [
+            "trace_extend",
+            "trace_prefix",
+            "trace_scatter",
+            "trace_shade",
+        ]
+        .map(|entry| self.render_entry(entry, features))
+    }
+
     /// Group 1 of `trace` (paths, queues, step counters, all read-write
     /// storage) and the pipeline layout of groups 0 and 1.
     fn wavefront_layout(&self) -> &(wgpu::BindGroupLayout, wgpu::PipelineLayout) {
@@ -1032,8 +1058,11 @@ impl Gpu {
     }
 
     /// A bind group of the wavefront's group 1 with `buffers` at bindings
-    /// 0, 1, 2.
-    fn wavefront_bind_group(&self, buffers: &[&wgpu::Buffer; 3]) -> wgpu::BindGroup {
+    /// 0, 1, 2, 3.
+    fn wavefront_bind_group(
+        &self,
+        buffers: &[&wgpu::Buffer; WAVEFRONT_BINDINGS],
+    ) -> wgpu::BindGroup {
         self.buffer_bind_group("wavefront", &self.wavefront_layout().0, buffers)
     }
 
@@ -1370,6 +1399,11 @@ mod tests {
             assert_eq!(f.reached_by("main"), *f);
             assert_eq!(f.reached_by("trace"), *f);
             assert_eq!(f.reached_by("trace_last"), *f);
+            assert_eq!(f.reached_by("trace_shade"), *f);
+            // The sorted wavefront's other kernels reach no material.
+            for entry in ["trace_extend", "trace_prefix", "trace_scatter"] {
+                assert_eq!(f.reached_by(entry).models, 0, "{entry}");
+            }
             let rt = f.reached_by("realtime");
             let lobes = 1 << tag::SSS_SINGLE_LOBE | 1 << tag::SSS_ENTRY_LOBE;
             let local = if f.has(tag::SUBSURFACE) {

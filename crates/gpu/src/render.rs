@@ -4,7 +4,7 @@
 //! ([`GpuFrame::image`]). [`Gpu::render`] does all three for a whole film.
 
 use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
-use crate::{Features, Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
+use crate::{Features, Gpu, GpuError, ENV_CONSTANT, ENV_MAP, WF_BINS};
 use isolux_core::{Aovs, Image, Rgb, PI};
 use isolux_render::{Camera, Environment, MediumLightSampling, RenderStats, Scene};
 use wgpu::util::DeviceExt;
@@ -77,10 +77,30 @@ fn begin_pass<'e>(
     })
 }
 
+/// What the sorted wavefront's sort did in a tile
+/// ([`GpuFrame::sorted_steps`]): per step, the paths `trace_extend` listed
+/// and their count in each bin (material records, the last bin shared by
+/// the records from `WF_BINS - 1` on; the last step, unsorted, lists
+/// none); and the bins of the last non-empty list in the order
+/// `trace_shade` took it, which never decrease.
+#[derive(Clone, Debug)]
+pub struct SortedSteps {
+    /// Paths listed per step.
+    pub lengths: Vec<u32>,
+    /// Per step, paths listed per bin.
+    pub counts: Vec<Vec<u32>>,
+    /// The bins of the last non-empty list, in shading order.
+    pub last: Vec<u32>,
+}
+
 /// The wavefront path tracer's buffers for one frame (`trace` in
 /// render.wgsl, docs/gpu.md "The wavefront path tracer").
 struct Wavefront {
     bind: wgpu::BindGroup,
+    /// The queues (and the sorted wavefront's lists), for diagnostics.
+    queue: wgpu::Buffer,
+    /// The sorted wavefront's hits, for diagnostics.
+    hits: wgpu::Buffer,
     /// Per step `[workgroups, 1, 1, queued paths]`: filled by the steps.
     ctl: wgpu::Buffer,
     /// `ctl` as it is before a tile's first step.
@@ -94,6 +114,9 @@ struct Wavefront {
     steps: u32,
     /// Padded pixels of the film (8 x 8 blocks).
     padded: u32,
+    /// Made for the sorted wavefront (its hits, its lists and their
+    /// counters; [`GpuFrame::set_sorted`]).
+    sorted: bool,
 }
 
 /// The largest ratio of a bounded object's distance from the GPU's origin
@@ -820,6 +843,12 @@ pub struct GpuFrame {
     wavefront: bool,
     /// Its buffers, made on first use.
     wf: Option<Wavefront>,
+    /// The wavefront's hits shaded in order of their material
+    /// ([`GpuFrame::set_sorted`]).
+    sorted: bool,
+    /// The sorted wavefront sorts by material (else it keeps the order
+    /// its hits were found in: [`GpuFrame::set_sort_by_material`]).
+    by_material: bool,
     /// Runs trace first hits only ([`Gpu::prepare_first_hits`]).
     first_hits: bool,
     /// The scene has a random-walk medium (long paths: more wavefront
@@ -1543,9 +1572,11 @@ impl Gpu {
             wavefront: match self.path_kernel() {
                 crate::PathKernel::Auto => !self.cpu || random_walk || needed.wave(),
                 crate::PathKernel::Megakernel => false,
-                crate::PathKernel::Wavefront => true,
+                crate::PathKernel::Wavefront | crate::PathKernel::Sorted => true,
             },
             wf: None,
+            sorted: self.path_kernel() == crate::PathKernel::Sorted,
+            by_material: true,
             first_hits: false,
             random_walk,
             media,
@@ -1726,6 +1757,32 @@ impl GpuFrame {
         self.wavefront = on;
     }
 
+    /// Whether the wavefront shades its hits in order of their material
+    /// ([`GpuFrame::set_sorted`]; never with the subsurface integrator).
+    pub fn sorted(&self) -> bool {
+        self.sorted && !self.features.subsurface()
+    }
+
+    /// Runs the wavefront's steps as the sorted wavefront (`on`: four
+    /// dispatches a step, the hits shaded in order of their material;
+    /// [`crate::PathKernel::Sorted`]) or as one dispatch a step. The same
+    /// image either way. Only where the path tracer runs as a wavefront
+    /// ([`GpuFrame::set_wavefront`]); a scene with the subsurface
+    /// integrator keeps one dispatch a step (`on` has no effect there).
+    pub fn set_sorted(&mut self, on: bool) {
+        self.sorted = on;
+    }
+
+    /// Whether the sorted wavefront sorts its hits by material (`on`, the
+    /// default) or keeps them in the order they were found in: the same
+    /// kernels and dispatches, every hit in one bin, so that a comparison
+    /// (`isolux bench gpu --sorted`) tells the sort's part from the
+    /// split's (the intersection in a kernel without the material code).
+    /// The same image either way.
+    pub fn set_sort_by_material(&mut self, on: bool) {
+        self.by_material = on;
+    }
+
     /// How many paths each step of the wavefront ran, in the last tile of
     /// the last sample queued (step 0: the tile's padded pixels; waits for
     /// the queue); `None` before the wavefront ran. A diagnostic: the
@@ -1737,8 +1794,36 @@ impl GpuFrame {
         let ctl: Vec<[u32; 4]> = gpu.read_back(&wf.ctl)?;
         let last = (wf.tiles - 1) * wf.tile;
         let mut out = vec![wf.tile.min(wf.padded - last)];
-        out.extend(ctl[1..].iter().map(|c| c[3]));
+        out.extend(ctl[1..wf.steps as usize].iter().map(|c| c[3]));
         Ok(Some(out))
+    }
+
+    /// What the sorted wavefront's sort did in the last tile of the last
+    /// sample queued; `None` unless the sorted wavefront ran. A
+    /// diagnostic ([`SortedSteps`]).
+    pub fn sorted_steps(&self, gpu: &Gpu) -> Result<Option<SortedSteps>, GpuError> {
+        let Some(wf) = self.wf.as_ref().filter(|wf| wf.sorted) else {
+            return Ok(None);
+        };
+        let ctl: Vec<u32> = gpu.read_back(&wf.ctl)?;
+        let steps = wf.steps as usize;
+        let stride = 4 + 2 * WF_BINS as usize;
+        let region = |k: usize| &ctl[4 * steps + k * stride..][..stride];
+        let lengths: Vec<u32> = (0..steps).map(|k| region(k)[3]).collect();
+        let counts = (0..steps)
+            .map(|k| region(k)[4..4 + WF_BINS as usize].to_vec())
+            .collect();
+        // Later steps whose lists are empty leave the list region as the
+        // last non-empty one wrote it.
+        let len = lengths.iter().rfind(|&&n| n > 0).copied().unwrap_or(0) as usize;
+        let queue: Vec<u32> = gpu.read_back(&wf.queue)?;
+        let hits: Vec<[u32; 8]> = gpu.read_back(&wf.hits)?;
+        let list = &queue[3 * wf.tile as usize..][..len];
+        Ok(Some(SortedSteps {
+            lengths,
+            counts,
+            last: list.iter().map(|&slot| hits[slot as usize][5]).collect(),
+        }))
     }
 
     /// The wavefront's buffers for this film, made on first use: one tile
@@ -1746,6 +1831,10 @@ impl GpuFrame {
     fn make_wavefront(&mut self, gpu: &Gpu) {
         let params = self.params;
         let medium = self.random_walk;
+        let sorted = self.sorted();
+        if self.wf.as_ref().is_some_and(|wf| wf.sorted != sorted) {
+            self.wf = None;
+        }
         self.wf.get_or_insert_with(|| {
             let (w, h) = (params.film[0], params.film[1]);
             let padded = w.div_ceil(TILE) * h.div_ceil(TILE) * TILE * TILE;
@@ -1758,8 +1847,19 @@ impl GpuFrame {
                 WF_SINGLE_STEPS.min(params.counts[2] + 1)
             } + 1;
             let paths = gpu.output("wavefront paths", tile as u64 * WF_PATH_BYTES);
-            let queue = gpu.output("wavefront queues", 2 * tile as u64 * 4);
-            let init: Vec<[u32; 4]> = (0..steps).map(|_| [0, 1, 1, 0]).collect();
+            // The sorted wavefront's two lists after the two queues, its
+            // hits (two `vec4`s a path), and per step its lists' counters
+            // after the steps' (render.wgsl `sort_base`).
+            let lists = if sorted { 4 } else { 2 };
+            let queue = gpu.output("wavefront queues", lists * tile as u64 * 4);
+            let hits = gpu.output("wavefront hits", if sorted { tile as u64 * 32 } else { 16 });
+            let mut init: Vec<[u32; 4]> = (0..steps).map(|_| [0, 1, 1, 0]).collect();
+            if sorted {
+                for _ in 0..steps {
+                    init.push([0, 1, 1, 0]);
+                    init.extend((0..WF_BINS / 2).map(|_| [0; 4]));
+                }
+            }
             let ctl_init = gpu
                 .device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -1767,16 +1867,19 @@ impl GpuFrame {
                     contents: bytemuck::cast_slice(&init),
                     usage: wgpu::BufferUsages::COPY_SRC,
                 });
-            let ctl = gpu.output("wavefront counters", steps as u64 * 16);
+            let ctl = gpu.output("wavefront counters", init.len() as u64 * 16);
+            // A step's dispatch, then the sorted wavefront's lists'.
             let indirect = gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("wavefront dispatch"),
-                size: 16,
+                size: 32,
                 usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let bind = gpu.wavefront_bind_group(&[&paths, &queue, &ctl]);
+            let bind = gpu.wavefront_bind_group(&[&paths, &queue, &ctl, &hits]);
             Wavefront {
                 bind,
+                queue,
+                hits,
                 ctl,
                 ctl_init,
                 indirect,
@@ -1784,6 +1887,7 @@ impl GpuFrame {
                 tiles,
                 steps,
                 padded,
+                sorted,
             }
         });
     }
@@ -1792,12 +1896,17 @@ impl GpuFrame {
     /// path tracer in one submission: per sample and tile, the counters
     /// cleared, step 0 over the tile's pixels, then each step `k` over the
     /// paths step `k - 1` queued (an indirect dispatch whose workgroups
-    /// step `k - 1` counted). Timestamps as in [`GpuFrame::dispatch_samples`].
+    /// step `k - 1` counted). The sorted wavefront runs each step but the
+    /// last as `trace_extend` (as `trace`'s dispatch), `trace_prefix` (one
+    /// thread), then `trace_scatter` and `trace_shade` over the paths
+    /// `trace_extend` listed (an indirect dispatch whose workgroups it
+    /// counted). Timestamps as in [`GpuFrame::dispatch_samples`].
     fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, timed: bool) {
         let first = self.samples;
         let params = self.params;
         let pipeline = gpu.trace_pipeline(self.features, false);
         let last_pipeline = gpu.trace_pipeline(self.features, true);
+        let sorted = self.sorted().then(|| gpu.sorted_pipelines(self.features));
         self.make_wavefront(gpu);
         let Some(wf) = self.wf.as_ref() else {
             return;
@@ -1811,7 +1920,9 @@ impl GpuFrame {
                     let mut p = params;
                     p.pass_info[0] = first + s;
                     p.pass_info[1] = 1;
-                    p.wave = [k, 0, t * wf.tile, wf.tile];
+                    p.wave = [k, wf.steps, t * wf.tile, wf.tile];
+                    // `trace_extend`'s sort key: material or none.
+                    p.layers[2] = self.by_material as u32;
                     blocks.push(p);
                 }
             }
@@ -1832,16 +1943,18 @@ impl GpuFrame {
         for (i, block) in blocks.iter().enumerate() {
             let [k, _, start, _] = block.wave;
             if k == 0 {
-                enc.copy_buffer_to_buffer(&wf.ctl_init, 0, &wf.ctl, 0, wf.steps as u64 * 16);
+                enc.copy_buffer_to_buffer(&wf.ctl_init, 0, &wf.ctl, 0, wf.ctl.size());
             } else {
                 enc.copy_buffer_to_buffer(&wf.ctl, k as u64 * 16, &wf.indirect, 0, 16);
             }
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
+            let last = k + 1 == wf.steps;
+            let kernels = sorted.as_ref().filter(|_| !last);
             let mut pass = begin_pass(&mut enc, "wavefront step", ts, i == 0, i + 1 == total);
-            pass.set_pipeline(if k + 1 == wf.steps {
-                &last_pipeline
-            } else {
-                &pipeline
+            pass.set_pipeline(match kernels {
+                Some([extend, ..]) => extend,
+                None if last => &last_pipeline,
+                None => &pipeline,
             });
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
@@ -1849,6 +1962,30 @@ impl GpuFrame {
                 pass.dispatch_workgroups(wf.tile.min(wf.padded - start).div_ceil(64), 1, 1);
             } else {
                 pass.dispatch_workgroups_indirect(&wf.indirect, 0);
+            }
+            drop(pass);
+            if let Some([_, prefix, scatter, shade]) = kernels {
+                // The list's counters: after the steps', 4 + 2 WF_BINS
+                // words a step (render.wgsl `sort_base`).
+                let at = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
+                enc.copy_buffer_to_buffer(&wf.ctl, at, &wf.indirect, 16, 16);
+                let mut pass = begin_pass(&mut enc, "wavefront sort", None, false, false);
+                pass.set_bind_group(0, &self.bind, &[]);
+                pass.set_bind_group(1, &wf.bind, &[]);
+                pass.set_pipeline(prefix);
+                pass.dispatch_workgroups(1, 1, 1);
+                drop(pass);
+                let mut pass = begin_pass(&mut enc, "wavefront scatter", None, false, false);
+                pass.set_bind_group(0, &self.bind, &[]);
+                pass.set_bind_group(1, &wf.bind, &[]);
+                pass.set_pipeline(scatter);
+                pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                drop(pass);
+                let mut pass = begin_pass(&mut enc, "wavefront shade", None, false, false);
+                pass.set_bind_group(0, &self.bind, &[]);
+                pass.set_bind_group(1, &wf.bind, &[]);
+                pass.set_pipeline(shade);
+                pass.dispatch_workgroups_indirect(&wf.indirect, 16);
             }
         }
         if let Some(ts) = ts {

@@ -65,6 +65,15 @@ pub struct BenchArgs {
     /// ratio (`-` in the real-time mode).
     #[arg(long)]
     pub wavefront: bool,
+    /// `gpu`: also time the sorted wavefront (each bounce's hits found in
+    /// one kernel and shaded in order of their material in another;
+    /// `render --gpu --sorted`), and the same split without the sort
+    /// (the hits shaded in the order they were found in), in columns
+    /// beside the wavefront, with their ratios to it (`-` in the
+    /// real-time mode and where the scene needs the subsurface
+    /// integrator, which the sorted wavefront leaves out).
+    #[arg(long)]
+    pub sorted: bool,
     /// `gpu`: also time the frames with one dispatch per sample (as before
     /// 2026-12-02) instead of up to 16 samples per dispatch, in a column
     /// beside them, with their ratio: what the GPU's drain between
@@ -515,6 +524,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU wavefront (ms/frame) | wavefront / megakernel |";
         rule += "---:|---:|";
     }
+    if a.sorted {
+        extra += " GPU sorted wavefront (ms/frame) | sorted / wavefront | GPU split, unsorted (ms/frame) | unsorted / wavefront |";
+        rule += "---:|---:|---:|---:|";
+    }
     if a.per_sample {
         extra += " GPU one sample per dispatch (ms/frame) | per sample / layered |";
         rule += "---:|---:|";
@@ -622,6 +635,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 frame.set_features(features)?;
                 cols += &format!(" {:.2} | {:.2} |", gg * 1e3, gg / g);
             }
+            let mut wavefront = None;
             if a.wavefront {
                 if realtime || first_hit {
                     cols += " - | - |";
@@ -630,7 +644,35 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     let gw = time(&gpu, &mut frame)?.0;
                     frame.set_wavefront(false);
                     cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);
+                    wavefront = Some(gw);
                 }
+            }
+            if a.sorted {
+                frame.set_wavefront(true);
+                frame.set_sorted(true);
+                if realtime || first_hit || !frame.sorted() {
+                    cols += " - | - | - | - |";
+                } else {
+                    let gs = time(&gpu, &mut frame)?.0;
+                    frame.set_sort_by_material(false);
+                    let gu = time(&gpu, &mut frame);
+                    frame.set_sort_by_material(true);
+                    let gu = gu?.0;
+                    frame.set_sorted(false);
+                    let gw = match wavefront {
+                        Some(gw) => gw,
+                        None => time(&gpu, &mut frame)?.0,
+                    };
+                    cols += &format!(
+                        " {:.2} | {:.2} | {:.2} | {:.2} |",
+                        gs * 1e3,
+                        gs / gw,
+                        gu * 1e3,
+                        gu / gw
+                    );
+                }
+                frame.set_sorted(false);
+                frame.set_wavefront(false);
             }
             if a.per_sample && first_hit {
                 // Already one dispatch per sample.

@@ -97,6 +97,15 @@ pub struct RenderArgs {
     /// (see `--wavefront`).
     #[arg(long, requires = "gpu", conflicts_with_all = ["realtime", "wavefront"])]
     pub megakernel: bool,
+    /// With `--gpu`: path trace as the sorted wavefront: each bounce in
+    /// four dispatches, its hits found in one kernel and shaded in order
+    /// of their material in another, so that a GPU's SIMT groups shade
+    /// one material each. The same image as `--wavefront`; not yet
+    /// measured on a GPU, so not a default (`isolux bench gpu --sorted`
+    /// times it; docs/gpu.md, "The sorted wavefront"). A scene with a
+    /// `subsurface` material runs as `--wavefront`.
+    #[arg(long, requires = "gpu", conflicts_with_all = ["realtime", "wavefront", "megakernel"])]
+    pub sorted: bool,
     /// With `--gpu`: intersect in f64 whatever the scene (adapters with
     /// SHADER_F64; an error elsewhere). By default the GPU intersects in
     /// f32, and in f64 only where a bump dwarfs its base quadric, which
@@ -215,6 +224,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let mut gpu = isolux_gpu::Gpu::new().context("--gpu")?;
         gpu.set_path_kernel(if a.wavefront {
             isolux_gpu::PathKernel::Wavefront
+        } else if a.sorted {
+            isolux_gpu::PathKernel::Sorted
         } else if a.megakernel {
             isolux_gpu::PathKernel::Megakernel
         } else {

@@ -19,15 +19,16 @@ const FURNACE: &str = concat!(
 
 #[test]
 fn render_gpu_writes_an_image_of_the_furnace() {
-    for wavefront in [false, true] {
-        render_furnace(wavefront);
+    // The default, the wavefront with the f64 intersection, the sorted
+    // wavefront.
+    for extra in [&[][..], &["--wavefront", "--f64"], &["--sorted"]] {
+        render_furnace(extra);
     }
 }
 
-/// The furnace through `render --gpu` (with `--wavefront`, as a
-/// wavefront; with `--f64` as well, the intersection in f64): 1 in every
+/// The furnace through `render --gpu` with `extra` flags: 1 in every
 /// pixel.
-fn render_furnace(wavefront: bool) {
+fn render_furnace(extra: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.exr");
     let mut args = vec![
@@ -43,11 +44,7 @@ fn render_furnace(wavefront: bool) {
         "-o",
         out.to_str().unwrap(),
     ];
-    if wavefront {
-        // The wavefront with the f64 intersection, the megakernel with
-        // the default f32.
-        args.extend(["--wavefront", "--f64"]);
-    }
+    args.extend_from_slice(extra);
     let o = run(&args);
     let err = String::from_utf8_lossy(&o.stderr);
     if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
@@ -59,12 +56,13 @@ fn render_furnace(wavefront: bool) {
     // The white furnace is 1 everywhere: check the mean of the EXR.
     let img = isolux_io::read_rgb_image(&out).unwrap();
     let mean: f64 = img.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / img.pixels.len() as f64;
-    assert!((mean - 1.0).abs() < 0.01, "{mean}");
+    assert!((mean - 1.0).abs() < 0.01, "{extra:?}: {mean}");
 }
 
-/// `--wavefront` and `--megakernel` choose the GPU's path tracer:
-/// refused without `--gpu`, with `--realtime` and together, before any
-/// work; `--f64` (the GPU's intersection in f64) without `--gpu` too.
+/// `--wavefront`, `--sorted` and `--megakernel` choose the GPU's path
+/// tracer: refused without `--gpu`, with `--realtime` and together,
+/// before any work; `--f64` (the GPU's intersection in f64) without
+/// `--gpu` too.
 #[test]
 fn wavefront_needs_the_gpu_path_tracer() {
     for (flag, extra) in [
@@ -73,6 +71,10 @@ fn wavefront_needs_the_gpu_path_tracer() {
         ("--wavefront", &["--gpu", "--realtime"][..]),
         ("--megakernel", &["--gpu", "--realtime"][..]),
         ("--wavefront", &["--gpu", "--megakernel"][..]),
+        ("--sorted", &[][..]),
+        ("--sorted", &["--gpu", "--realtime"][..]),
+        ("--sorted", &["--gpu", "--wavefront"][..]),
+        ("--sorted", &["--gpu", "--megakernel"][..]),
         ("--f64", &[][..]),
     ] {
         let mut args = vec!["render", FURNACE, flag, "-o", "never.png"];

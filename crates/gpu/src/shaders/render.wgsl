@@ -1855,13 +1855,7 @@ fn bounce() -> bool {
             spectral_update(tr, tr);
         }
         if (h.x < 0.0) {
-            var w = 1.0;
-            if (path.env_counted) {
-                w = 0.0;
-            } else if (path.prev_pdf > 0.0 && params.counts.w == ENV_MAP) {
-                w = power_heuristic(path.prev_pdf, env_pdf(d));
-            }
-            path.l += path.beta * env_eval(d) * w;
+            escaped(d);
             return false;
         }
         oi = hit_object;
@@ -1888,16 +1882,42 @@ fn bounce() -> bool {
             return false;
         }
         p = o + h.x * d;
-        // Spatially varying materials (wave) are placed at the hit, camera
-        // rays with the pixel footprint (the angle of one pixel times the
-        // distance), as on the CPU; the comb offset is drawn only for them.
-        if (has_wave(m)) {
-            let fp = select(-1.0, pixel_footprint(h.x), path.depth == 0u);
-            m = place_material(m, p, fp, rand());
-        }
+        m = placed(m, p, h.x);
         ng = h.yzw;
         wo = -d;
     }
+    return shade(p, ng, wo, m, oi, mi);
+}
+
+// The path's light from the environment along d, where its ray escaped:
+// MIS-weighted against the light sample of the vertex before.
+fn escaped(d: vec3<f32>) {
+    var w = 1.0;
+    if (path.env_counted) {
+        w = 0.0;
+    } else if (path.prev_pdf > 0.0 && params.counts.w == ENV_MAP) {
+        w = power_heuristic(path.prev_pdf, env_pdf(d));
+    }
+    path.l += path.beta * env_eval(d) * w;
+}
+
+// Material m as it is at hit p, t along the path's ray: spatially varying
+// materials (wave) are placed at the hit, camera rays with the pixel
+// footprint (the angle of one pixel times the distance), as on the CPU;
+// the comb offset is drawn only for them.
+fn placed(m: Material, p: vec3<f32>, t: f32) -> Material {
+    if (has_wave(m)) {
+        let fp = select(-1.0, pixel_footprint(t), path.depth == 0u);
+        return place_material(m, p, fp, rand());
+    }
+    return m;
+}
+
+// The rest of a bounce at surface point p (geometric normal ng, toward
+// the ray's origin wo) of object oi with material m (record mi): direct
+// light, the BSDF's sample, the next ray in `path`. Whether the path goes
+// on.
+fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u32) -> bool {
     let flags = material_flags(m);
     var ns = ng;
     if (dot(wo, ng) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u) {
@@ -2246,7 +2266,7 @@ struct WfPath {
 
 @group(1) @binding(0) var<storage, read_write> wf_paths: array<WfPath>;
 // Two queues of `params.wave.w` slots: step k reads queue k mod 2 and
-// fills the other.
+// fills the other (the sorted wavefront's two lists follow them).
 @group(1) @binding(1) var<storage, read_write> wf_queue: array<u32>;
 // Per step k: the workgroups of its indirect dispatch, 1, 1, and the
 // number of queued paths (filled by step k - 1, cleared by the host).
@@ -2289,21 +2309,18 @@ fn wf_load(slot: u32) -> u32 {
     return bitcast<u32>(w.beta.w);
 }
 
-// Step `params.wave.x` of the wavefront for the path in slot `gid.x` (of
-// the tile's pixels on step 0, of the last step's queue after). `last`, a
-// constant at each entry point: the step takes every bounce left, in a
-// loop; otherwise exactly one bounce and no loop, so that nothing is
-// carried around a loop across the bounce's intersections (RADV, the
-// gallery's step 163 -> 144 VGPRs before scheduling; docs/gpu.md
-// "Register pressure").
-fn wf_step(gid: vec3<u32>, last: bool) {
+// The path of slot `gid.x` at the start of step `params.wave.x` (of the
+// tile's pixels on step 0: its camera path started; of the last step's
+// queue after: loaded) in `path` and `rng_state`: (slot, pixel), or
+// `NO_SLOT` in x where the thread has none.
+const NO_SLOT: u32 = 0xffffffffu;
+fn wf_begin(gid: vec3<u32>) -> vec2<u32> {
     let step = params.wave.x;
     let tile = params.wave.w;
-    var slot = gid.x;
-    var pixel = 0u;
+    let slot = gid.x;
     if (step == 0u) {
         if (slot >= tile) {
-            return;
+            return vec2<u32>(NO_SLOT, 0u);
         }
         // Padded pixel index q in 8 x 8 blocks, row by row of blocks, so a
         // workgroup's camera rays are one block (as `main`'s 8 x 8 groups).
@@ -2314,25 +2331,25 @@ fn wf_step(gid: vec3<u32>, last: bool) {
         let x = (b % blocks) * 8u + q % 8u;
         let y = (b / blocks) * 8u + (q % 64u) / 8u;
         if (x >= width || y >= params.film.y) {
-            return;
+            return vec2<u32>(NO_SLOT, 0u);
         }
-        pixel = y * width + x;
         use_tile(vec3<u32>(x, y, 0u));
         start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, 0u)));
-    } else {
-        if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
-            return;
-        }
-        slot = wf_queue[(step % 2u) * tile + gid.x];
-        pixel = wf_load(slot);
+        return vec2<u32>(slot, y * width + x);
     }
-    var alive: bool;
-    if (last) {
-        alive = bounces(bounce_bound() - step);
-    } else {
-        alive = bounce();
+    if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
+        return vec2<u32>(NO_SLOT, 0u);
     }
-    if (alive && !last) {
+    let queued = wf_queue[(step % 2u) * tile + gid.x];
+    return vec2<u32>(queued, wf_load(queued));
+}
+
+// The end of a step's bounce for the path of `slot`: queued for the next
+// step if `alive`, else its radiance added to its pixel.
+fn wf_end(slot: u32, pixel: u32, alive: bool) {
+    if (alive) {
+        let step = params.wave.x;
+        let tile = params.wave.w;
         wf_store(slot, pixel);
         let next = 4u * (step + 1u);
         let at = atomicAdd(&wf_ctl[next + 3u], 1u);
@@ -2345,6 +2362,27 @@ fn wf_step(gid: vec3<u32>, last: bool) {
     add_sample(pixel, path.l);
 }
 
+// Step `params.wave.x` of the wavefront for the path in slot `gid.x` (of
+// the tile's pixels on step 0, of the last step's queue after). `last`, a
+// constant at each entry point: the step takes every bounce left, in a
+// loop; otherwise exactly one bounce and no loop, so that nothing is
+// carried around a loop across the bounce's intersections (RADV, the
+// gallery's step 163 -> 144 VGPRs before scheduling; docs/gpu.md
+// "Register pressure").
+fn wf_step(gid: vec3<u32>, last: bool) {
+    let sp = wf_begin(gid);
+    if (sp.x == NO_SLOT) {
+        return;
+    }
+    var alive: bool;
+    if (last) {
+        alive = bounces(bounce_bound() - params.wave.x);
+    } else {
+        alive = bounce();
+    }
+    wf_end(sp.x, sp.y, alive && !last);
+}
+
 // Every step of the wavefront but the last (render.rs `dispatch_wavefront`).
 @compute @workgroup_size(64)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -2355,6 +2393,113 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(64)
 fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
     wf_step(gid, true);
+}
+
+// ---- The sorted wavefront (`PathKernel::Sorted`) ---------------------------
+//
+// Each step but the last in four dispatches instead of `trace`'s one
+// (render.rs `dispatch_wavefront`, docs/gpu.md "The sorted wavefront"):
+// `trace_extend` finds each queued path's next surface (a path that
+// escapes or reaches max depth ends there) and lists the path with its
+// hit; `trace_prefix` counts the list by material; `trace_scatter`
+// reorders it by material; `trace_shade` shades each hit in that order
+// and queues the path for the next step as `trace` does. So a SIMT group
+// shades one material where `trace`'s groups shade whatever their rays
+// met, and the intersection runs in a kernel without the material code.
+// The same paths, bounce for bounce and random number for random number,
+// as `trace`: the same image. Surfaces only: a scene with the subsurface
+// integrator (media, dipoles) runs `trace` (render.rs).
+//
+// Per slot, `wf_hits` holds the hit (t, ng) and (object, bin, 0, 0); the
+// queue buffer's third and fourth quarters the step's list as found and
+// as sorted; `wf_ctl` after the steps' counters, per step, the list's
+// [workgroups, 1, 1, length], then `WF_BINS` counts, then `WF_BINS`
+// cursors.
+
+@group(1) @binding(3) var<storage, read_write> wf_hits: array<vec4<f32>>;
+
+// The sort's bins (`WF_BINS`, lib.rs): material records 0 .. WF_BINS - 2
+// their own, the rest the last.
+
+// Where step `params.wave.x`'s list counters start in `wf_ctl`
+// (`params.wave.y` steps in all).
+fn sort_base() -> u32 {
+    return 4u * params.wave.y + params.wave.x * (4u + 2u * WF_BINS);
+}
+
+@compute @workgroup_size(64)
+fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let sp = wf_begin(gid);
+    if (sp.x == NO_SLOT) {
+        return;
+    }
+    let slot = sp.x;
+    let h = scene_hit(path.o, path.d, 3.0e38);
+    if (h.x < 0.0) {
+        escaped(path.d);
+        add_sample(sp.y, path.l);
+        return;
+    }
+    if (path.depth >= params.counts.z) {
+        add_sample(sp.y, path.l);
+        return;
+    }
+    if (params.wave.x == 0u) {
+        wf_store(slot, sp.y);
+    }
+    // The sort key: the material record, or one bin for every hit where
+    // the sort keeps their order (`params.layers.z`, 0: comparisons).
+    let bin = select(0u, min(objects[hit_object].range.z, WF_BINS - 1u), params.layers.z != 0u);
+    wf_hits[2u * slot] = h;
+    wf_hits[2u * slot + 1u] = vec4<f32>(bitcast<f32>(hit_object), bitcast<f32>(bin), 0.0, 0.0);
+    let base = sort_base();
+    atomicAdd(&wf_ctl[base + 4u + bin], 1u);
+    let at = atomicAdd(&wf_ctl[base + 3u], 1u);
+    if (at % 64u == 0u) {
+        atomicAdd(&wf_ctl[base], 1u);
+    }
+    wf_queue[2u * params.wave.w + at] = slot;
+}
+
+// The bins' first places in the sorted list: the counts' exclusive
+// prefix sums, as the cursors `trace_scatter` advances. One thread.
+@compute @workgroup_size(1)
+fn trace_prefix() {
+    let base = sort_base();
+    var sum = 0u;
+    for (var b = 0u; b < WF_BINS; b++) {
+        let c = atomicLoad(&wf_ctl[base + 4u + b]);
+        atomicStore(&wf_ctl[base + 4u + WF_BINS + b], sum);
+        sum += c;
+    }
+}
+
+@compute @workgroup_size(64)
+fn trace_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let base = sort_base();
+    if (gid.x >= atomicLoad(&wf_ctl[base + 3u])) {
+        return;
+    }
+    let tile = params.wave.w;
+    let slot = wf_queue[2u * tile + gid.x];
+    let bin = bitcast<u32>(wf_hits[2u * slot + 1u].y);
+    let at = atomicAdd(&wf_ctl[base + 4u + WF_BINS + bin], 1u);
+    wf_queue[3u * tile + at] = slot;
+}
+
+@compute @workgroup_size(64)
+fn trace_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= atomicLoad(&wf_ctl[sort_base() + 3u])) {
+        return;
+    }
+    let slot = wf_queue[3u * params.wave.w + gid.x];
+    let pixel = wf_load(slot);
+    let h = wf_hits[2u * slot];
+    let oi = bitcast<u32>(wf_hits[2u * slot + 1u].x);
+    let mi = objects[oi].range.z;
+    let p = path.o + h.x * path.d;
+    let m = placed(materials[mi], p, h.x);
+    wf_end(slot, pixel, shade(p, h.yzw, -path.d, m, oi, mi));
 }
 
 // AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
