@@ -18,7 +18,10 @@ of fireflies), and lights and materials whose values overflow f32 (docs/gpu.md,
 
 usage: scripts/gpu-diff-fuzz.py [--seed N] [--rounds N] [--objects-only]
            [--realtime] [--spp N] [--keep DIR] [--isolux PATH]
-           [--cpu-only [--structure]] [--timeout S]
+           [--cpu-only [--structure]] [--timeout S] [--gpu-flag FLAG ...]
+
+`--gpu-flag=--sorted` (or `--megakernel`, `--f64`) passes a flag to the
+GPU's renders only: the CPU against that kernel.
 
 `--cpu-only --structure` mutates the file's lines instead (deleted,
 duplicated, swapped, an array emptied, a number made a string): the
@@ -70,6 +73,7 @@ def render(isolux, scene, out, gpu, args):
            "--height", "24", "--spp", str(args.spp)]
     if gpu:
         cmd.append("--gpu")
+        cmd.extend(args.gpu_flag)
     if args.realtime:
         cmd.append("--realtime")
     try:
@@ -111,6 +115,8 @@ def main():
                    help="change numbers of [[object]] tables only (geometry)")
     p.add_argument("--realtime", action="store_true", help="compare the real-time mode")
     p.add_argument("--spp", type=int, default=32)
+    p.add_argument("--gpu-flag", action="append", default=[], metavar="FLAG",
+                   help="a flag for the GPU's renders only, e.g. --gpu-flag=--sorted (repeatable)")
     p.add_argument("--keep", default="/tmp/gpu-diff-fuzz", help="where flagged scenes go")
     p.add_argument("--isolux", default=os.path.join(ROOT, "target", "release", "isolux"))
     p.add_argument("--cpu-only", action="store_true",
