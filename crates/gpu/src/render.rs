@@ -849,6 +849,8 @@ pub struct GpuFrame {
     /// The sorted wavefront sorts by material (else it keeps the order
     /// its hits were found in: [`GpuFrame::set_sort_by_material`]).
     by_material: bool,
+    /// Paths per wavefront tile at most ([`GpuFrame::set_wavefront_tile`]).
+    tile_max: u64,
     /// Runs trace first hits only ([`Gpu::prepare_first_hits`]).
     first_hits: bool,
     /// The scene has a random-walk medium (long paths: more wavefront
@@ -1577,6 +1579,7 @@ impl Gpu {
             wf: None,
             sorted: self.path_kernel() == crate::PathKernel::Sorted,
             by_material: true,
+            tile_max: WF_TILE_MAX,
             first_hits: false,
             random_walk,
             media,
@@ -1783,6 +1786,16 @@ impl GpuFrame {
         self.by_material = on;
     }
 
+    /// Paths per tile of the wavefront at most (rounded down to a
+    /// multiple of 64, at least 64; by default 2^22, or fewer where the
+    /// adapter binds less): a film of more padded pixels runs
+    /// in several tiles, one after another. The same image whatever the
+    /// tile. For tests (a film in several tiles without a huge film).
+    pub fn set_wavefront_tile(&mut self, paths: u64) {
+        self.tile_max = paths.clamp(64, WF_TILE_MAX);
+        self.wf = None;
+    }
+
     /// How many paths each step of the wavefront ran, in the last tile of
     /// the last sample queued (step 0: the tile's padded pixels; waits for
     /// the queue); `None` before the wavefront ran. A diagnostic: the
@@ -1832,13 +1845,14 @@ impl GpuFrame {
         let params = self.params;
         let medium = self.random_walk;
         let sorted = self.sorted();
+        let tile_max = self.tile_max;
         if self.wf.as_ref().is_some_and(|wf| wf.sorted != sorted) {
             self.wf = None;
         }
         self.wf.get_or_insert_with(|| {
             let (w, h) = (params.film[0], params.film[1]);
             let padded = w.div_ceil(TILE) * h.div_ceil(TILE) * TILE * TILE;
-            let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(WF_TILE_MAX) / 64 * 64;
+            let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(tile_max) / 64 * 64;
             let tile = (padded as u64).min(fit.max(64)) as u32;
             let tiles = padded.div_ceil(tile);
             let steps = if medium {

@@ -1399,6 +1399,38 @@ fn sorted_wavefront_traces_the_wavefronts_paths() {
     assert!(!frame.sorted(), "the subsurface integrator is not sorted");
 }
 
+/// A film in several wavefront tiles (`GpuFrame::set_wavefront_tile`:
+/// 640 paths a tile, so 61 x 35, 2,560 padded pixels, in four) traces the
+/// same paths as in one tile, with the plain and the sorted wavefront:
+/// each tile clears its counters (the sorted lists' too), starts its own
+/// pixels and ends its paths before the next.
+#[test]
+fn wavefront_tiles_trace_the_films_paths() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = common::example("gallery.toml");
+    scene.film.width = 61;
+    scene.film.height = 35;
+    scene.film.spp = 2;
+    for sorted in [false, true] {
+        let run = |tile: Option<u64>| {
+            let mut frame = gpu.prepare(&scene).unwrap();
+            frame.set_wavefront(true);
+            frame.set_sorted(sorted);
+            if let Some(tile) = tile {
+                frame.set_wavefront_tile(tile);
+            }
+            frame.run(&gpu, 2);
+            frame.image(&gpu).unwrap().0
+        };
+        let (one, four) = (run(None), run(Some(640)));
+        let name = if sorted { "sorted" } else { "wavefront" };
+        same_paths(name, ("one tile", &one), ("four tiles", &four));
+        assert_eq!(one.rgb, four.rgb, "{name}");
+    }
+}
+
 /// Asserts that two renders of the same paths agree: at least 97% of the
 /// values within 1e-4 (relative above 1), the means within 1%, the
 /// second all finite and non-negative.
