@@ -1983,21 +1983,15 @@ impl GpuFrame {
                 // words a step (render.wgsl `sort_base`).
                 let at = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
                 enc.copy_buffer_to_buffer(&wf.ctl, at, &wf.indirect, 16, 16);
+                // One pass: wgpu orders a pass's dispatches by their
+                // storage use (as `samples` runs `main`, then `resolve`).
                 let mut pass = begin_pass(&mut enc, "wavefront sort", None, false, false);
                 pass.set_bind_group(0, &self.bind, &[]);
                 pass.set_bind_group(1, &wf.bind, &[]);
                 pass.set_pipeline(prefix);
                 pass.dispatch_workgroups(1, 1, 1);
-                drop(pass);
-                let mut pass = begin_pass(&mut enc, "wavefront scatter", None, false, false);
-                pass.set_bind_group(0, &self.bind, &[]);
-                pass.set_bind_group(1, &wf.bind, &[]);
                 pass.set_pipeline(scatter);
                 pass.dispatch_workgroups_indirect(&wf.indirect, 16);
-                drop(pass);
-                let mut pass = begin_pass(&mut enc, "wavefront shade", None, false, false);
-                pass.set_bind_group(0, &self.bind, &[]);
-                pass.set_bind_group(1, &wf.bind, &[]);
                 pass.set_pipeline(shade);
                 pass.dispatch_workgroups_indirect(&wf.indirect, 16);
             }
