@@ -260,6 +260,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 gpu.driver
             );
         }
+        if a.sorted && isolux_gpu::scene_features(&scene).is_ok_and(|f| f.subsurface()) {
+            eprintln!(
+                "isolux: note: --sorted: {}: the sorted wavefront leaves out the subsurface \
+                 integrator (media, dipoles) this scene needs: it renders as --wavefront (the \
+                 same image)",
+                a.scene.display()
+            );
+        }
         if a.megakernel
             && gpu.miscompiles_loops()
             && scene.materials.iter().any(|m| m.varies_in_space())

@@ -59,6 +59,39 @@ fn render_furnace(extra: &[&str]) {
     assert!((mean - 1.0).abs() < 0.01, "{extra:?}: {mean}");
 }
 
+/// `--sorted` on a scene with a `subsurface` material renders as
+/// `--wavefront` and says so.
+#[test]
+fn sorted_says_when_it_renders_as_the_wavefront() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.png");
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/translucent.toml"
+    );
+    let o = run(&[
+        "render",
+        scene,
+        "--gpu",
+        "--sorted",
+        "--spp",
+        "1",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        return;
+    }
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("renders as --wavefront"), "{err}");
+    assert!(out.exists());
+}
+
 /// `--wavefront`, `--sorted` and `--megakernel` choose the GPU's path
 /// tracer: refused without `--gpu`, with `--realtime` and together,
 /// before any work; `--f64` (the GPU's intersection in f64) without
