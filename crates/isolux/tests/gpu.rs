@@ -17,6 +17,40 @@ const FURNACE: &str = concat!(
     "/../../examples/scenes/furnace.toml"
 );
 
+/// Whether a run failed for want of an adapter (stderr `err`) outside CI,
+/// where the test is skipped; in CI (lavapipe) an adapter must exist.
+fn no_adapter(err: &str) -> bool {
+    err.contains("no GPU adapter found") && std::env::var_os("CI").is_none()
+}
+
+/// `render SCENE --gpu -o OUT` at 32 x 24, 2 spp, with `extra` flags:
+/// its stderr, once it succeeded; `None` without an adapter outside CI
+/// (after checking that it then exits 1).
+fn render_small(scene: &str, extra: &[&str], out: &std::path::Path) -> Option<String> {
+    let mut args = vec![
+        "render",
+        scene,
+        "--gpu",
+        "--spp",
+        "2",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    if no_adapter(&err) {
+        assert_eq!(o.status.code(), Some(1));
+        return None;
+    }
+    assert!(o.status.success(), "{extra:?}: {err}");
+    Some(err)
+}
+
 #[test]
 fn render_gpu_writes_an_image_of_the_furnace() {
     // The default, the wavefront with the f64 intersection, the sorted
@@ -31,27 +65,9 @@ fn render_gpu_writes_an_image_of_the_furnace() {
 fn render_furnace(extra: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.exr");
-    let mut args = vec![
-        "render",
-        FURNACE,
-        "--gpu",
-        "--spp",
-        "2",
-        "--width",
-        "32",
-        "--height",
-        "24",
-        "-o",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    let o = run(&args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
-        assert_eq!(o.status.code(), Some(1));
+    let Some(err) = render_small(FURNACE, extra, &out) else {
         return;
-    }
-    assert!(o.status.success(), "{err}");
+    };
     assert!(err.contains("rendered 32x24 at 2 spp"), "{err}");
     // The white furnace is 1 everywhere: check the mean of the EXR.
     let img = isolux_io::read_rgb_image(&out).unwrap();
@@ -69,25 +85,9 @@ fn sorted_says_when_it_renders_as_the_wavefront() {
         env!("CARGO_MANIFEST_DIR"),
         "/../../examples/scenes/translucent.toml"
     );
-    let o = run(&[
-        "render",
-        scene,
-        "--gpu",
-        "--sorted",
-        "--spp",
-        "1",
-        "--width",
-        "16",
-        "--height",
-        "12",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+    let Some(err) = render_small(scene, &["--sorted"], &out) else {
         return;
-    }
-    assert!(o.status.success(), "{err}");
+    };
     assert!(err.contains("renders as --wavefront"), "{err}");
     assert!(out.exists());
 }
@@ -124,25 +124,9 @@ fn wavefront_needs_the_gpu_path_tracer() {
 fn render_gpu_writes_aov_layers() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.exr");
-    let o = run(&[
-        "render",
-        FURNACE,
-        "--gpu",
-        "--aov",
-        "--spp",
-        "2",
-        "--width",
-        "32",
-        "--height",
-        "24",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+    if render_small(FURNACE, &["--aov"], &out).is_none() {
         return;
     }
-    assert!(o.status.success(), "{err}");
     // The EXR header names the AOV channels (their values are compared
     // with the CPU's in crates/gpu/tests/aov.rs).
     let bytes = std::fs::read(&out).unwrap();
@@ -201,7 +185,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "--checked",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+    if no_adapter(&err) {
         assert_eq!(o.status.code(), Some(1));
         return;
     }
@@ -393,7 +377,7 @@ fn refused_on_the_gpu_rendered_on_the_cpu(scene: &std::path::Path, want: &str) -
     let o = out.to_str().unwrap();
     let r = run(&["render", s, "--gpu", "-o", o]);
     let err = String::from_utf8_lossy(&r.stderr);
-    if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+    if no_adapter(&err) {
         return false;
     }
     assert_eq!(r.status.code(), Some(1), "{err}");
@@ -470,7 +454,7 @@ factor = 3000.0
         }
         let r = run(&args);
         let err = String::from_utf8_lossy(&r.stderr).to_string();
-        if err.contains("no GPU adapter found") && std::env::var_os("CI").is_none() {
+        if no_adapter(&err) {
             return None;
         }
         if gpu && err.contains("does not offer f64 in shaders") {

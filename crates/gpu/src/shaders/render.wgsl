@@ -2344,19 +2344,24 @@ fn wf_begin(gid: vec3<u32>) -> vec2<u32> {
     return vec2<u32>(queued, wf_load(queued));
 }
 
+// Appends `slot` to the list that starts at `wf_queue[list]` and whose
+// counters `[workgroups, 1, 1, length]` start at `wf_ctl[counters]`: one
+// workgroup of the indirect dispatch over the list per 64 paths.
+fn wf_push(counters: u32, list: u32, slot: u32) {
+    let at = atomicAdd(&wf_ctl[counters + 3u], 1u);
+    if (at % 64u == 0u) {
+        atomicAdd(&wf_ctl[counters], 1u);
+    }
+    wf_queue[list + at] = slot;
+}
+
 // The end of a step's bounce for the path of `slot`: queued for the next
 // step if `alive`, else its radiance added to its pixel.
 fn wf_end(slot: u32, pixel: u32, alive: bool) {
     if (alive) {
-        let step = params.wave.x;
-        let tile = params.wave.w;
+        let next = params.wave.x + 1u;
         wf_store(slot, pixel);
-        let next = 4u * (step + 1u);
-        let at = atomicAdd(&wf_ctl[next + 3u], 1u);
-        if (at % 64u == 0u) {
-            atomicAdd(&wf_ctl[next], 1u);
-        }
-        wf_queue[((step + 1u) % 2u) * tile + at] = slot;
+        wf_push(4u * next, (next % 2u) * params.wave.w, slot);
         return;
     }
     add_sample(pixel, path.l);
@@ -2454,11 +2459,7 @@ fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
     wf_hits[2u * slot + 1u] = vec4<f32>(bitcast<f32>(hit_object), bitcast<f32>(bin), 0.0, 0.0);
     let base = sort_base();
     atomicAdd(&wf_ctl[base + 4u + bin], 1u);
-    let at = atomicAdd(&wf_ctl[base + 3u], 1u);
-    if (at % 64u == 0u) {
-        atomicAdd(&wf_ctl[base], 1u);
-    }
-    wf_queue[2u * params.wave.w + at] = slot;
+    wf_push(base, 2u * params.wave.w, slot);
 }
 
 // The bins' first places in the sorted list: the counts' exclusive
