@@ -91,6 +91,16 @@ pub struct SortedSteps {
     pub counts: Vec<Vec<u32>>,
     /// The bins of the last non-empty list, in shading order.
     pub last: Vec<u32>,
+    /// Per slot of the tile (on step 0 its padded pixels, 8 x 8 blocks row
+    /// by row of blocks), 1 + the last step whose list held the path in
+    /// this sample, 0 where none did (the camera ray missed, or the tile
+    /// has no such pixel). A path listed at step `k` was listed at every
+    /// step before: its steps are `0 .. listed[slot]`. What
+    /// `examples/wavefront_lanes.rs` models the SIMT lanes' use with.
+    pub listed: Vec<u32>,
+    /// Per slot, the bin of the path's hit at that last step (where
+    /// `listed` is not 0).
+    pub bins: Vec<u32>,
 }
 
 /// The wavefront path tracer's buffers for one frame (`trace` in
@@ -1832,10 +1842,19 @@ impl GpuFrame {
         let queue: Vec<u32> = gpu.read_back(&wf.queue)?;
         let hits: Vec<[u32; 8]> = gpu.read_back(&wf.hits)?;
         let list = &queue[3 * wf.tile as usize..][..len];
+        // trace_extend's stamp: 1 + step, the tile from bit 8; the sample.
+        let (tile, sample) = (wf.tiles - 1, self.samples.saturating_sub(1));
+        let ours = |h: &[u32; 8]| h[6] >> 8 == tile && h[7] == sample;
+        let (listed, bins) = hits[..wf.tile as usize]
+            .iter()
+            .map(|h| if ours(h) { (h[6] & 0xff, h[5]) } else { (0, 0) })
+            .unzip();
         Ok(Some(SortedSteps {
             lengths,
             counts,
             last: list.iter().map(|&slot| hits[slot as usize][5]).collect(),
+            listed,
+            bins,
         }))
     }
 

@@ -1369,8 +1369,11 @@ fn sorted_wavefront_traces_the_wavefronts_paths() {
                     sort.counts.iter().map(used).collect::<Vec<_>>(),
                     sort.last.len()
                 );
-                for (n, c) in sort.lengths.iter().zip(&sort.counts) {
+                for (k, (n, c)) in sort.lengths.iter().zip(&sort.counts).enumerate() {
                     assert_eq!(*n, c.iter().sum::<u32>(), "{name}");
+                    // The paths' stamps: as many listed at step k.
+                    let stamped = sort.listed.iter().filter(|&&l| l as usize > k).count();
+                    assert_eq!(*n as usize, stamped, "{name}: step {k}");
                 }
                 assert!(sort.lengths[0] > 0, "{name}");
                 assert!(!sort.last.is_empty() && sort.last.is_sorted(), "{name}");

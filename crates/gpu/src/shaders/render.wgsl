@@ -2415,7 +2415,9 @@ fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
 // as `trace`: the same image. Surfaces only: a scene with the subsurface
 // integrator (media, dipoles) runs `trace` (render.rs).
 //
-// Per slot, `wf_hits` holds the hit (t, ng) and (object, bin, 0, 0); the
+// Per slot, `wf_hits` holds the hit (t, ng) and (object, bin, step,
+// sample) of the last step that listed it (diagnostics: step + 1 with the
+// tile's index from bit 8, the sample of `pass_info.x`); the
 // queue buffer's third and fourth quarters the step's list as found and
 // as sorted; `wf_ctl` after the steps' counters, per step, the list's
 // [workgroups, 1, 1, length], then `WF_BINS` counts, then `WF_BINS`
@@ -2456,7 +2458,10 @@ fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
     // the sort keeps their order (`params.layers.z`, 0: comparisons).
     let bin = select(0u, min(objects[hit_object].range.z, WF_BINS - 1u), params.layers.z != 0u);
     wf_hits[2u * slot] = h;
-    wf_hits[2u * slot + 1u] = vec4<f32>(bitcast<f32>(hit_object), bitcast<f32>(bin), 0.0, 0.0);
+    // With a stamp of the step, the tile and the sample (`sorted_steps`).
+    let stamp = (params.wave.x + 1u) | ((params.wave.z / params.wave.w) << 8u);
+    wf_hits[2u * slot + 1u] = vec4<f32>(bitcast<f32>(hit_object), bitcast<f32>(bin),
+                                        bitcast<f32>(stamp), bitcast<f32>(params.pass_info.x));
     let base = sort_base();
     atomicAdd(&wf_ctl[base + 4u + bin], 1u);
     wf_push(base, 2u * params.wave.w, slot);
