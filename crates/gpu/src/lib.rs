@@ -584,9 +584,15 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
 /// speed (docs/gpu.md, "The wavefront path tracer").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PathKernel {
-    /// On GPUs the wavefront, for every scene (since 2026-12-04): on an
-    /// NVIDIA H200 it path traces the gallery in 0.62 of the megakernel's
-    /// time (84.6 against 136.2 ms at 1080p, 16 spp; direct light 0.55).
+    /// On GPUs the sorted wavefront ([`PathKernel::Sorted`], since later
+    /// on 2026-12-04), or the wavefront for scenes with the subsurface
+    /// integrator: on an NVIDIA H200 the wavefront path traces the
+    /// gallery in 0.62 of the megakernel's time (84.6 against 136.2 ms
+    /// at 1080p, 16 spp; direct light 0.55), and the sort leaves a
+    /// 32-lane group 0.40 of the wavefront's material branches to shade
+    /// there (`examples/wavefront_lanes.rs`; lavapipe on one thread: 0.73-0.85
+    /// of the wavefront's time, path traced; docs/gpu.md, "The sorted
+    /// wavefront").
     /// On CPU drivers (lavapipe), where the two take the same time on
     /// surfaces (the gallery 0.95-1.03, the dipole 0.88-1.02) and the
     /// wavefront's two kernels take twice the megakernel's compile time
@@ -605,9 +611,9 @@ pub enum PathKernel {
     /// in order of their material (`trace_extend`, `trace_prefix`,
     /// `trace_scatter`, `trace_shade`; docs/gpu.md "The sorted
     /// wavefront"): the same image, for a GPU's SIMT groups to shade one
-    /// material each. Not measured on a GPU yet, so not a default. A
-    /// scene with the subsurface integrator (media, dipoles) runs
-    /// [`PathKernel::Wavefront`].
+    /// material each. The default on GPUs ([`PathKernel::Auto`]); not yet
+    /// timed on one. A scene with the subsurface integrator (media,
+    /// dipoles) runs [`PathKernel::Wavefront`].
     Sorted,
 }
 

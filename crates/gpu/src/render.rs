@@ -1587,7 +1587,10 @@ impl Gpu {
                 crate::PathKernel::Wavefront | crate::PathKernel::Sorted => true,
             },
             wf: None,
-            sorted: self.path_kernel() == crate::PathKernel::Sorted,
+            sorted: match self.path_kernel() {
+                crate::PathKernel::Auto => !self.cpu,
+                k => k == crate::PathKernel::Sorted,
+            },
             by_material: true,
             tile_max: WF_TILE_MAX,
             first_hits: false,

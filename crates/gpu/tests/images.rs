@@ -1222,10 +1222,13 @@ fn frames_choose_the_kernels_their_scenes_need() {
 
 /// `PathKernel::Auto` (the default) path traces every scene as a
 /// wavefront on GPUs (since 2026-12-04: 0.62x the megakernel's time on
-/// the gallery on an NVIDIA H200), and on CPU drivers only scenes with a
-/// random-walk medium or a `wave` material; `Megakernel` and `Wavefront`
-/// hold whatever the scene. (Compiles nothing; both give the same image,
-/// `wavefront_traces_the_megakernels_paths`.)
+/// the gallery on an NVIDIA H200), sorted unless the scene needs the
+/// subsurface integrator, and on CPU drivers only scenes with a
+/// random-walk medium or a `wave` material, unsorted; `Megakernel`,
+/// `Wavefront` and `Sorted` hold whatever the scene (`Sorted` but for the
+/// subsurface integrator). (Compiles nothing; all give the same image,
+/// `wavefront_traces_the_megakernels_paths`,
+/// `sorted_wavefront_traces_the_wavefronts_paths`.)
 #[test]
 fn path_kernel_follows_the_scene_unless_chosen() {
     use isolux_gpu::PathKernel;
@@ -1236,25 +1239,25 @@ fn path_kernel_follows_the_scene_unless_chosen() {
     // The wavefront by default on GPUs whatever the scene; on CPU drivers
     // for long paths (a random-walk medium) and `wave` materials
     // (`paths_meeting_wave_surfaces_twice_go_on`).
-    for (name, long) in [
-        ("gallery.toml", false),
-        ("translucent.toml", false),
-        ("translucent-random-walk.toml", true),
-        ("wave-brushed.toml", true),
-        ("wave-grating.toml", true),
+    for (name, long, subsurface) in [
+        ("gallery.toml", false, false),
+        ("translucent.toml", false, true),
+        ("translucent-random-walk.toml", true, true),
+        ("wave-brushed.toml", true, false),
+        ("wave-grating.toml", true, false),
     ] {
         let scene = common::example(name);
-        for (kernel, wavefront) in [
-            (PathKernel::Auto, long || !gpu.is_cpu()),
-            (PathKernel::Megakernel, false),
-            (PathKernel::Wavefront, true),
+        let gpu_sorts = !gpu.is_cpu() && !subsurface;
+        for (kernel, wavefront, sorted) in [
+            (PathKernel::Auto, long || !gpu.is_cpu(), gpu_sorts),
+            (PathKernel::Megakernel, false, false),
+            (PathKernel::Wavefront, true, false),
+            (PathKernel::Sorted, true, !subsurface),
         ] {
             gpu.set_path_kernel(kernel);
-            assert_eq!(
-                gpu.prepare(&scene).unwrap().wavefront(),
-                wavefront,
-                "{name} {kernel:?}"
-            );
+            let frame = gpu.prepare(&scene).unwrap();
+            assert_eq!(frame.wavefront(), wavefront, "{name} {kernel:?}");
+            assert_eq!(frame.sorted(), sorted, "{name} {kernel:?}");
         }
         gpu.set_path_kernel(PathKernel::Auto);
     }
@@ -1301,6 +1304,7 @@ fn wavefront_traces_the_megakernels_paths() {
         let run = |wavefront: bool| {
             let mut frame = gpu.prepare(&scene).unwrap();
             frame.set_wavefront(wavefront);
+            frame.set_sorted(false);
             assert_eq!(frame.wavefront(), wavefront);
             frame.run(&gpu, 3);
             frame.run(&gpu, 1);

@@ -60,14 +60,15 @@ pub struct BenchArgs {
     #[arg(long)]
     pub general: bool,
     /// `gpu`: also time the wavefront path tracer (one dispatch per
-    /// bounce over the paths still alive; what `render --gpu` runs by
-    /// default on GPUs), in a column beside the megakernel, with their
-    /// ratio (`-` in the real-time mode).
+    /// bounce over the paths still alive; `render --gpu --wavefront`), in
+    /// a column beside the megakernel, with their ratio (`-` in the
+    /// real-time mode).
     #[arg(long)]
     pub wavefront: bool,
     /// `gpu`: also time the sorted wavefront (each bounce's hits found in
     /// one kernel and shaded in order of their material in another;
-    /// `render --gpu --sorted`), and the same split without the sort
+    /// what `render --gpu` runs by default on GPUs, `--sorted`), and the
+    /// same split without the sort
     /// (the hits shaded in the order they were found in), in columns
     /// beside the wavefront, with their ratios to it (`-` in the
     /// real-time mode and where the scene needs the subsurface
@@ -468,10 +469,10 @@ fn wave(repeat: u32) -> Result<()> {
 /// time from queueing a frame to the idle queue; "GPU kernels" is the
 /// GPU's own time of the same frame from timestamps (where the adapter
 /// offers them), so the two differ by what the host and the driver cost.
-/// The path tracer's columns time the megakernel, and `--wavefront` the
-/// wavefront beside it, which a render runs by default on GPUs
-/// (`isolux_gpu::PathKernel::Auto`; the megakernel's columns stay
-/// comparable with earlier measurements). "First frame" is the wall time of
+/// The path tracer's columns time the megakernel, `--wavefront` the
+/// wavefront beside it and `--sorted` the sorted wavefront, which a
+/// render runs by default on GPUs (`isolux_gpu::PathKernel::Auto`; the
+/// megakernel's columns stay comparable with earlier measurements). "First frame" is the wall time of
 /// the first frame of the mode's specialized f32 kernels, which compiles them, unless an earlier row
 /// of the run did (direct light runs the path tracer's kernel) or the
 /// driver's shader cache holds them (Mesa's and NVIDIA's keep compiled
@@ -571,8 +572,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 gpu.prepare(&scene)?
             };
             // The GPU columns time the megakernel, although a render on
-            // a GPU runs the wavefront (`PathKernel::Auto`); `--wavefront`
-            // adds the wavefront's.
+            // a GPU runs the sorted wavefront (`PathKernel::Auto`);
+            // `--wavefront` and `--sorted` add the wavefronts'.
             frame.set_wavefront(false);
             // Wall time from queueing the frame to the idle queue, and the
             // GPU's own time of the same frames (timestamps), best of each.
@@ -640,7 +641,10 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 if realtime || first_hit {
                     cols += " - | - |";
                 } else {
+                    // The plain wavefront, not the sorted one that is
+                    // the default on GPUs.
                     frame.set_wavefront(true);
+                    frame.set_sorted(false);
                     let gw = time(&gpu, &mut frame)?.0;
                     frame.set_wavefront(false);
                     cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);

@@ -87,10 +87,12 @@ pub struct RenderArgs {
     /// over the paths still alive, rather than one kernel running each
     /// path to its end. The same paths and random numbers, so the same
     /// image; which is faster depends on the scene and the device
-    /// (`isolux bench gpu --wavefront` times both; docs/gpu.md). The
-    /// default on GPUs (0.62x the megakernel's time on the gallery on an
-    /// NVIDIA H200); on CPU drivers (lavapipe) for scenes with a
-    /// random-walk `subsurface` medium or a `wave` material.
+    /// (`isolux bench gpu --wavefront` times both; docs/gpu.md). 0.62x
+    /// the megakernel's time on the gallery on an NVIDIA H200. The
+    /// default on GPUs is its sorted form (`--sorted`), and this for
+    /// scenes with a `subsurface` material; on CPU drivers (lavapipe)
+    /// this for scenes with a random-walk `subsurface` medium or a
+    /// `wave` material, the megakernel for the rest.
     #[arg(long, requires = "gpu", conflicts_with = "realtime")]
     pub wavefront: bool,
     /// With `--gpu`: path trace with the megakernel, whatever the scene
@@ -100,10 +102,12 @@ pub struct RenderArgs {
     /// With `--gpu`: path trace as the sorted wavefront: each bounce in
     /// four dispatches, its hits found in one kernel and shaded in order
     /// of their material in another, so that a GPU's SIMT groups shade
-    /// one material each. The same image as `--wavefront`; not yet
-    /// measured on a GPU, so not a default (`isolux bench gpu --sorted`
-    /// times it; docs/gpu.md, "The sorted wavefront"). A scene with a
-    /// `subsurface` material runs as `--wavefront`.
+    /// one material each. The same image as `--wavefront`. The default
+    /// on GPUs (not on CPU drivers such as lavapipe), chosen by a model
+    /// of a GPU's lanes and by lavapipe, not yet timed on a GPU
+    /// (`isolux bench gpu --sorted` times it; docs/gpu.md, "The sorted
+    /// wavefront"). A scene with a `subsurface` material runs as
+    /// `--wavefront`.
     #[arg(long, requires = "gpu", conflicts_with_all = ["realtime", "wavefront", "megakernel"])]
     pub sorted: bool,
     /// With `--gpu`: intersect in f64 whatever the scene (adapters with
