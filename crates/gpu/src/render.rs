@@ -129,6 +129,24 @@ struct Wavefront {
     sorted: bool,
 }
 
+/// Whether `materials` hold a random-walk medium's record.
+fn random_walk(materials: &GpuMaterials) -> bool {
+    materials
+        .materials
+        .iter()
+        .any(|m| m.tag[0] == layout::tag::SUBSURFACE && m.tag[3] == 1)
+}
+
+/// The path kernel of a frame that runs as a wavefront or not, sorted or
+/// not.
+fn resolved_kernel(wavefront: bool, sorted: bool) -> crate::PathKernel {
+    match (wavefront, sorted) {
+        (false, _) => crate::PathKernel::Megakernel,
+        (true, false) => crate::PathKernel::Wavefront,
+        (true, true) => crate::PathKernel::Sorted,
+    }
+}
+
 /// The largest ratio of a bounded object's distance from the GPU's origin
 /// (the camera, [`rebase_point`]; the farthest coordinate of its box) to
 /// its size (its box's longest side) that the GPU accepts. Objects are
@@ -1558,10 +1576,7 @@ impl Gpu {
         let layers = self.output("sample layers (none yet)", 16);
         let bind = self.frame_bind_group(&buffers, &layers);
         let needed = needed(scene, &materials, &geo, &refracted, manifold);
-        let random_walk = materials
-            .materials
-            .iter()
-            .any(|m| m.tag[0] == layout::tag::SUBSURFACE && m.tag[3] == 1);
+        let random_walk = random_walk(&materials);
         let frame = GpuFrame {
             realtime,
             rebase: at,
@@ -1581,16 +1596,9 @@ impl Gpu {
             params,
             aov,
             samples: 0,
-            wavefront: match self.path_kernel() {
-                crate::PathKernel::Auto => !self.cpu || random_walk || needed.wave(),
-                crate::PathKernel::Megakernel => false,
-                crate::PathKernel::Wavefront | crate::PathKernel::Sorted => true,
-            },
+            wavefront: self.kernel_choice(random_walk, needed).0,
             wf: None,
-            sorted: match self.path_kernel() {
-                crate::PathKernel::Auto => !self.cpu,
-                k => k == crate::PathKernel::Sorted,
-            },
+            sorted: self.kernel_choice(random_walk, needed).1,
             by_material: true,
             tile_max: WF_TILE_MAX,
             first_hits: false,
@@ -1617,6 +1625,31 @@ impl Gpu {
     /// [`Gpu::render`], with the AOV layers (albedo, normal, depth of the
     /// first hit, averaged over each pixel's samples as on the CPU) when
     /// `aov` is set.
+    /// Whether a frame path traces as a wavefront, and sorted where it
+    /// can be ([`GpuFrame::sorted`]), for a scene with (`random_walk`) or
+    /// without a random-walk medium that needs `needed`
+    /// ([`crate::PathKernel`]).
+    fn kernel_choice(&self, random_walk: bool, needed: Features) -> (bool, bool) {
+        match self.path_kernel() {
+            crate::PathKernel::Auto => (!self.cpu || random_walk || needed.wave(), !self.cpu),
+            crate::PathKernel::Megakernel => (false, false),
+            crate::PathKernel::Wavefront => (true, false),
+            crate::PathKernel::Sorted => (true, true),
+        }
+    }
+
+    /// The kernel that path traces `scene` here ([`Gpu::render`], `isolux
+    /// render --gpu`): [`crate::PathKernel::Megakernel`],
+    /// [`crate::PathKernel::Wavefront`] or [`crate::PathKernel::Sorted`],
+    /// as [`Gpu::set_path_kernel`] and the adapter choose for the scene
+    /// (the same as [`GpuFrame::path_kernel`] of its frame).
+    pub fn path_kernel_for(&self, scene: &Scene) -> Result<crate::PathKernel, GpuError> {
+        let needed = scene_features(scene)?;
+        let random_walk = GpuMaterials::new(&scene.materials).is_ok_and(|m| random_walk(&m));
+        let (wavefront, sorted) = self.kernel_choice(random_walk, needed);
+        Ok(resolved_kernel(wavefront, sorted && !needed.subsurface()))
+    }
+
     pub fn render_with_aov(
         &self,
         scene: &Scene,
@@ -1756,6 +1789,13 @@ impl GpuFrame {
     /// and tests.
     pub fn set_tile_lists(&mut self, on: bool) {
         self.features.tiles = on;
+    }
+
+    /// The kernel this frame path traces with: the megakernel, the
+    /// wavefront or the sorted wavefront ([`GpuFrame::set_wavefront`],
+    /// [`GpuFrame::set_sorted`]).
+    pub fn path_kernel(&self) -> crate::PathKernel {
+        resolved_kernel(self.wavefront, self.sorted())
     }
 
     /// Whether the path tracer runs as a wavefront ([`GpuFrame::set_wavefront`]).

@@ -1258,6 +1258,14 @@ fn path_kernel_follows_the_scene_unless_chosen() {
             let frame = gpu.prepare(&scene).unwrap();
             assert_eq!(frame.wavefront(), wavefront, "{name} {kernel:?}");
             assert_eq!(frame.sorted(), sorted, "{name} {kernel:?}");
+            // What `render --gpu` reports: the frame's kernel.
+            let ran = frame.path_kernel();
+            assert_eq!(
+                gpu.path_kernel_for(&scene).unwrap(),
+                ran,
+                "{name} {kernel:?}"
+            );
+            assert_ne!(ran, PathKernel::Auto);
         }
         gpu.set_path_kernel(PathKernel::Auto);
     }

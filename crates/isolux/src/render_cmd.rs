@@ -294,6 +294,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         {
             eprintln!("isolux: note: --gpu: {}: {note}", a.scene.display());
         }
+        if !a.realtime {
+            let kernel = gpu
+                .path_kernel_for(&scene)
+                .with_context(|| format!("--gpu: {}", a.scene.display()))?;
+            device = format!("{device}, {}", kernel_name(kernel));
+        }
         start = Instant::now();
         if a.realtime {
             gpu.render_realtime_with_aov(&scene, a.aov)
@@ -337,4 +343,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// How the summary line names the GPU's path kernel.
+fn kernel_name(kernel: isolux_gpu::PathKernel) -> &'static str {
+    match kernel {
+        isolux_gpu::PathKernel::Megakernel => "megakernel",
+        isolux_gpu::PathKernel::Wavefront => "wavefront",
+        isolux_gpu::PathKernel::Sorted => "sorted wavefront",
+        // (Resolved by `path_kernel_for`.)
+        isolux_gpu::PathKernel::Auto => "automatic",
+    }
 }

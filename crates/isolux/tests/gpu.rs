@@ -55,20 +55,33 @@ fn render_small(scene: &str, extra: &[&str], out: &std::path::Path) -> Option<St
 fn render_gpu_writes_an_image_of_the_furnace() {
     // The default, the wavefront with the f64 intersection, the sorted
     // wavefront.
-    for extra in [&[][..], &["--wavefront", "--f64"], &["--sorted"]] {
-        render_furnace(extra);
+    // The summary names the kernel that ran.
+    for (extra, kernel) in [
+        (&[][..], None),
+        (&["--wavefront", "--f64"], Some(", wavefront)")),
+        (&["--sorted"], Some(", sorted wavefront)")),
+        (&["--megakernel"], Some(", megakernel)")),
+    ] {
+        render_furnace(extra, kernel);
     }
 }
 
 /// The furnace through `render --gpu` with `extra` flags: 1 in every
-/// pixel.
-fn render_furnace(extra: &[&str]) {
+/// pixel; the summary line names `kernel`.
+fn render_furnace(extra: &[&str], kernel: Option<&str>) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.exr");
     let Some(err) = render_small(FURNACE, extra, &out) else {
         return;
     };
     assert!(err.contains("rendered 32x24 at 2 spp"), "{err}");
+    let named = ["megakernel)", "wavefront)"]
+        .iter()
+        .any(|k| err.contains(k));
+    assert!(named, "{extra:?}: no kernel named: {err}");
+    if let Some(kernel) = kernel {
+        assert!(err.contains(kernel), "{extra:?}: {err}");
+    }
     // The white furnace is 1 everywhere: check the mean of the EXR.
     let img = isolux_io::read_rgb_image(&out).unwrap();
     let mean: f64 = img.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / img.pixels.len() as f64;
@@ -89,6 +102,7 @@ fn sorted_says_when_it_renders_as_the_wavefront() {
         return;
     };
     assert!(err.contains("renders as --wavefront"), "{err}");
+    assert!(err.contains(", wavefront)"), "{err}");
     assert!(out.exists());
 }
 
