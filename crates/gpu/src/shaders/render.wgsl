@@ -2309,33 +2309,48 @@ fn wf_load(slot: u32) -> u32 {
     return bitcast<u32>(w.beta.w);
 }
 
+// The camera path of slot `slot` on step 0 started in `path` and
+// `rng_state` (the tile's padded pixel `params.wave.z + slot`): the
+// pixel's (x, y), or `NO_SLOT` in x where the slot has none. The same
+// path and random numbers each time, so `trace_shade` starts it again
+// on step 0 instead of loading what `trace_extend` would have stored.
+const NO_SLOT: u32 = 0xffffffffu;
+fn wf_camera(slot: u32) -> vec2<u32> {
+    if (slot >= params.wave.w) {
+        return vec2<u32>(NO_SLOT, 0u);
+    }
+    // Padded pixel index q in 8 x 8 blocks, row by row of blocks, so a
+    // workgroup's camera rays are one block (as `main`'s 8 x 8 groups).
+    let q = params.wave.z + slot;
+    let width = params.film.x;
+    let blocks = (width + 7u) / 8u;
+    let b = q / 64u;
+    let x = (b % blocks) * 8u + q % 8u;
+    let y = (b / blocks) * 8u + (q % 64u) / 8u;
+    if (x >= width || y >= params.film.y) {
+        return vec2<u32>(NO_SLOT, 0u);
+    }
+    start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, 0u)));
+    return vec2<u32>(x, y);
+}
+
 // The path of slot `gid.x` at the start of step `params.wave.x` (of the
 // tile's pixels on step 0: its camera path started; of the last step's
 // queue after: loaded) in `path` and `rng_state`: (slot, pixel), or
 // `NO_SLOT` in x where the thread has none.
-const NO_SLOT: u32 = 0xffffffffu;
 fn wf_begin(gid: vec3<u32>) -> vec2<u32> {
     let step = params.wave.x;
     let tile = params.wave.w;
     let slot = gid.x;
     if (step == 0u) {
-        if (slot >= tile) {
-            return vec2<u32>(NO_SLOT, 0u);
+        let xy = wf_camera(slot);
+        if (xy.x == NO_SLOT) {
+            return xy;
         }
-        // Padded pixel index q in 8 x 8 blocks, row by row of blocks, so a
-        // workgroup's camera rays are one block (as `main`'s 8 x 8 groups).
-        let q = params.wave.z + slot;
-        let width = params.film.x;
-        let blocks = (width + 7u) / 8u;
-        let b = q / 64u;
-        let x = (b % blocks) * 8u + q % 8u;
-        let y = (b / blocks) * 8u + (q % 64u) / 8u;
-        if (x >= width || y >= params.film.y) {
-            return vec2<u32>(NO_SLOT, 0u);
-        }
-        use_tile(vec3<u32>(x, y, 0u));
-        start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, 0u)));
-        return vec2<u32>(slot, y * width + x);
+        // (Not in `wf_camera`: the tile's list serves the next
+        // intersection, which only here is the camera ray's.)
+        use_tile(vec3<u32>(xy, 0u));
+        return vec2<u32>(slot, xy.y * params.film.x + xy.x);
     }
     if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
         return vec2<u32>(NO_SLOT, 0u);
@@ -2451,9 +2466,6 @@ fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
         add_sample(sp.y, path.l);
         return;
     }
-    if (params.wave.x == 0u) {
-        wf_store(slot, sp.y);
-    }
     // The sort key: the material record, or one bin for every hit where
     // the sort keeps their order (`params.layers.z`, 0: comparisons).
     let bin = select(0u, min(objects[hit_object].range.z, WF_BINS - 1u), params.layers.z != 0u);
@@ -2499,7 +2511,14 @@ fn trace_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let slot = wf_queue[3u * params.wave.w + gid.x];
-    let pixel = wf_load(slot);
+    // On step 0 the camera path again (`trace_extend` stored nothing).
+    var pixel: u32;
+    if (params.wave.x == 0u) {
+        let xy = wf_camera(slot);
+        pixel = xy.y * params.film.x + xy.x;
+    } else {
+        pixel = wf_load(slot);
+    }
     let h = wf_hits[2u * slot];
     let oi = bitcast<u32>(wf_hits[2u * slot + 1u].x);
     let mi = objects[oi].range.z;
