@@ -12,7 +12,7 @@
 //! scene (default: the furnace, the gallery, the translucent scene) and for
 //! every model at once (`all`, the general kernels) the path tracer
 //! (`main`), the wavefront step (`trace`, `trace_last`), the sorted
-//! wavefront's two large kernels (`trace_extend`, `trace_shade`) and the
+//! wavefront's large kernels (`trace_extend`, `trace_shadow`, `trace_shade`) and the
 //! real-time kernel (`realtime`), each specialized to the scene's models,
 //! candidate list and media as `isolux render --gpu` runs it
 //! (`isolux_gpu::scene_features`, the rules `Gpu::prepare` follows; until
@@ -66,11 +66,12 @@ const KEYWORDS: [&str; 10] = [
 ];
 
 /// The render module's entry points each scene's row lists.
-const ENTRIES: [&str; 6] = [
+const ENTRIES: [&str; 7] = [
     "main",
     "trace",
     "trace_last",
     "trace_extend",
+    "trace_shadow",
     "trace_shade",
     "realtime",
 ];

@@ -410,6 +410,15 @@ impl Features {
         self.has(layout::tag::WAVE)
     }
 
+    /// The sorted wavefront traces each hit's shadow rays in a kernel of
+    /// their own, `trace_shadow`, before `trace_shade` (`SHADOWS_AHEAD`
+    /// in `render.wgsl`, which this mirrors): kernels of at most
+    /// [`MASK_LIGHTS`] lights, without the candidate list, caustics or
+    /// the subsurface integrator.
+    pub fn shadows_ahead(self) -> bool {
+        !self.many_lights && !self.list && !self.caustics && !self.subsurface()
+    }
+
     /// The subsurface integrator.
     pub fn subsurface(self) -> bool {
         self.has(layout::tag::SUBSURFACE)
@@ -441,7 +450,7 @@ impl Features {
     fn reached_by(self, entry: &str) -> Features {
         use layout::tag::{SSS_ENTRY_LOBE, SSS_SINGLE_LOBE, SUBSURFACE, SUBSURFACE_BRDF};
         match entry {
-            "main" | "trace" | "trace_last" | "trace_shade" => self,
+            "main" | "trace" | "trace_last" | "trace_shadow" | "trace_shade" => self,
             "realtime" => {
                 let mut models = self.models & !(bit(SSS_SINGLE_LOBE) | bit(SSS_ENTRY_LOBE));
                 if self.has(SUBSURFACE) {
@@ -1034,13 +1043,15 @@ impl Gpu {
     }
 
     /// The sorted wavefront's kernels of one step, in their order:
-    /// `trace_extend`, `trace_prefix`, `trace_scatter`, `trace_shade`
+    /// `trace_extend`, `trace_prefix`, `trace_scatter`, `trace_shadow`
+    /// (run where [`Features::shadows_ahead`]), `trace_shade`
     /// ([`PathKernel::Sorted`]).
-    fn sorted_pipelines(&self, features: Features) -> [wgpu::ComputePipeline; 4] {
+    fn sorted_pipelines(&self, features: Features) -> [wgpu::ComputePipeline; 5] {
         [
             "trace_extend",
             "trace_prefix",
             "trace_scatter",
+            "trace_shadow",
             "trace_shade",
         ]
         .map(|entry| self.render_entry(entry, features))
@@ -1406,6 +1417,8 @@ mod tests {
             assert_eq!(f.reached_by("trace"), *f);
             assert_eq!(f.reached_by("trace_last"), *f);
             assert_eq!(f.reached_by("trace_shade"), *f);
+            // (Its shadow rays ask the material's lobes.)
+            assert_eq!(f.reached_by("trace_shadow"), *f);
             // The sorted wavefront's other kernels reach no material.
             for entry in ["trace_extend", "trace_prefix", "trace_scatter"] {
                 assert_eq!(f.reached_by(entry).models, 0, "{entry}");

@@ -1885,12 +1885,13 @@ impl GpuFrame {
         let queue: Vec<u32> = gpu.read_back(&wf.queue)?;
         let hits: Vec<[u32; 8]> = gpu.read_back(&wf.hits)?;
         let list = &queue[3 * wf.tile as usize..][..len];
-        // trace_extend's stamp: 1 + step, the tile from bit 8; the sample.
+        // trace_extend's stamp: 1 + step in bits 0-6, the tile's index in
+        // bits 8-15, the sample's in bits 16-31 (each modulo its room).
         let (tile, sample) = (wf.tiles - 1, self.samples.saturating_sub(1));
-        let ours = |h: &[u32; 8]| h[6] >> 8 == tile && h[7] == sample;
+        let ours = |h: &[u32; 8]| h[6] >> 8 == (tile & 0xff) | (sample & 0xffff) << 8;
         let (listed, bins) = hits[..wf.tile as usize]
             .iter()
-            .map(|h| if ours(h) { (h[6] & 0xff, h[5]) } else { (0, 0) })
+            .map(|h| if ours(h) { (h[6] & 0x7f, h[5]) } else { (0, 0) })
             .unzip();
         Ok(Some(SortedSteps {
             lengths,
@@ -2040,7 +2041,7 @@ impl GpuFrame {
                 pass.dispatch_workgroups_indirect(&wf.indirect, 0);
             }
             drop(pass);
-            if let Some([_, prefix, scatter, shade]) = kernels {
+            if let Some([_, prefix, scatter, shadow, shade]) = kernels {
                 // The list's counters: after the steps', 4 + 2 WF_BINS
                 // words a step (render.wgsl `sort_base`).
                 let at = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
@@ -2054,6 +2055,10 @@ impl GpuFrame {
                 pass.dispatch_workgroups(1, 1, 1);
                 pass.set_pipeline(scatter);
                 pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                if self.features.shadows_ahead() {
+                    pass.set_pipeline(shadow);
+                    pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                }
                 pass.set_pipeline(shade);
                 pass.dispatch_workgroups_indirect(&wf.indirect, 16);
             }

@@ -288,6 +288,9 @@ fn shading_material(m: Material, mi: u32) -> Material {
 // horizon, which the shading skips.
 var<private> shadow_lights: u32;
 const SHADOWS_FIRST: bool = !MANY_LIGHTS && !CANDIDATE_LIST;
+// With `first` in the sorted wavefront's `trace_shade`, whether the
+// environment's sample is visible too (`shadows_ahead`).
+var<private> shadow_env: bool;
 
 // The point lights' shadow rays from vertex p (geometric normal ng), into
 // `shadow_lights`: the rays `direct_light` would trace, in one loop with
@@ -311,8 +314,10 @@ fn trace_shadows(p: vec3<f32>, ng: vec3<f32>) {
 }
 
 // Direct light at vertex p: with `first` (a constant at each call site),
-// its shadow rays were traced by `trace_shadows`, and it gathers only
-// point lights (the real-time kernel); else they are traced here.
+// its shadow rays were traced by the caller: by `trace_shadows` where it
+// gathers only point lights (the real-time kernel), by `shadows_ahead`
+// with the environment's sample (the sorted wavefront's `trace_shade`);
+// else they are traced here.
 fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<f32>, what: u32, mirror: vec4<f32>, sm: Material, mi: u32, first: bool) -> vec3<f32> {
     var l = vec3<f32>(0.0);
     let env_map = params.counts.w == ENV_MAP;
@@ -421,6 +426,9 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         } else if (i < k_env + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
+                continue;
+            }
+            if (first && !shadow_env) {
                 continue;
             }
             wi = s.xyz;
@@ -1886,7 +1894,7 @@ fn bounce() -> bool {
         ng = h.yzw;
         wo = -d;
     }
-    return shade(p, ng, wo, m, oi, mi);
+    return shade(p, ng, wo, m, oi, mi, false);
 }
 
 // The path's light from the environment along d, where its ray escaped:
@@ -1916,8 +1924,10 @@ fn placed(m: Material, p: vec3<f32>, t: f32) -> Material {
 // The rest of a bounce at surface point p (geometric normal ng, toward
 // the ray's origin wo) of object oi with material m (record mi): direct
 // light, the BSDF's sample, the next ray in `path`. Whether the path goes
-// on.
-fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u32) -> bool {
+// on. With `traced` (a constant at each call site) the direct light's
+// shadow rays were traced ahead (`shadows_ahead`), and the intersection
+// is not in the caller's kernel.
+fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u32, traced: bool) -> bool {
     let flags = material_flags(m);
     var ns = ng;
     if (dot(wo, ng) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u) {
@@ -1958,7 +1968,7 @@ fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u
             mirror_env = true;
         }
     }
-    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m, mi, false);
+    path.l += path.beta * direct_light(p, ng, fr, nee_m, wo_l, what, mirror, m, mi, traced);
     path.env_counted = false;
     let s = bsdf;
     if (!s.ok || !(s.pdf > 0.0) || !finite(s.pdf) || !finite3(s.f) || s.wi.z == 0.0) {
@@ -2430,9 +2440,11 @@ fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
 // as `trace`: the same image. Surfaces only: a scene with the subsurface
 // integrator (media, dipoles) runs `trace` (render.rs).
 //
-// Per slot, `wf_hits` holds the hit (t, ng) and (object, bin, step,
-// sample) of the last step that listed it (diagnostics: step + 1 with the
-// tile's index from bit 8, the sample of `pass_info.x`); the
+// Per slot, `wf_hits` holds the hit (t, ng) and (object, bin, stamp,
+// point lights visible) of the last step that listed it (the stamp: 1 +
+// the step in bits 0-6, the environment's sample visible in bit 7, the
+// tile's index in bits 8-15 and the sample's in 16-31, for diagnostics;
+// the visibility from `shadows_ahead`); the
 // queue buffer's third and fourth quarters the step's list as found and
 // as sorted; `wf_ctl` after the steps' counters, per step, the list's
 // [workgroups, 1, 1, length], then `WF_BINS` counts, then `WF_BINS`
@@ -2468,15 +2480,126 @@ fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     // The sort key: the material record, or one bin for every hit where
     // the sort keeps their order (`params.layers.z`, 0: comparisons).
-    let bin = select(0u, min(objects[hit_object].range.z, WF_BINS - 1u), params.layers.z != 0u);
+    let oi = hit_object;
+    let mi = objects[oi].range.z;
+    let bin = select(0u, min(mi, WF_BINS - 1u), params.layers.z != 0u);
     wf_hits[2u * slot] = h;
-    // With a stamp of the step, the tile and the sample (`sorted_steps`).
-    let stamp = (params.wave.x + 1u) | ((params.wave.z / params.wave.w) << 8u);
-    wf_hits[2u * slot + 1u] = vec4<f32>(bitcast<f32>(hit_object), bitcast<f32>(bin),
-                                        bitcast<f32>(stamp), bitcast<f32>(params.pass_info.x));
+    // The stamp (`sorted_steps`): 1 + the step, the tile, the sample (bit
+    // 7 and the fourth word: `trace_shadow`'s answers).
+    let tile_bits = ((params.wave.z / params.wave.w) & 255u) << 8u;
+    let sample_bits = (params.pass_info.x & 65535u) << 16u;
+    let stamp = (params.wave.x + 1u) | (tile_bits | sample_bits);
+    wf_hits[2u * slot + 1u] = vec4<f32>(bitcast<f32>(oi), bitcast<f32>(bin),
+                                        bitcast<f32>(stamp), 0.0);
     let base = sort_base();
     atomicAdd(&wf_ctl[base + 4u + bin], 1u);
     wf_push(base, 2u * params.wave.w, slot);
+}
+
+// Kernels in which `trace_shadow` traces the shadow rays of each listed
+// hit (`shadows_ahead`) before `trace_shade` shades it, so that
+// `trace_shade` holds no intersection (render.rs runs `trace_shadow`
+// where `Features::shadows_ahead`, which mirrors this):
+// a scene of at most MASK_LIGHTS point lights and no candidate list (as
+// `trace_shadows`), without glass that bends the lamps' light
+// (`caustic`) or the subsurface integrator (which the sorted wavefront
+// leaves out). RADV, the gallery: `trace_shade` 168 -> 128 VGPRs, 6 -> 8
+// waves per SIMD (docs/gpu.md, "The sorted wavefront").
+const SHADOWS_AHEAD: bool = SHADOWS_FIRST && !CAUSTICS && !SUBSURFACE;
+
+// The shadow rays that `direct_light` will trace from the vertex p of a
+// listed hit (geometric normal ng, toward the ray's origin wo; base
+// material m), into `shadow_lights` and `shadow_env`: each point light,
+// and the environment's sample, drawn from the path's random numbers
+// as `trace_shade` will draw it (after `placed`'s comb offset of a
+// `wave` material). `trace_shadow` stores neither the path nor its
+// random numbers, so `trace_shade` draws the same again. Rays that
+// `direct_light` would not trace are left out where the material's
+// value is 0 for every direction (delta lobes alone) or for this one (a
+// direction clearly below a surface that transmits nothing); the rest
+// it skips (a sky or a value of 0 there) cost time, never change the
+// image.
+fn shadows_ahead(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material) {
+    let flags = material_flags(m);
+    shadow_lights = 0u;
+    shadow_env = false;
+    // Delta lobes alone (mirrors, glass): no light to sample, no ray.
+    if ((flags & (FLAG_DIFFUSE | FLAG_GLOSSY)) == 0u) {
+        return;
+    }
+    let transmits = (flags & FLAG_TRANSMISSION) != 0u;
+    let ns = select(ng, -ng, dot(wo, ng) < 0.0 && !transmits);
+    if (has_wave(m)) {
+        _ = rand();
+    }
+    let n_lights = min(params.counts.y, MASK_LIGHTS);
+    var env = vec4<f32>(0.0);
+    if (params.counts.w == ENV_MAP) {
+        env = env_sample(rand2());
+    }
+    var vis = 0u;
+    var env_vis = false;
+    // One call site of the intersection for all the rays.
+    for (var i = 0u; i <= n_lights; i++) {
+        var origin: vec3<f32>;
+        var d: vec3<f32>;
+        var t_max = 3.0e38;
+        if (i < n_lights) {
+            let light = lights[i].position.xyz;
+            origin = offset_origin(p, ng, light - p);
+            let to = light - origin;
+            let dist2 = dot(to, to);
+            if (!(dist2 > 0.0)) {
+                continue;
+            }
+            t_max = sqrt(dist2);
+            d = to / t_max;
+        } else {
+            if (!(env.w > 0.0)) {
+                continue;
+            }
+            d = env.xyz;
+            origin = offset_origin(p, ng, d);
+        }
+        if (!transmits && dot(d, ns) < -1e-4) {
+            continue;
+        }
+        if (!occluded(origin, d, t_max)) {
+            if (i < n_lights) {
+                vis |= 1u << i;
+            } else {
+                env_vis = true;
+            }
+        }
+    }
+    shadow_lights = vis;
+    shadow_env = env_vis;
+}
+
+// The shadow rays of each hit of the sorted list (`shadows_ahead`), their
+// answers beside the hit for `trace_shade`: over the list in shading
+// order, as `trace_shade`, so that its SIMT groups trace rays from one
+// material's hits each, and none of a path that ended in `trace_extend`
+// (traced there, they ran in groups of mostly ended paths: lavapipe,
+// the gallery path traced 0.85 -> 0.97 of the wavefront's time).
+@compute @workgroup_size(64)
+fn trace_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (!SHADOWS_AHEAD || gid.x >= atomicLoad(&wf_ctl[sort_base() + 3u])) {
+        return;
+    }
+    let slot = wf_queue[3u * params.wave.w + gid.x];
+    if (params.wave.x == 0u) {
+        _ = wf_camera(slot);
+    } else {
+        _ = wf_load(slot);
+    }
+    let h = wf_hits[2u * slot];
+    let info = wf_hits[2u * slot + 1u];
+    let mi = objects[bitcast<u32>(info.x)].range.z;
+    shadows_ahead(path.o + h.x * path.d, h.yzw, -path.d, materials[mi]);
+    let stamp = bitcast<u32>(info.z) | select(0u, 128u, shadow_env);
+    wf_hits[2u * slot + 1u] = vec4<f32>(info.x, info.y, bitcast<f32>(stamp),
+                                        bitcast<f32>(shadow_lights));
 }
 
 // The bins' first places in the sorted list: the counts' exclusive
@@ -2520,11 +2643,14 @@ fn trace_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         pixel = wf_load(slot);
     }
     let h = wf_hits[2u * slot];
-    let oi = bitcast<u32>(wf_hits[2u * slot + 1u].x);
+    let info = wf_hits[2u * slot + 1u];
+    let oi = bitcast<u32>(info.x);
     let mi = objects[oi].range.z;
+    shadow_lights = bitcast<u32>(info.w);
+    shadow_env = (bitcast<u32>(info.z) & 128u) != 0u;
     let p = path.o + h.x * path.d;
     let m = placed(materials[mi], p, h.x);
-    wf_end(slot, pixel, shade(p, h.yzw, -path.d, m, oi, mi));
+    wf_end(slot, pixel, shade(p, h.yzw, -path.d, m, oi, mi, SHADOWS_AHEAD));
 }
 
 // AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
