@@ -616,10 +616,11 @@ pub enum PathKernel {
     Megakernel,
     /// One dispatch per bounce over the paths still alive (`trace`).
     Wavefront,
-    /// The wavefront with each bounce in four dispatches, its hits shaded
-    /// in order of their material (`trace_extend`, `trace_prefix`,
-    /// `trace_scatter`, `trace_shade`; docs/gpu.md "The sorted
-    /// wavefront"): the same image, for a GPU's SIMT groups to shade one
+    /// The wavefront with each bounce in four or five dispatches, its
+    /// hits shaded in order of their material (`trace_extend`,
+    /// `trace_prefix`, `trace_scatter`, `trace_shadow` where
+    /// [`Features::shadows_ahead`], `trace_shade`; docs/gpu.md "The
+    /// sorted wavefront"): the same image, for a GPU's SIMT groups to shade one
     /// material each. The default on GPUs ([`PathKernel::Auto`]); not yet
     /// timed on one. A scene with the subsurface integrator (media,
     /// dipoles) runs [`PathKernel::Wavefront`].

@@ -1975,7 +1975,8 @@ impl GpuFrame {
     /// paths step `k - 1` queued (an indirect dispatch whose workgroups
     /// step `k - 1` counted). The sorted wavefront runs each step but the
     /// last as `trace_extend` (as `trace`'s dispatch), `trace_prefix` (one
-    /// thread), then `trace_scatter` and `trace_shade` over the paths
+    /// thread), then `trace_scatter`, `trace_shadow` (where
+    /// [`Features::shadows_ahead`]) and `trace_shade` over the paths
     /// `trace_extend` listed (an indirect dispatch whose workgroups it
     /// counted). Timestamps as in [`GpuFrame::dispatch_samples`].
     fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, timed: bool) {

@@ -100,8 +100,9 @@ pub struct RenderArgs {
     #[arg(long, requires = "gpu", conflicts_with_all = ["realtime", "wavefront"])]
     pub megakernel: bool,
     /// With `--gpu`: path trace as the sorted wavefront: each bounce in
-    /// four dispatches, its hits found in one kernel and shaded in order
-    /// of their material in another, so that a GPU's SIMT groups shade
+    /// four or five dispatches, its hits found in one kernel and shaded
+    /// in order of their material in another (their shadow rays traced
+    /// in a third, for most scenes), so that a GPU's SIMT groups shade
     /// one material each. The same image as `--wavefront`. The default
     /// on GPUs (not on CPU drivers such as lavapipe), chosen by a model
     /// of a GPU's lanes and by lavapipe, not yet timed on a GPU

@@ -2427,12 +2427,13 @@ fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // ---- The sorted wavefront (`PathKernel::Sorted`) ---------------------------
 //
-// Each step but the last in four dispatches instead of `trace`'s one
-// (render.rs `dispatch_wavefront`, docs/gpu.md "The sorted wavefront"):
-// `trace_extend` finds each queued path's next surface (a path that
-// escapes or reaches max depth ends there) and lists the path with its
-// hit; `trace_prefix` counts the list by material; `trace_scatter`
-// reorders it by material; `trace_shade` shades each hit in that order
+// Each step but the last in four or five dispatches instead of `trace`'s
+// one (render.rs `dispatch_wavefront`, docs/gpu.md "The sorted
+// wavefront"): `trace_extend` finds each queued path's next surface (a
+// path that escapes or reaches max depth ends there) and lists the path
+// with its hit; `trace_prefix` counts the list by material;
+// `trace_scatter` reorders it by material; `trace_shadow` (where
+// SHADOWS_AHEAD) traces each hit's shadow rays in that order; `trace_shade` shades each hit in that order
 // and queues the path for the next step as `trace` does. So a SIMT group
 // shades one material where `trace`'s groups shade whatever their rays
 // met, and the intersection runs in a kernel without the material code.
