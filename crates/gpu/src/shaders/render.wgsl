@@ -2433,8 +2433,9 @@ fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
 // path that escapes or reaches max depth ends there) and lists the path
 // with its hit; `trace_prefix` counts the list by material;
 // `trace_scatter` reorders it by material; `trace_shadow` (where
-// SHADOWS_AHEAD) traces each hit's shadow rays in that order; `trace_shade` shades each hit in that order
-// and queues the path for the next step as `trace` does. So a SIMT group
+// SHADOWS_AHEAD) traces each hit's shadow rays in that order;
+// `trace_shade` shades each hit in that order and queues the path for
+// the next step as `trace` does. So a SIMT group
 // shades one material where `trace`'s groups shade whatever their rays
 // met, and the intersection runs in a kernel without the material code.
 // The same paths, bounce for bounce and random number for random number,
@@ -2505,7 +2506,7 @@ fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
 // `trace_shadows`), without glass that bends the lamps' light
 // (`caustic`) or the subsurface integrator (which the sorted wavefront
 // leaves out). RADV, the gallery: `trace_shade` 168 -> 128 VGPRs, 6 -> 8
-// waves per SIMD (docs/gpu.md, "The sorted wavefront").
+// waves per SIMD (docs/gpu.md, "Shadow rays ahead").
 const SHADOWS_AHEAD: bool = SHADOWS_FIRST && !CAUSTICS && !SUBSURFACE;
 
 // The shadow rays that `direct_light` will trace from the vertex p of a
