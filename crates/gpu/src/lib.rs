@@ -1574,6 +1574,41 @@ mod tests {
         }
     }
 
+    /// `Features::shadows_ahead` is the kernels' `SHADOWS_AHEAD`, which
+    /// decides whether `trace_shade` reads `trace_shadow`'s answers: were
+    /// the two to differ, the sorted wavefront would shade its hits as if
+    /// every light were hidden, or trace every shadow ray twice. Each set
+    /// also with each of the parts that rule it out turned on alone.
+    #[test]
+    fn shadows_ahead_mirrors_the_kernels() {
+        let mut seen = [false; 2];
+        let sets = representative_sets().into_iter().flat_map(|f| {
+            [
+                f,
+                super::Features { list: true, ..f },
+                super::Features { many_lights: true, ..f },
+                super::Features { caustics: true, ..f },
+            ]
+        });
+        for f in sets {
+            let src = super::render_source_variant(super::Precision::F32, f);
+            let module = naga::front::wgsl::parse_str(&src)
+                .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
+            let (_, c) = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some("SHADOWS_AHEAD"))
+                .expect("render.wgsl declares SHADOWS_AHEAD");
+            let value = match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::Bool(b)) => b,
+                ref e => panic!("SHADOWS_AHEAD is not a literal: {e:?}"),
+            };
+            assert_eq!(value, f.shadows_ahead(), "{f}");
+            seen[value as usize] = true;
+        }
+        assert_eq!(seen, [true, true], "both answers among the sets");
+    }
+
     #[test]
     fn shaders_validate_with_naga() {
         for src in [
