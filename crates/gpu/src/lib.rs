@@ -1586,8 +1586,14 @@ mod tests {
             [
                 f,
                 super::Features { list: true, ..f },
-                super::Features { many_lights: true, ..f },
-                super::Features { caustics: true, ..f },
+                super::Features {
+                    many_lights: true,
+                    ..f
+                },
+                super::Features {
+                    caustics: true,
+                    ..f
+                },
             ]
         });
         for f in sets {
