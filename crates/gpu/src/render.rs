@@ -965,6 +965,12 @@ fn needed(
 /// `kernel_stats` compiles, so that its figures are those of the kernels
 /// the scene runs. An error names a material the GPU does not run.
 pub fn scene_features(scene: &Scene) -> Result<Features, GpuError> {
+    scene_needs(scene).map(|(features, _)| features)
+}
+
+/// [`scene_features`], and whether the scene has a random-walk medium
+/// (as [`Gpu::prepare`] tells them).
+fn scene_needs(scene: &Scene) -> Result<(Features, bool), GpuError> {
     let mut materials = GpuMaterials::new(&scene.materials).map_err(|i| {
         GpuError::Setup(format!(
             "material {:?} does not run on the GPU",
@@ -974,7 +980,8 @@ pub fn scene_features(scene: &Scene) -> Result<Features, GpuError> {
     let (refracted, listed) = flat_routes(scene).map_err(GpuError::Setup)?;
     let manifold = manifold_media(scene, &listed, &mut materials)?;
     let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
-    Ok(needed(scene, &materials, &geo, &refracted, manifold))
+    let features = needed(scene, &materials, &geo, &refracted, manifold);
+    Ok((features, random_walk(&materials)))
 }
 
 /// Lists, for manifold next-event estimation of point lights through
@@ -1577,6 +1584,7 @@ impl Gpu {
         let bind = self.frame_bind_group(&buffers, &layers);
         let needed = needed(scene, &materials, &geo, &refracted, manifold);
         let random_walk = random_walk(&materials);
+        let (wavefront, sorted) = self.kernel_choice(random_walk, needed);
         let frame = GpuFrame {
             realtime,
             rebase: at,
@@ -1596,9 +1604,9 @@ impl Gpu {
             params,
             aov,
             samples: 0,
-            wavefront: self.kernel_choice(random_walk, needed).0,
+            wavefront,
             wf: None,
-            sorted: self.kernel_choice(random_walk, needed).1,
+            sorted,
             by_material: true,
             tile_max: WF_TILE_MAX,
             first_hits: false,
@@ -1622,9 +1630,6 @@ impl Gpu {
         self.render_with_aov(scene, false, progress)
     }
 
-    /// [`Gpu::render`], with the AOV layers (albedo, normal, depth of the
-    /// first hit, averaged over each pixel's samples as on the CPU) when
-    /// `aov` is set.
     /// Whether a frame path traces as a wavefront, and sorted where it
     /// can be ([`GpuFrame::sorted`]), for a scene with (`random_walk`) or
     /// without a random-walk medium that needs `needed`
@@ -1644,12 +1649,14 @@ impl Gpu {
     /// as [`Gpu::set_path_kernel`] and the adapter choose for the scene
     /// (the same as [`GpuFrame::path_kernel`] of its frame).
     pub fn path_kernel_for(&self, scene: &Scene) -> Result<crate::PathKernel, GpuError> {
-        let needed = scene_features(scene)?;
-        let random_walk = GpuMaterials::new(&scene.materials).is_ok_and(|m| random_walk(&m));
+        let (needed, random_walk) = scene_needs(scene)?;
         let (wavefront, sorted) = self.kernel_choice(random_walk, needed);
         Ok(resolved_kernel(wavefront, sorted && !needed.subsurface()))
     }
 
+    /// [`Gpu::render`], with the AOV layers (albedo, normal, depth of the
+    /// first hit, averaged over each pixel's samples as on the CPU) when
+    /// `aov` is set.
     pub fn render_with_aov(
         &self,
         scene: &Scene,
