@@ -2498,6 +2498,22 @@ fn trace_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
     wf_push(base, 2u * params.wave.w, slot);
 }
 
+// The path of entry `gid.x` of the step's sorted list (`trace_shadow`,
+// `trace_shade`) in `path` and `rng_state`: (slot, pixel), or `NO_SLOT`
+// in x past the list's end. On step 0 its camera path started again
+// (`trace_extend` stored nothing), on later steps loaded.
+fn wf_listed(gid: vec3<u32>) -> vec2<u32> {
+    if (gid.x >= atomicLoad(&wf_ctl[sort_base() + 3u])) {
+        return vec2<u32>(NO_SLOT, 0u);
+    }
+    let slot = wf_queue[3u * params.wave.w + gid.x];
+    if (params.wave.x == 0u) {
+        let xy = wf_camera(slot);
+        return vec2<u32>(slot, xy.y * params.film.x + xy.x);
+    }
+    return vec2<u32>(slot, wf_load(slot));
+}
+
 // Kernels in which `trace_shadow` traces the shadow rays of each listed
 // hit (`shadows_ahead`) before `trace_shade` shades it, so that
 // `trace_shade` holds no intersection (render.rs runs `trace_shadow`
@@ -2586,14 +2602,12 @@ fn shadows_ahead(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material) {
 // the gallery path traced 0.85 -> 0.97 of the wavefront's time).
 @compute @workgroup_size(64)
 fn trace_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (!SHADOWS_AHEAD || gid.x >= atomicLoad(&wf_ctl[sort_base() + 3u])) {
+    if (!SHADOWS_AHEAD) {
         return;
     }
-    let slot = wf_queue[3u * params.wave.w + gid.x];
-    if (params.wave.x == 0u) {
-        _ = wf_camera(slot);
-    } else {
-        _ = wf_load(slot);
+    let slot = wf_listed(gid).x;
+    if (slot == NO_SLOT) {
+        return;
     }
     let h = wf_hits[2u * slot];
     let info = wf_hits[2u * slot + 1u];
@@ -2632,18 +2646,11 @@ fn trace_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn trace_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= atomicLoad(&wf_ctl[sort_base() + 3u])) {
+    let sp = wf_listed(gid);
+    if (sp.x == NO_SLOT) {
         return;
     }
-    let slot = wf_queue[3u * params.wave.w + gid.x];
-    // On step 0 the camera path again (`trace_extend` stored nothing).
-    var pixel: u32;
-    if (params.wave.x == 0u) {
-        let xy = wf_camera(slot);
-        pixel = xy.y * params.film.x + xy.x;
-    } else {
-        pixel = wf_load(slot);
-    }
+    let slot = sp.x;
     let h = wf_hits[2u * slot];
     let info = wf_hits[2u * slot + 1u];
     let oi = bitcast<u32>(info.x);
@@ -2652,7 +2659,7 @@ fn trace_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     shadow_env = (bitcast<u32>(info.z) & 128u) != 0u;
     let p = path.o + h.x * path.d;
     let m = placed(materials[mi], p, h.x);
-    wf_end(slot, pixel, shade(p, h.yzw, -path.d, m, oi, mi, SHADOWS_AHEAD));
+    wf_end(slot, sp.y, shade(p, h.yzw, -path.d, m, oi, mi, SHADOWS_AHEAD));
 }
 
 // AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
