@@ -265,7 +265,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 gpu.driver
             );
         }
-        if a.sorted && isolux_gpu::scene_features(&scene).is_ok_and(|f| f.subsurface()) {
+        // The path kernel that will run, for the summary line.
+        let kernel = (!a.realtime)
+            .then(|| gpu.path_kernel_for(&scene))
+            .transpose()
+            .with_context(|| format!("--gpu: {}", a.scene.display()))?;
+        if a.sorted && kernel == Some(isolux_gpu::PathKernel::Wavefront) {
             eprintln!(
                 "isolux: note: --sorted: {}: the sorted wavefront leaves out the subsurface \
                  integrator (media, dipoles) this scene needs: it renders as --wavefront (the \
@@ -295,10 +300,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         {
             eprintln!("isolux: note: --gpu: {}: {note}", a.scene.display());
         }
-        if !a.realtime {
-            let kernel = gpu
-                .path_kernel_for(&scene)
-                .with_context(|| format!("--gpu: {}", a.scene.display()))?;
+        if let Some(kernel) = kernel {
             device = format!("{device}, {}", kernel_name(kernel));
         }
         start = Instant::now();
