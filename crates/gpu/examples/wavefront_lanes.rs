@@ -152,9 +152,17 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         isolux_gpu::replace_unsupported(&mut scene);
         scene.film.width = a.width;
         scene.film.height = a.height;
-        let mut frame = gpu.prepare(&scene)?;
-        frame.set_wavefront(true);
-        frame.set_sorted(true);
+        // The scene's sorted wavefront in one tile of the whole film.
+        let padded = (a.width.div_ceil(8) * a.height.div_ceil(8) * 64) as usize;
+        let sorted_frame = |scene: &isolux_render::Scene| {
+            gpu.prepare(scene).map(|mut f| {
+                f.set_wavefront(true);
+                f.set_sorted(true);
+                f.set_wavefront_tile(padded as u64);
+                f
+            })
+        };
+        let mut frame = sorted_frame(&scene)?;
         if !frame.sorted() {
             println!(
                 "\n{}: the subsurface integrator, not sorted",
@@ -162,18 +170,12 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             );
             continue;
         }
-        let padded = (a.width.div_ceil(8) * a.height.div_ceil(8) * 64) as usize;
-        frame.set_wavefront_tile(padded as u64);
         // The same scene with paths that end at depth k + 1.
         let depth = scene.integrator.max_depth as usize;
         let mut limited = Vec::new();
         for k in 0..BRANCH_STEPS.min(depth) {
             scene.integrator.max_depth = k as u32 + 1;
-            let mut f = gpu.prepare(&scene)?;
-            f.set_wavefront(true);
-            f.set_sorted(true);
-            f.set_wavefront_tile(padded as u64);
-            limited.push(f);
+            limited.push(sorted_frame(&scene)?);
         }
         let sorted = |f: &isolux_gpu::GpuFrame| -> Result<SortedSteps, String> {
             let sort = f
