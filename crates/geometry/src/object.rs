@@ -46,7 +46,9 @@
 
 use crate::beam::Beam;
 use crate::bvh::Bvh;
-use crate::poly::{fmax, fmin, quadratic_crossings, sign, two_roots, Crossings, Poly, UnitRoot};
+use crate::poly::{
+    fmax, fmin, quadratic_crossings, sign, two_roots, Bernstein6, Crossings, UnitRoot,
+};
 use crate::quadric::Quadric;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{self, Isa};
@@ -1847,18 +1849,20 @@ impl Object {
         // quadric's value is re-evaluated at the segment origin (the
         // dominant term, which cancels near the surface); its slope and
         // curvature, and the perturbations, use the Taylor shift of the
-        // ray quadratic.
+        // ray quadratic. The polynomial is built in the Bernstein basis
+        // (`Bernstein6`: accurate at both ends of the segment, where the
+        // power basis was so only at its origin).
         let len = b - a;
         let mut q = shift(base_q, a, len);
         q[0] = self.base_along.value(&self.base, ray.at(a));
-        let mut poly = Poly::quadratic(q);
+        let mut poly = Bernstein6::quadratic(q);
         for c in cands.iter().filter(|c| active(c)) {
             poly.add_cube(c.factor, shift(c.q, a, len));
         }
         match poly.first_crossing() {
             UnitRoot::Root(s) => Segment::Crossing {
                 t: a + s * len,
-                start: sign(poly.c[0]),
+                start: sign(poly.b[0]),
             },
             UnitRoot::Clear { start, end } => {
                 // A base root where the active perturbations add less than

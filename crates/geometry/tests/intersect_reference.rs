@@ -736,6 +736,75 @@ fn thin_bump_of_height_1e7_is_found_exactly() {
     }
 }
 
+/// Shells: a bump so large and strong that `f Q^3` inside its support
+/// dwarfs the base quadric by up to 1e20, so that `F'` crosses zero a
+/// hair inside the support's boundary (where `Q` is 1e-6 to 1e-2 of its
+/// largest value). Rays from inside, many from near the shell, must find
+/// that crossing: the reference is dense bracketing of `F'` evaluated as
+/// written (`F + f Q^3`, well conditioned) and bisection.
+///
+/// The segment polynomial in the power basis about the segment's start
+/// cancelled to noise near the support's end, and Halley's stopping rule,
+/// relative to `s`, stopped early there: 2026-12-05, of 2000 rays per
+/// shell, 530 (radius 3000, factor 8000: the fuzzed `metals.toml` shell),
+/// 546 (radius 1e4, factor 1) and 44 (radius 1000, factor 1) were off by
+/// up to 4e-5 of `t`, and the walk reported the support's end instead
+/// (`Bernstein6`).
+#[test]
+fn shells_dwarfing_their_base_are_hit_exactly() {
+    let mut rng = Pcg32::new(5, 12);
+    for (radius, factor) in [
+        (3000.0, 8000.0),
+        (300.0, 8000.0),
+        (1000.0, 1.0),
+        (1e4, 1.0),
+        (1e5, 1e-6),
+    ] {
+        let centre = DVec3::new(0.3, 0.1, 0.0);
+        let obj = Object::new(
+            Quadric::sphere(DVec3::ZERO, 1.0),
+            vec![Perturbation {
+                quadric: Quadric::sphere(centre, radius),
+                factor,
+            }],
+            None,
+        )
+        .unwrap();
+        let reference = RefObject::of(
+            &obj,
+            Aabb::new(DVec3::splat(-1.01 * radius), DVec3::splat(1.01 * radius)),
+        );
+        let mut off = Vec::new();
+        for _ in 0..150 {
+            // From anywhere inside the solid, down to 1e-4 of the radius from
+            // the support's boundary (the shell lies 6e-7 to 5e-5 of it inside).
+            let depth = 1e-4 * (rng.next_f64() * 9.2).exp();
+            let o = centre
+                + sampling::uniform_sphere([rng.next_f64(), rng.next_f64()])
+                    * radius
+                    * (1.0 - depth);
+            let d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
+            let ray = Ray::new(o, d);
+            let want = reference.first_crossing(&ray, 20_000).unwrap_or_else(|| {
+                panic!(
+                    "radius {radius}: {ray:?} from inside the shell must cross it, F({o}) = {}",
+                    reference.f(o)
+                )
+            });
+            let got = obj.intersect(&ray, 0.0, f64::INFINITY).map(|h| h.t);
+            if got.is_none_or(|t| (t - want).abs() > 1e-9 * want) {
+                off.push((got, want));
+            }
+        }
+        assert!(
+            off.is_empty(),
+            "radius {radius}, factor {factor}: {} of 150 rays off, e.g. {:?}",
+            off.len(),
+            &off[..off.len().min(3)]
+        );
+    }
+}
+
 /// A crossing within rounding of a breakpoint: here the base quadric's
 /// crossing, where a strong bump's support ends a hair later, so that the
 /// bump adds ~1e-16 there. Each of the two segments that meet there saw its

@@ -36,7 +36,6 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{BUMP_NEGLIGIBLE, TILE_RAYS};
-use crate::poly::{BERNSTEIN, MAX_DEGREE};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
 
 /// Lanes per vector: one AVX-512 register of doubles, two AVX2 ones.
@@ -487,46 +486,17 @@ impl Walk {
             self.live = self.live & !raw;
             return;
         }
-        // `segment_root`'s polynomial on `[a, b]`: `Poly::quadratic` of
-        // the shifted base (its value at `a` recomputed, `f_at_a`) plus
-        // `add_cube` for each active support.
+        // `segment_root`'s polynomial on `[a, b]`: `Bernstein6::quadratic`
+        // of the shifted base (its value at `a` recomputed, `f_at_a`) plus
+        // `Bernstein6::add_cube` for each active support.
         let len = b - a;
         let s = shift(q, a, len);
-        let mut cf = [
-            f_at_a,
-            s[1],
-            s[2],
-            splat(0.0),
-            splat(0.0),
-            splat(0.0),
-            splat(0.0),
-        ];
+        let mut bz = elevate2(bernstein2([f_at_a, s[1], s[2]]));
         for k in 0..K {
-            let [a0, a1, a2] = shift(c[k], a, len);
-            let (p0, p1, p2) = (a0 * a0, 2.0 * a0 * a1, a1 * a1 + 2.0 * a0 * a2);
-            let (p3, p4) = (2.0 * a1 * a2, a2 * a2);
-            let terms = [
-                p0 * a0,
-                p0 * a1 + p1 * a0,
-                p0 * a2 + p1 * a1 + p2 * a0,
-                p1 * a2 + p2 * a1 + p3 * a0,
-                p2 * a2 + p3 * a1 + p4 * a0,
-                p3 * a2 + p4 * a1,
-                p4 * a2,
-            ];
+            let terms = cube2(bernstein2(shift(c[k], a, len)));
             for i in 0..7 {
-                cf[i] = sel(act[k], cf[i] + f[k] * terms[i], cf[i]);
+                bz[i] = sel(act[k], bz[i] + f[k] * terms[i], bz[i]);
             }
-        }
-        // Bernstein coefficients (`bernstein6`, the same sums in order).
-        let wt = &BERNSTEIN[MAX_DEGREE];
-        let mut bz = [splat(0.0); 7];
-        for k in 0..7 {
-            let mut acc = wt[k][0] * cf[0];
-            for j in 1..=k {
-                acc = acc + wt[k][j] * cf[j];
-            }
-            bz[k] = acc;
         }
         let mut nonzero = M::all(true);
         let mut changes = splat(0.0);
@@ -597,8 +567,8 @@ impl Walk {
         let nan = splat(f64::NAN);
         let found = found & self.live;
         let root = if found.any() {
-            halley(
-                &cf,
+            refine(
+                &bz,
                 found,
                 (
                     half(splat(0.0), splat(0.5), splat(0.0)),
@@ -792,6 +762,97 @@ fn de_casteljau_half(b: &[V; 7]) -> ([V; 7], [V; 7]) {
         right[6 - level] = work[6 - level];
     }
     (left, right)
+}
+
+/// `poly::bernstein2` on lanes.
+#[inline(always)]
+fn bernstein2(q: [V; 3]) -> [V; 3] {
+    [q[0], q[0] + 0.5 * q[1], q[0] + q[1] + q[2]]
+}
+
+/// `Bernstein6::quadratic`'s degree elevation on lanes.
+#[inline(always)]
+fn elevate2([f0, f1, f2]: [V; 3]) -> [V; 7] {
+    [
+        f0,
+        (2.0 * f0 + f1) * (1.0 / 3.0),
+        (6.0 * f0 + 8.0 * f1 + f2) * (1.0 / 15.0),
+        (f0 + 3.0 * f1 + f2) * 0.2,
+        (f0 + 8.0 * f1 + 6.0 * f2) * (1.0 / 15.0),
+        (f1 + 2.0 * f2) * (1.0 / 3.0),
+        f2,
+    ]
+}
+
+/// `poly::cube2` on lanes.
+#[inline(always)]
+fn cube2([b0, b1, b2]: [V; 3]) -> [V; 7] {
+    let (s0, s1, s2, s3, s4) = (
+        b0 * b0,
+        b0 * b1,
+        (b0 * b2 + 2.0 * (b1 * b1)) * (1.0 / 3.0),
+        b1 * b2,
+        b2 * b2,
+    );
+    [
+        s0 * b0,
+        (s0 * b1 + 2.0 * (s1 * b0)) * (1.0 / 3.0),
+        (s0 * b2 + 8.0 * (s1 * b1) + 6.0 * (s2 * b0)) * (1.0 / 15.0),
+        (s1 * b2 + 3.0 * (s2 * b1) + s3 * b0) * 0.2,
+        (6.0 * (s2 * b2) + 8.0 * (s3 * b1) + s4 * b0) * (1.0 / 15.0),
+        (2.0 * (s3 * b2) + s4 * b1) * (1.0 / 3.0),
+        s4 * b2,
+    ]
+}
+
+/// `Bernstein6::refine(lo, hi, fa, fb, start)` on the lanes `going`: a
+/// bracket across `1/2` halved by the sign there (`poly::midpoint`), then
+/// [`halley`] in the power basis about `s = 0` (`poly::power`) or, on
+/// `[1/2, 1]`, about `s = 1` (in `u = 1 - s`, the coefficients reversed).
+#[inline(always)]
+fn refine(b: &[V; 7], going: M, (lo, hi): (V, V), (fa, fb): (V, V), start: V) -> V {
+    let across = going & lo.lt(0.5) & hi.gt(0.5);
+    let (mut lo, mut hi, mut fa, mut fb) = (lo, hi, fa, fb);
+    let mut at_mid = M::all(false);
+    if across.any() {
+        let mut w = *b;
+        for level in 1..=6 {
+            for i in 0..=(6 - level) {
+                w[i] = 0.5 * (w[i] + w[i + 1]);
+            }
+        }
+        let mid = w[0];
+        at_mid = across & mid.eq(0.0);
+        let right = across & !at_mid & mid.lt(0.0).same(fa.lt(0.0));
+        let left = across & !at_mid & !right;
+        lo = sel(right, 0.5, lo);
+        fa = sel(right, mid, fa);
+        hi = sel(left, 0.5, hi);
+        fb = sel(left, mid, fb);
+    }
+    let rev = lo.ge(0.5);
+    let mut r = *b;
+    for k in 0..7 {
+        r[k] = sel(rev, b[6 - k], b[k]);
+    }
+    // `poly::power`: forward differences.
+    const C6: [f64; 7] = [1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0];
+    let mut c = [splat(0.0); 7];
+    c[0] = r[0];
+    for k in 1..7 {
+        for i in 0..=(6 - k) {
+            r[i] = r[i + 1] - r[i];
+        }
+        c[k] = C6[k] * r[0];
+    }
+    let u = halley(
+        &c,
+        going & !at_mid,
+        (sel(rev, 1.0 - hi, lo), sel(rev, 1.0 - lo, hi)),
+        (sel(rev, fb, fa), sel(rev, fa, fb)),
+        sel(rev, 1.0 - start, start),
+    );
+    sel(at_mid, 0.5, sel(rev, 1.0 - u, u))
 }
 
 /// Safeguarded Halley iteration on the bracket `[lo, hi]` for the lanes
