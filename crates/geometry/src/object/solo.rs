@@ -18,9 +18,10 @@
 //!
 //! **Every value is the scalar walk's to the last bit.** Each lane performs
 //! the scalar code's operations in the scalar code's order (`reach`,
-//! `sign_is_fixed`, `range2`, `shift`, `Poly::add_cube`, the Bernstein
-//! weights, `Poly::first_crossing`'s first step, `Poly::isolate`'s first
-//! split and `Poly::refine_from`'s Halley iteration, written again on
+//! `sign_is_fixed`, `range2`, `shift`, `Bernstein6::quadratic` and
+//! `add_cube`, `poly::first_crossing`'s first step, `poly::isolate`'s
+//! first split and `Bernstein6::refine`'s Halley iteration about the
+//! nearer end, written again on
 //! lanes; an inactive support's term is selected away, never added), IEEE
 //! operations are exact whatever the vector width, and Rust never
 //! contracts `a * b + c` into a fused multiply-add. A lane whose walk

@@ -5,11 +5,16 @@
 // segments on which the set of active perturbations is fixed, so F' is one
 // polynomial of degree <= 6. Each segment [a, b] is reparameterized to
 // s in [0, 1] (t = a + (b - a) s), which keeps the f32 coefficients well
-// conditioned, and its first root is isolated by Bernstein subdivision:
-// the control points bound the polynomial on a sub-interval, an interval
-// whose control points share one sign holds no root, the others are halved
-// (left first) down to 2^-12 of the segment, then refined by regula falsi.
-// Never marching. The prelude (constants) is generated from Rust.
+// conditioned, and held by its Bernstein coefficients, built from the
+// quadratics' own (`bern_elevate`, `bern_add_cube`; the CPU's
+// `Bernstein6`): accurate at both ends of the segment, where a support's
+// `f Q^3` vanishes (docs/geometry.md, "Why the Bernstein form"). Its
+// first root is isolated by Bernstein subdivision: the control points
+// bound the polynomial on a sub-interval, an interval whose control
+// points share one sign holds no root, the others are halved (left
+// first) down to 2^-12 of the segment, then refined by regula falsi in
+// the power basis about the nearer end of the segment. Never marching.
+// The prelude (constants) is generated from Rust.
 //
 // Precision: every computation is in `real`, an alias the Rust side
 // prepends (`geometry_source`): f32, or f64 on adapters with
@@ -172,62 +177,148 @@ fn poly_eval(p: array<real, 7>, s: real) -> real {
     return v;
 }
 
-// What the control polygon of p on [u, v] (s = u + (v - u) x, x in
-// [0, 1]) says about its roots there, its end points replaced by the
-// values fa = p(u), fb = p(v): bit 0 (HULL_ZERO), the control points'
-// hull contains zero (a root is possible); bit 1 (HULL_SINGLE), exactly
-// one root: ends of opposite signs, one sign change of the polygon
-// (Descartes' rule of signs in the Bernstein basis), and every point
-// clear of `tol`, so that no sign is rounding's. The points are made one
-// at a time and folded into those answers at once, not kept as an array
+// The Bernstein coefficients on [0, 1] of the quadratic c.x + c.y s +
+// c.z s^2 (`poly::bernstein2`).
+fn bern2(c: vec3<real>) -> vec3<real> {
+    return vec3<real>(c.x, c.x + 0.5 * c.y, c.x + c.y + c.z);
+}
+
+// The quadratic with Bernstein coefficients f raised to degree 6
+// (`Bernstein6::quadratic`).
+fn bern_elevate(f: vec3<real>) -> array<real, 7> {
+    return array<real, 7>(
+        f.x,
+        (2.0 * f.x + f.y) * (1.0 / 3.0),
+        (6.0 * f.x + 8.0 * f.y + f.z) * (1.0 / 15.0),
+        (f.x + 3.0 * f.y + f.z) * 0.2,
+        (f.x + 8.0 * f.y + 6.0 * f.z) * (1.0 / 15.0),
+        (f.y + 2.0 * f.z) * (1.0 / 3.0),
+        f.z,
+    );
+}
+
+// Adds f q^3 to the Bernstein coefficients p, for the quadratic with
+// Bernstein coefficients b (`poly::cube2`: q^2, degree 4, then q^2 q).
+fn bern_add_cube(p: ptr<function, array<real, 7>>, f: real, b: vec3<real>) {
+    let s0 = b.x * b.x;
+    let s1 = b.x * b.y;
+    let s2 = (b.x * b.z + 2.0 * (b.y * b.y)) * (1.0 / 3.0);
+    let s3 = b.y * b.z;
+    let s4 = b.z * b.z;
+    (*p)[0] += f * (s0 * b.x);
+    (*p)[1] += f * ((s0 * b.y + 2.0 * (s1 * b.x)) * (1.0 / 3.0));
+    (*p)[2] += f * ((s0 * b.z + 8.0 * (s1 * b.y) + 6.0 * (s2 * b.x)) * (1.0 / 15.0));
+    (*p)[3] += f * ((s1 * b.z + 3.0 * (s2 * b.y) + s3 * b.x) * 0.2);
+    (*p)[4] += f * ((6.0 * (s2 * b.z) + 8.0 * (s3 * b.y) + s4 * b.x) * (1.0 / 15.0));
+    (*p)[5] += f * ((2.0 * (s3 * b.z) + s4 * b.y) * (1.0 / 3.0));
+    (*p)[6] += f * (s4 * b.z);
+}
+
+// The power basis of the polynomial with Bernstein coefficients b
+// (`poly::power`): c_k = C(6, k) times the k-th forward difference of b
+// at 0; with `reversed`, of b read backwards, the power basis in 1 - s.
+fn bern_power(b: array<real, 7>, reversed: bool) -> array<real, 7> {
+    var d = b;
+    if (reversed) {
+        d = array<real, 7>(b[6], b[5], b[4], b[3], b[2], b[1], b[0]);
+    }
+    var c = array<real, 7>(d[0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    d[0] = d[1] - d[0];
+    d[1] = d[2] - d[1];
+    d[2] = d[3] - d[2];
+    d[3] = d[4] - d[3];
+    d[4] = d[5] - d[4];
+    d[5] = d[6] - d[5];
+    c[1] = 6.0 * d[0];
+    d[0] = d[1] - d[0];
+    d[1] = d[2] - d[1];
+    d[2] = d[3] - d[2];
+    d[3] = d[4] - d[3];
+    d[4] = d[5] - d[4];
+    c[2] = 15.0 * d[0];
+    d[0] = d[1] - d[0];
+    d[1] = d[2] - d[1];
+    d[2] = d[3] - d[2];
+    d[3] = d[4] - d[3];
+    c[3] = 20.0 * d[0];
+    d[0] = d[1] - d[0];
+    d[1] = d[2] - d[1];
+    d[2] = d[3] - d[2];
+    c[4] = 15.0 * d[0];
+    d[0] = d[1] - d[0];
+    d[1] = d[2] - d[1];
+    c[5] = 6.0 * d[0];
+    c[6] = d[1] - d[0];
+    return c;
+}
+
+// The Bernstein coefficients on [0, v] of the polynomial with those p on
+// [0, 1]: de Casteljau's left part at v, in place (level k leaves its
+// first point at k). The last is the value at v.
+fn split_left(p: array<real, 7>, v: real) -> array<real, 7> {
+    var g = p;
+    if (v < 1.0) {
+        let r = 1.0 - v;
+        for (var k = 1; k <= 6; k++) {
+            for (var j = 6; j >= k; j--) {
+                g[j] = r * g[j - 1] + v * g[j];
+            }
+        }
+    }
+    return g;
+}
+
+// What the control polygon on [u, v] of a polynomial with the Bernstein
+// coefficients p_v on [0, v] (`split_left`) says about its roots there,
+// its end points replaced by the values fa = p(u), fb = p(v): bit 0 (HULL_ZERO), the
+// control points' hull contains zero (a root is possible); bit 1
+// (HULL_SINGLE), exactly one root: ends of opposite signs, one sign change
+// of the polygon (Descartes' rule of signs in the Bernstein basis), and
+// every point clear of `tol`, so that no sign is rounding's. The points
+// are folded into those answers one at a time, not kept as a second array
 // (RADV: 2 VGPRs fewer at the kernels' peak, 3-6% less code; docs/gpu.md
 // "Register pressure").
 const HULL_ZERO: u32 = 1u;
 const HULL_SINGLE: u32 = 2u;
-fn hull(p: array<real, 7>, u: real, v: real, fa: real, fb: real, tol: real) -> u32 {
-    // Taylor shift to u (synthetic division), then scale by (v - u)^k.
-    var g = p;
-    for (var i = 0; i < 6; i++) {
-        for (var k = 5; k >= i; k--) {
-            g[k] = g[k] + u * g[k + 1];
+fn hull(p_v: array<real, 7>, u: real, v: real, fa: real, fb: real, tol: real) -> u32 {
+    // de Casteljau's right part at u / v of the coefficients on [0, v]
+    // (`split_left`): those on [u, v], in place (level k leaves its last
+    // point at 6 - k). Convex combinations: no cancellation.
+    var g = p_v;
+    if (u > 0.0) {
+        let x = u / v;
+        let r = 1.0 - x;
+        for (var k = 1; k <= 6; k++) {
+            for (var j = 0; j <= 6 - k; j++) {
+                g[j] = r * g[j] + x * g[j + 1];
+            }
         }
     }
-    let h = v - u;
-    var hk: real = 1.0;
-    for (var k = 0; k < 7; k++) {
-        g[k] = g[k] * hk;
-        hk = hk * h;
-    }
-    // b_k = sum_{j <= k} C(k, j) / C(6, j) g_j, the weights written out
-    // as products with constants (a division by 6 is not a product with
-    // 1/6 in IEEE arithmetic, so a driver may not fold it into one); b_0
-    // and b_6 are fa and fb.
+    let b1 = g[1];
+    let b2 = g[2];
+    let b3 = g[3];
+    let b4 = g[4];
+    let b5 = g[5];
     var lo = min(fa, fb);
     var hi = max(fa, fb);
     var clear = abs(fa) > tol && abs(fb) > tol;
     var changes = 0u;
-    let b1 = g[0] + g[1] * (1.0 / 6.0);
     lo = min(lo, b1);
     hi = max(hi, b1);
     clear = clear && abs(b1) > tol;
     changes += select(0u, 1u, (fa < 0.0) != (b1 < 0.0));
-    let b2 = g[0] + g[1] * (1.0 / 3.0) + g[2] * (1.0 / 15.0);
     lo = min(lo, b2);
     hi = max(hi, b2);
     clear = clear && abs(b2) > tol;
     changes += select(0u, 1u, (b1 < 0.0) != (b2 < 0.0));
-    let b3 = g[0] + g[1] * 0.5 + g[2] * 0.2 + g[3] * 0.05;
     lo = min(lo, b3);
     hi = max(hi, b3);
     clear = clear && abs(b3) > tol;
     changes += select(0u, 1u, (b2 < 0.0) != (b3 < 0.0));
-    let b4 = g[0] + g[1] * (2.0 / 3.0) + g[2] * 0.4 + g[3] * 0.2 + g[4] * (1.0 / 15.0);
     lo = min(lo, b4);
     hi = max(hi, b4);
     clear = clear && abs(b4) > tol;
     changes += select(0u, 1u, (b3 < 0.0) != (b4 < 0.0));
-    let b5 = g[0] + g[1] * (5.0 / 6.0) + g[2] * (2.0 / 3.0) + g[3] * 0.5 + g[4] * (1.0 / 3.0)
-        + g[5] * (1.0 / 6.0);
     lo = min(lo, b5);
     hi = max(hi, b5);
     clear = clear && abs(b5) > tol;
@@ -242,7 +333,8 @@ fn hull(p: array<real, 7>, u: real, v: real, fa: real, fb: real, tol: real) -> u
     return r;
 }
 
-// First sign change of p on [0, 1], or -1.
+// First sign change on [0, 1] of the polynomial with Bernstein
+// coefficients p, or -1.
 //
 // Bernstein subdivision, depth first and left first, without a stack:
 // the interval is the dyadic `[i, i + 1] * w` (`w = 2^-level`), the next
@@ -254,7 +346,7 @@ fn hull(p: array<real, 7>, u: real, v: real, fa: real, fb: real, tol: real) -> u
 //
 // The walk goes left to right, so an interval's left end is the last
 // one's right end, and `p(u)` is carried over: every end value is computed
-// once, at the one call site of `poly_eval` for `p(v)`, and two
+// once, by `split_left` at `v` (its last coefficient), and two
 // neighbours agree exactly on their common end, so a sign change there
 // cannot be lost. (Recomputing the Bernstein coefficients of each interval
 // from the power basis gives end values off by rounding, about 1e-5 where
@@ -272,8 +364,10 @@ fn hull(p: array<real, 7>, u: real, v: real, fa: real, fb: real, tol: real) -> u
 // per sample on the gallery) and so divergent: a warp waits for its one
 // thread that refines.
 fn first_root(p: array<real, 7>, any: bool) -> real {
-    // What rounding can do to a control point: the Taylor shift, scaling
-    // and basis change stay within about 1024 ulps of sum |p_k| on [0, 1].
+    // What rounding can do to a control point: de Casteljau's convex
+    // combinations, twelve levels deep at most, stay well within 1024
+    // ulps of sum |p_k| (the tolerance of the power basis' Taylor shift,
+    // scaling and basis change, which this walk used before 2026-12-05).
     var size: real = 0.0;
     for (var k = 0; k < 7; k++) {
         size += abs(p[k]);
@@ -292,23 +386,27 @@ fn first_root(p: array<real, 7>, any: bool) -> real {
         // Dyadic ends: exact (i < 2^14, w a power of two).
         let u = real(i) * w;
         let v = real(i + 1u) * w;
-        let fb = poly_eval(p, v);
+        let p_v = split_left(p, v);
+        let fb = p_v[6];
         if (fa == 0.0) {
             return u;
         }
         if (any && fa * fb < 0.0) {
             return 0.5 * (u + v);
         }
-        let hc = hull(p, u, v, fa, fb, tol);
+        let hc = hull(p_v, u, v, fa, fb, tol);
         var split = false;
         if ((hc & HULL_ZERO) != 0u) {
             // Exactly one root (`hull`), decided as the CPU's
-            // `Poly::first_crossing` and `isolate` decide it, is refined
-            // at once instead of split down to MIN_WIDTH; otherwise the
-            // interval is split.
-            if ((hc & HULL_SINGLE) != 0u || w < MIN_WIDTH) {
+            // `Bernstein6::first_crossing` and `isolate` decide it, is
+            // refined at once instead of split down to MIN_WIDTH, once
+            // the interval lies in one half of the segment (`refine_bern`
+            // refines about the nearer end: the whole segment is split
+            // once, where the CPU finds the half by the sign at 1/2);
+            // otherwise the interval is split.
+            if (((hc & HULL_SINGLE) != 0u && level > 0u) || w < MIN_WIDTH) {
                 if (fa * fb <= 0.0) {
-                    return refine(p, u, v, fa, fb);
+                    return refine_bern(p, u, v, fa, fb);
                 }
                 // Touches zero without crossing: done with it.
             } else {
@@ -338,6 +436,20 @@ fn first_root(p: array<real, 7>, any: bool) -> real {
         fa = fb;
     }
     return -1.0;
+}
+
+// The root in [u, v] of the polynomial with Bernstein coefficients b,
+// where p(u) = fa and p(v) = fb have opposite signs (or one is zero), and
+// [u, v] lies in one half of [0, 1]: [`refine`] in the power basis about
+// s = 0 on [0, 1/2], about s = 1 (in 1 - s) on [1/2, 1], each accurate
+// near its own end (the CPU's `Bernstein6::refine`).
+fn refine_bern(b: array<real, 7>, u: real, v: real, fa: real, fb: real) -> real {
+    let reversed = u >= 0.5;
+    let c = bern_power(b, reversed);
+    if (reversed) {
+        return 1.0 - refine(c, 1.0 - v, 1.0 - u, fb, fa);
+    }
+    return refine(c, u, v, fa, fb);
 }
 
 // The root of p in [x0, x1], where p(x0) = f0 and p(x1) = f1 have opposite
@@ -601,7 +713,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         let l = b - a;
         let mid = a + 0.5 * l;
         let c = shift2(base, a, l);
-        var p = array<real, 7>(c.x, c.y, c.z, 0.0, 0.0, 0.0, 0.0);
+        var p = bern_elevate(bern2(c));
         var n_active = 0u;
         walk = vec2<u32>(cand_mask, 0u);
         loop {
@@ -615,21 +727,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
                 continue;
             }
             n_active++;
-            let q = shift2(qa, a, l);
-            let f = real(pert.factor.x);
-            // q^2 (degree 4), then q^3 (degree 6).
-            let s0 = q.x * q.x;
-            let s1 = 2.0 * q.x * q.y;
-            let s2 = q.y * q.y + 2.0 * q.x * q.z;
-            let s3 = 2.0 * q.y * q.z;
-            let s4 = q.z * q.z;
-            p[0] += f * (s0 * q.x);
-            p[1] += f * (s1 * q.x + s0 * q.y);
-            p[2] += f * (s2 * q.x + s1 * q.y + s0 * q.z);
-            p[3] += f * (s3 * q.x + s2 * q.y + s1 * q.z);
-            p[4] += f * (s4 * q.x + s3 * q.y + s2 * q.z);
-            p[5] += f * (s4 * q.y + s3 * q.z);
-            p[6] += f * (s4 * q.z);
+            bern_add_cube(&p, real(pert.factor.x), bern2(shift2(qa, a, l)));
         }
         // No perturbation active: the base quadric's closed form (as on the
         // CPU), its first root in [0, 1] where the sign changes.
@@ -637,9 +735,9 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         if (before * p[0] < 0.0) {
             s = 0.0;
         } else if (n_active == 0u) {
-            // p[0..3] is the base's `c` here: nothing was added.
-            let r = roots(vec3<real>(p[2], p[1], p[0]));
-            let f0 = p[0];
+            // The base's power basis `c` (p is its Bernstein form here).
+            let r = roots(vec3<real>(c.z, c.y, c.x));
+            let f0 = c.x;
             if (f0 == 0.0) {
                 s = 0.0;
             } else if (r.x >= 0.0 && r.x <= 1.0 && r.x != r.y) {
@@ -681,7 +779,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             t_hit = a + s * l;
             break;
         }
-        before = sign(p[0] + p[1] + p[2] + p[3] + p[4] + p[5] + p[6]);
+        before = sign(p[6]);
         a = b;
     }
     if (pending < t_hit && negligible_bump(base, o, d, pending)) {
