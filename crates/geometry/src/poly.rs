@@ -3,19 +3,25 @@
 //! On a segment where the set of active perturbations is fixed, `F'(t)` is
 //! a polynomial of degree <= 6. It is re-expressed in a local parameter
 //! `s in [0, 1]` (so that it stays well conditioned whatever the distance of
-//! the segment from the ray origin), converted to the Bernstein basis, and
+//! the segment from the ray origin), in the Bernstein basis ([`Bernstein6`]
+//! builds it there from the quadratics' own Bernstein coefficients, which
+//! keeps both ends of the segment accurate; [`Poly`] converts a polynomial
+//! given in the power basis), and
 //! its first root is isolated by Descartes' rule of signs on the Bernstein
 //! coefficients (a sign-change count of zero proves there is no root) with
 //! de Casteljau subdivision at the midpoint, left half first. An interval
 //! with a single sign change and opposite endpoint signs holds exactly one
 //! root, which safeguarded Halley iteration (started at the false-position
 //! point, bisection whenever a step leaves the bracket) refines to full
-//! double precision.
+//! double precision ([`Bernstein6::refine`]: in the power basis about the
+//! nearer end of the segment).
 //!
 //! Only *crossings* count as hits: a root of even multiplicity (a ray that
 //! grazes the surface tangentially) does not enter the solid and is not
 //! reported, except when subdivision reaches [`MAX_DEPTH`], where two
 //! roots closer than `2^-MAX_DEPTH` of the segment are indistinguishable.
+
+use std::ops::{Add, Mul};
 
 /// Maximum polynomial degree handled (base quadric plus cubes of quadrics).
 pub const MAX_DEGREE: usize = 6;
@@ -185,27 +191,41 @@ pub struct Bernstein6 {
     pub b: [f64; MAX_DEGREE + 1],
 }
 
+/// The arithmetic of the Bernstein constructions below: `f64`, and the
+/// vector lanes of `object::solo`, which run them on several rays at once
+/// and must give the same bits (the same operations in the same order).
+pub(crate) trait Real:
+    Copy + Add<Output = Self> + Mul<Output = Self> + Mul<f64, Output = Self>
+{
+}
+impl<T: Copy + Add<Output = T> + Mul<Output = T> + Mul<f64, Output = T>> Real for T {}
+
 /// The Bernstein coefficients on `[0, 1]` of `q_0 + q_1 s + q_2 s^2`.
 #[inline(always)]
-pub(crate) fn bernstein2(q: [f64; 3]) -> [f64; 3] {
-    [q[0], q[0] + 0.5 * q[1], q[0] + q[1] + q[2]]
+pub(crate) fn bernstein2<T: Real>([q0, q1, q2]: [T; 3]) -> [T; 3] {
+    [q0, q0 + q1 * 0.5, q0 + q1 + q2]
+}
+
+/// The quadratic with the Bernstein coefficients `f` raised to degree 6.
+#[inline(always)]
+pub(crate) fn elevate2<T: Real>([f0, f1, f2]: [T; 3]) -> [T; MAX_DEGREE + 1] {
+    [
+        f0,
+        (f0 * 2.0 + f1) * (1.0 / 3.0),
+        (f0 * 6.0 + f1 * 8.0 + f2) * (1.0 / 15.0),
+        (f0 + f1 * 3.0 + f2) * 0.2,
+        (f0 + f1 * 8.0 + f2 * 6.0) * (1.0 / 15.0),
+        (f1 + f2 * 2.0) * (1.0 / 3.0),
+        f2,
+    ]
 }
 
 impl Bernstein6 {
     /// The quadratic `q_0 + q_1 s + q_2 s^2` raised to degree 6.
     #[inline]
     pub fn quadratic(q: [f64; 3]) -> Self {
-        let [f0, f1, f2] = bernstein2(q);
         Bernstein6 {
-            b: [
-                f0,
-                (2.0 * f0 + f1) * (1.0 / 3.0),
-                (6.0 * f0 + 8.0 * f1 + f2) * (1.0 / 15.0),
-                (f0 + 3.0 * f1 + f2) * 0.2,
-                (f0 + 8.0 * f1 + 6.0 * f2) * (1.0 / 15.0),
-                (f1 + 2.0 * f2) * (1.0 / 3.0),
-                f2,
-            ],
+            b: elevate2(bernstein2(q)),
         }
     }
 
@@ -315,22 +335,22 @@ pub(crate) fn power(b: &[f64; MAX_DEGREE + 1]) -> Poly {
 /// The Bernstein coefficients of `q^3` (degree 6) from those of the
 /// quadratic `q` (degree 2).
 #[inline(always)]
-pub(crate) fn cube2([b0, b1, b2]: [f64; 3]) -> [f64; MAX_DEGREE + 1] {
+pub(crate) fn cube2<T: Real>([b0, b1, b2]: [T; 3]) -> [T; MAX_DEGREE + 1] {
     // q^2, degree 4.
     let (s0, s1, s2, s3, s4) = (
         b0 * b0,
         b0 * b1,
-        (b0 * b2 + 2.0 * (b1 * b1)) * (1.0 / 3.0),
+        (b0 * b2 + (b1 * b1) * 2.0) * (1.0 / 3.0),
         b1 * b2,
         b2 * b2,
     );
     [
         s0 * b0,
-        (s0 * b1 + 2.0 * (s1 * b0)) * (1.0 / 3.0),
-        (s0 * b2 + 8.0 * (s1 * b1) + 6.0 * (s2 * b0)) * (1.0 / 15.0),
-        (s1 * b2 + 3.0 * (s2 * b1) + s3 * b0) * 0.2,
-        (6.0 * (s2 * b2) + 8.0 * (s3 * b1) + s4 * b0) * (1.0 / 15.0),
-        (2.0 * (s3 * b2) + s4 * b1) * (1.0 / 3.0),
+        (s0 * b1 + (s1 * b0) * 2.0) * (1.0 / 3.0),
+        (s0 * b2 + (s1 * b1) * 8.0 + (s2 * b0) * 6.0) * (1.0 / 15.0),
+        (s1 * b2 + (s2 * b1) * 3.0 + s3 * b0) * 0.2,
+        ((s2 * b2) * 6.0 + (s3 * b1) * 8.0 + s4 * b0) * (1.0 / 15.0),
+        ((s3 * b2) * 2.0 + s4 * b1) * (1.0 / 3.0),
         s4 * b2,
     ]
 }

@@ -787,6 +787,50 @@ fn large_bumps_are_hit_precisely() {
     assert!(worst < 1e-5, "{worst:e}");
 }
 
+/// The scene the dwarfing-bump tests put their one object into (for
+/// `worst_bump_condition`), and the point the bumps are centred on.
+fn bump_scene() -> (isolux_render::Scene, DVec3) {
+    let scene = isolux_scene::parse_str(
+        "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [[material]]\nname = \"m\"\ntype = \"diffuse\"\n\
+         [[object]]\nmaterial = \"m\"\n\
+         base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.0 }\n",
+        std::path::Path::new("bumps.toml"),
+        std::path::Path::new("."),
+    )
+    .unwrap();
+    (scene, DVec3::new(-2.5, 0.45, 0.0))
+}
+
+/// The GPU's error on 400 rays at a sphere of radius 0.45 under one bump
+/// (half from a point inside, half from around its box), relative to the
+/// box's size: `|t_gpu - t_cpu| / size` per ray, infinite where the GPU
+/// misses the CPU's hit, 0 where both miss.
+fn bump_errors(gpu: &isolux_gpu::Gpu, object: &Object) -> Vec<f64> {
+    let b = object.bbox();
+    let size = (b.max - b.min).max_element();
+    let mut rng = Pcg32::new(3, 9);
+    let rays: Vec<(DVec3, DVec3)> = (0..400)
+        .map(|k| {
+            let d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
+            let from = if k % 2 == 0 {
+                DVec3::new(-2.0, 0.5, 0.3)
+            } else {
+                object.origin() + (b.max - b.min).length() * d
+            };
+            (from, from + if k % 2 == 0 { d } else { -d })
+        })
+        .collect();
+    single_object_hits(gpu, object, &rays)
+        .into_iter()
+        .map(|(t, c)| match c {
+            Some(c) => (t - c).abs() / size,
+            None if t < 0.0 => 0.0,
+            None => f64::INFINITY,
+        })
+        .collect()
+}
+
 /// Bumps that dwarf their base (a sphere of radius 0.45) on the f32 and
 /// the f64 intersection, against the CPU (400 rays from inside and
 /// outside): below `F32_CONDITION_LIMIT` (the bump's largest `f Q^3` over
@@ -801,16 +845,7 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
     let Some(mut gpu) = common::open("ill-conditioned bumps") else {
         return;
     };
-    let mut scene = isolux_scene::parse_str(
-        "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
-         [[material]]\nname = \"m\"\ntype = \"diffuse\"\n\
-         [[object]]\nmaterial = \"m\"\n\
-         base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.0 }\n",
-        std::path::Path::new("bumps.toml"),
-        std::path::Path::new("."),
-    )
-    .unwrap();
-    let at = DVec3::new(-2.5, 0.45, 0.0);
+    let (mut scene, at) = bump_scene();
     let big = isolux_core::Aabb {
         min: DVec3::splat(-40.0),
         max: DVec3::splat(40.0),
@@ -870,28 +905,7 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
             isolux_gpu::Precision::F32
         };
         gpu.set_precision(precision).unwrap();
-        let b = object.bbox();
-        let size = (b.max - b.min).max_element();
-        let mut rng = Pcg32::new(3, 9);
-        let rays: Vec<(DVec3, DVec3)> = (0..400)
-            .map(|k| {
-                let d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
-                let from = if k % 2 == 0 {
-                    DVec3::new(-2.0, 0.5, 0.3)
-                } else {
-                    object.origin() + (b.max - b.min).length() * d
-                };
-                (from, from + if k % 2 == 0 { d } else { -d })
-            })
-            .collect();
-        let worst = single_object_hits(&gpu, &object, &rays)
-            .into_iter()
-            .map(|(t, c)| match c {
-                Some(c) => (t - c).abs() / size,
-                None if t < 0.0 => 0.0,
-                None => f64::INFINITY,
-            })
-            .fold(0.0, f64::max);
+        let worst = bump_errors(&gpu, &object).into_iter().fold(0.0, f64::max);
         eprintln!(
             "{name}, f {factor}: ratio {ratio:.2e}, {precision:?}: worst |t_gpu - t_cpu| / size \
              {worst:.2e}"
@@ -915,17 +929,7 @@ fn f32_condition_table() {
     let Some(mut gpu) = common::open("condition table") else {
         return;
     };
-    let scene_src = "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
-         [[material]]\nname = \"m\"\ntype = \"diffuse\"\n\
-         [[object]]\nmaterial = \"m\"\n\
-         base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.0 }\n";
-    let mut scene = isolux_scene::parse_str(
-        scene_src,
-        std::path::Path::new("bumps.toml"),
-        std::path::Path::new("."),
-    )
-    .unwrap();
-    let at = DVec3::new(-2.5, 0.45, 0.0);
+    let (mut scene, at) = bump_scene();
     let big = isolux_core::Aabb {
         min: DVec3::splat(-40.0),
         max: DVec3::splat(40.0),
@@ -969,30 +973,9 @@ fn f32_condition_table() {
         .unwrap();
         scene.geometry = isolux_geometry::Aggregate::new(vec![object.clone()]);
         let ratio = isolux_gpu::worst_bump_condition(&scene).unwrap().ratio;
-        let b = object.bbox();
-        let size = (b.max - b.min).max_element();
-        let mut rng = Pcg32::new(3, 9);
-        let rays: Vec<(DVec3, DVec3)> = (0..400)
-            .map(|k| {
-                let d = sampling::uniform_sphere([rng.next_f64(), rng.next_f64()]);
-                let from = if k % 2 == 0 {
-                    DVec3::new(-2.0, 0.5, 0.3)
-                } else {
-                    object.origin() + (b.max - b.min).length() * d
-                };
-                (from, from + if k % 2 == 0 { d } else { -d })
-            })
-            .collect();
         let mut errors = |precision| {
             gpu.set_precision(precision).unwrap();
-            single_object_hits(&gpu, &object, &rays)
-                .into_iter()
-                .map(|(t, c)| match c {
-                    Some(c) => (t - c).abs() / size,
-                    None if t < 0.0 => 0.0,
-                    None => f64::INFINITY,
-                })
-                .collect::<Vec<f64>>()
+            bump_errors(&gpu, &object)
         };
         let f32s = errors(isolux_gpu::Precision::F32);
         let missed = |e: &[f64]| e.iter().any(|x| x.is_infinite());

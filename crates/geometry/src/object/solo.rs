@@ -37,6 +37,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{BUMP_NEGLIGIBLE, TILE_RAYS};
+use crate::poly::{bernstein2, cube2, elevate2};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
 
 /// Lanes per vector: one AVX-512 register of doubles, two AVX2 ones.
@@ -763,47 +764,6 @@ fn de_casteljau_half(b: &[V; 7]) -> ([V; 7], [V; 7]) {
         right[6 - level] = work[6 - level];
     }
     (left, right)
-}
-
-/// `poly::bernstein2` on lanes.
-#[inline(always)]
-fn bernstein2(q: [V; 3]) -> [V; 3] {
-    [q[0], q[0] + 0.5 * q[1], q[0] + q[1] + q[2]]
-}
-
-/// `Bernstein6::quadratic`'s degree elevation on lanes.
-#[inline(always)]
-fn elevate2([f0, f1, f2]: [V; 3]) -> [V; 7] {
-    [
-        f0,
-        (2.0 * f0 + f1) * (1.0 / 3.0),
-        (6.0 * f0 + 8.0 * f1 + f2) * (1.0 / 15.0),
-        (f0 + 3.0 * f1 + f2) * 0.2,
-        (f0 + 8.0 * f1 + 6.0 * f2) * (1.0 / 15.0),
-        (f1 + 2.0 * f2) * (1.0 / 3.0),
-        f2,
-    ]
-}
-
-/// `poly::cube2` on lanes.
-#[inline(always)]
-fn cube2([b0, b1, b2]: [V; 3]) -> [V; 7] {
-    let (s0, s1, s2, s3, s4) = (
-        b0 * b0,
-        b0 * b1,
-        (b0 * b2 + 2.0 * (b1 * b1)) * (1.0 / 3.0),
-        b1 * b2,
-        b2 * b2,
-    );
-    [
-        s0 * b0,
-        (s0 * b1 + 2.0 * (s1 * b0)) * (1.0 / 3.0),
-        (s0 * b2 + 8.0 * (s1 * b1) + 6.0 * (s2 * b0)) * (1.0 / 15.0),
-        (s1 * b2 + 3.0 * (s2 * b1) + s3 * b0) * 0.2,
-        (6.0 * (s2 * b2) + 8.0 * (s3 * b1) + s4 * b0) * (1.0 / 15.0),
-        (2.0 * (s3 * b2) + s4 * b1) * (1.0 / 3.0),
-        s4 * b2,
-    ]
 }
 
 /// `Bernstein6::refine(lo, hi, fa, fb, start)` on the lanes `going`: a
