@@ -802,6 +802,29 @@ fn bump_scene() -> (isolux_render::Scene, DVec3) {
     (scene, DVec3::new(-2.5, 0.45, 0.0))
 }
 
+/// The unbounded supports of the dwarfing-bump tests, and the `bounds`
+/// (80 units) their objects take.
+struct BumpShapes {
+    big: isolux_core::Aabb,
+    cone: Quadric,
+    parab: Quadric,
+    plane: Quadric,
+}
+
+impl BumpShapes {
+    fn new() -> Self {
+        BumpShapes {
+            big: isolux_core::Aabb {
+                min: DVec3::splat(-40.0),
+                max: DVec3::splat(40.0),
+            },
+            cone: Quadric::cone(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 0.5),
+            parab: Quadric::paraboloid(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 1.0),
+            plane: Quadric::plane(DVec3::new(0.0, 0.3, 0.0), DVec3::Y),
+        }
+    }
+}
+
 /// The GPU's error on 400 rays at a sphere of radius 0.45 under one bump
 /// (half from a point inside, half from around its box), relative to the
 /// box's size: `|t_gpu - t_cpu| / size` per ray, infinite where the GPU
@@ -846,13 +869,12 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
         return;
     };
     let (mut scene, at) = bump_scene();
-    let big = isolux_core::Aabb {
-        min: DVec3::splat(-40.0),
-        max: DVec3::splat(40.0),
-    };
-    let cone = Quadric::cone(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 0.5);
-    let parab = Quadric::paraboloid(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 1.0);
-    let plane = Quadric::plane(DVec3::new(0.0, 0.3, 0.0), DVec3::Y);
+    let BumpShapes {
+        big,
+        cone,
+        parab,
+        plane,
+    } = BumpShapes::new();
     // Below the limit, cases the power basis had off (plane 1000: 53 of
     // 400 rays, up to 1.7 units; the cone at 0.1: 14) or barely
     // inside it; above it, one of each shape.
@@ -930,13 +952,12 @@ fn f32_condition_table() {
         return;
     };
     let (mut scene, at) = bump_scene();
-    let big = isolux_core::Aabb {
-        min: DVec3::splat(-40.0),
-        max: DVec3::splat(40.0),
-    };
-    let cone = Quadric::cone(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 0.5);
-    let parab = Quadric::paraboloid(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 1.0);
-    let plane = Quadric::plane(DVec3::new(0.0, 0.3, 0.0), DVec3::Y);
+    let BumpShapes {
+        big,
+        cone,
+        parab,
+        plane,
+    } = BumpShapes::new();
     let cyl = Quadric::cylinder(at, DVec3::Y, 20.0);
     let cases = [
         ("sphere 0.2", Quadric::sphere(at, 0.2), 3000.0, None),
