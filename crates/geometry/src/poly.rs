@@ -261,12 +261,15 @@ impl Bernstein6 {
         self.eval_d2(s).0
     }
 
-    /// The root in `[lo, hi]` (see [`refine_from`]), refined in the power
-    /// basis about the nearer end of `[0, 1]`: `s` on `[0, 1/2]`, `1 - s`
-    /// on `[1/2, 1]` (a bracket across `1/2` is first halved by the sign
-    /// of the value there). Each is as accurate near its origin as the
-    /// Bernstein coefficients it comes from ([`power`]), and Horner's
-    /// scheme costs half de Casteljau's.
+    /// The root in `[lo, hi]`, where the values `fa` and `fb` at its ends
+    /// have opposite signs, from `start` when inside (NaN: none), by
+    /// safeguarded Halley iteration (as [`Poly::first_crossing`] refines)
+    /// in the power basis about the nearer end of `[0, 1]`: `s` on
+    /// `[0, 1/2]`, `1 - s` on `[1/2, 1]` (a bracket across `1/2` is first
+    /// halved by the sign of the value there). Each is as accurate near
+    /// its origin as the Bernstein coefficients it comes from (`c_k =
+    /// C(6, k)` times the `k`-th forward difference of the coefficients),
+    /// and Horner's scheme costs half de Casteljau's.
     pub fn refine(&self, mut lo: f64, mut hi: f64, mut fa: f64, mut fb: f64, start: f64) -> f64 {
         if lo < 0.5 && hi > 0.5 {
             let mid = midpoint(&self.b);
