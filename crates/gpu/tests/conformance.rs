@@ -952,8 +952,8 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
 /// or within 4 times the same object's worst with its factor scaled to
 /// a condition of 1 (f32's own floor for that geometry, which conditioning
 /// does not cause: in an 80-unit box up to 2e-4 for cones, planes and
-/// paraboloids, and 1.7 for one cone whose ray grazes it, in either
-/// basis).
+/// paraboloids, and 1.7 for one object that a ray from 138 units away
+/// grazes, in either basis).
 ///
 /// Measured 2026-12-05 on lavapipe, 240 such objects at conditions 10 to
 /// 1e8 (docs/gpu.md, "Precision"): the Bernstein basis keeps every shape
