@@ -176,7 +176,7 @@ impl Poly {
 /// shell, `f Q^3` reaching 1e18 times `|F|` inside the support) the
 /// power basis' sums near `s = 1` (`b_6 = sum c_k` among them) cancel
 /// to noise larger than `F'` itself, and a root near that end came out
-/// up to 4e-5 of the ray's length off (2026-12-05: a sphere of radius 1
+/// up to 5e-5 of the ray's length off (2026-12-05: a sphere of radius 1
 /// under a bump of radius 1000, factor 1; `shells_dwarfing_their_base_
 /// are_hit_exactly` in the intersection tests). In the Bernstein basis a
 /// product of polynomials that are small near an end has coefficients

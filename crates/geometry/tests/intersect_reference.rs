@@ -747,8 +747,8 @@ fn thin_bump_of_height_1e7_is_found_exactly() {
 /// cancelled to noise near the support's end, and Halley's stopping rule,
 /// relative to `s`, stopped early there: 2026-12-05, of 2000 rays per
 /// shell, 530 (radius 3000, factor 8000: the fuzzed `metals.toml` shell),
-/// 546 (radius 1e4, factor 1) and 44 (radius 1000, factor 1) were off by
-/// up to 4e-5 of `t`, and the walk reported the support's end instead
+/// 236 (radius 300, factor 8000) and 44 (radius 1000, factor 1) were off by
+/// up to 5e-5 of `t`, and the walk reported the support's end instead
 /// (`Bernstein6`).
 #[test]
 fn shells_dwarfing_their_base_are_hit_exactly() {
