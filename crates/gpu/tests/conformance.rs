@@ -876,7 +876,7 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
         plane,
     } = BumpShapes::new();
     // Below the limit, cases the power basis had off (plane 1000: 53 of
-    // 400 rays, up to 1.7 units; the cone at 0.1: 14) or barely
+    // 400 rays, up to 1.7 times the box; the cone at 0.1: 14) or barely
     // inside it; above it, one of each shape.
     let cases = [
         ("sphere 0.2", Quadric::sphere(at, 0.2), 3000.0, None, false),
