@@ -21,7 +21,7 @@
 //! reported, except when subdivision reaches [`MAX_DEPTH`], where two
 //! roots closer than `2^-MAX_DEPTH` of the segment are indistinguishable.
 
-use std::ops::{Add, Mul};
+use std::ops::{Add, Mul, Sub};
 
 /// Maximum polynomial degree handled (base quadric plus cubes of quadrics).
 pub const MAX_DEGREE: usize = 6;
@@ -195,10 +195,13 @@ pub struct Bernstein6 {
 /// vector lanes of `object::solo`, which run them on several rays at once
 /// and must give the same bits (the same operations in the same order).
 pub(crate) trait Real:
-    Copy + Add<Output = Self> + Mul<Output = Self> + Mul<f64, Output = Self>
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Mul<f64, Output = Self>
 {
 }
-impl<T: Copy + Add<Output = T> + Mul<Output = T> + Mul<f64, Output = T>> Real for T {}
+impl<T> Real for T where
+    T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T> + Mul<f64, Output = T>
+{
+}
 
 /// The Bernstein coefficients on `[0, 1]` of `q_0 + q_1 s + q_2 s^2`.
 #[inline(always)]
@@ -234,9 +237,7 @@ impl Bernstein6 {
     /// C(n, j) / C(m + n, k) p_i r_j`, for `q^2` and then `q^2 q`.
     #[inline]
     pub fn add_cube(&mut self, f: f64, q: [f64; 3]) {
-        let [b0, b1, b2] = bernstein2(q);
-        let terms = cube2([b0, b1, b2]);
-        for (x, t) in self.b.iter_mut().zip(terms) {
+        for (x, t) in self.b.iter_mut().zip(cube2(bernstein2(q))) {
             *x += f * t;
         }
     }
@@ -285,10 +286,10 @@ impl Bernstein6 {
         if lo >= 0.5 {
             let mut r = self.b;
             r.reverse();
-            let p = power(&r);
+            let p = power_poly(r);
             1.0 - refine_from(&|u| p.eval_d2(u), 1.0 - hi, 1.0 - lo, fb, fa, 1.0 - start)
         } else {
-            let p = power(&self.b);
+            let p = power_poly(self.b);
             refine_from(&|s| p.eval_d2(s), lo, hi, fa, fb, start)
         }
     }
@@ -303,12 +304,12 @@ impl Bernstein6 {
 
 /// The value at `1/2` of the polynomial of degree 6 with the Bernstein
 /// coefficients `b` (de Casteljau, as [`de_casteljau_half`] computes it).
-#[inline]
-fn midpoint(b: &[f64; MAX_DEGREE + 1]) -> f64 {
+#[inline(always)]
+pub(crate) fn midpoint<T: Real>(b: &[T; MAX_DEGREE + 1]) -> T {
     let mut w = *b;
     for level in 1..=MAX_DEGREE {
         for i in 0..=(MAX_DEGREE - level) {
-            w[i] = 0.5 * (w[i] + w[i + 1]);
+            w[i] = (w[i] + w[i + 1]) * 0.5;
         }
     }
     w[0]
@@ -317,20 +318,24 @@ fn midpoint(b: &[f64; MAX_DEGREE + 1]) -> f64 {
 /// The power basis of the polynomial of degree 6 with the Bernstein
 /// coefficients `b`: `c_k = C(6, k) D^k b_0`, the forward differences
 /// `D^k b_0 = sum_j (-1)^(k - j) C(k, j) b_j`.
-#[inline]
-pub(crate) fn power(b: &[f64; MAX_DEGREE + 1]) -> Poly {
+#[inline(always)]
+pub(crate) fn power<T: Real>(b: [T; MAX_DEGREE + 1]) -> [T; MAX_DEGREE + 1] {
     const C6: [f64; MAX_DEGREE + 1] = [1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0];
-    let mut d = *b;
-    let mut c = [0.0; MAX_DEGREE + 1];
-    c[0] = d[0];
+    let mut d = b;
+    let mut c = b;
     for k in 1..=MAX_DEGREE {
         for i in 0..=(MAX_DEGREE - k) {
             d[i] = d[i + 1] - d[i];
         }
-        c[k] = C6[k] * d[0];
+        c[k] = d[0] * C6[k];
     }
+    c
+}
+
+/// [`power`] as a [`Poly`].
+fn power_poly(b: [f64; MAX_DEGREE + 1]) -> Poly {
     Poly {
-        c,
+        c: power(b),
         degree: MAX_DEGREE,
     }
 }
@@ -864,10 +869,10 @@ mod tests {
             assert!((d2 - fd2).abs() < 1e-4, "{d2} vs {fd2}");
         }
         // The power basis of the same polynomial, both ways round.
-        let c = power(&p.b);
+        let c = power_poly(p.b);
         let mut r = p.b;
         r.reverse();
-        let reversed = power(&r);
+        let reversed = power_poly(r);
         for i in 0..=20 {
             let s = i as f64 / 20.0;
             assert!((c.eval(s) - direct(s)).abs() < 1e-13);

@@ -37,7 +37,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{BUMP_NEGLIGIBLE, TILE_RAYS};
-use crate::poly::{bernstein2, cube2, elevate2};
+use crate::poly::{bernstein2, cube2, elevate2, midpoint, power};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
 
 /// Lanes per vector: one AVX-512 register of doubles, two AVX2 ones.
@@ -776,13 +776,7 @@ fn refine(b: &[V; 7], going: M, (lo, hi): (V, V), (fa, fb): (V, V), start: V) ->
     let (mut lo, mut hi, mut fa, mut fb) = (lo, hi, fa, fb);
     let mut at_mid = M::all(false);
     if across.any() {
-        let mut w = *b;
-        for level in 1..=6 {
-            for i in 0..=(6 - level) {
-                w[i] = 0.5 * (w[i] + w[i + 1]);
-            }
-        }
-        let mid = w[0];
+        let mid = midpoint(b);
         at_mid = across & mid.eq(0.0);
         let right = across & !at_mid & mid.lt(0.0).same(fa.lt(0.0));
         let left = across & !at_mid & !right;
@@ -796,16 +790,7 @@ fn refine(b: &[V; 7], going: M, (lo, hi): (V, V), (fa, fb): (V, V), start: V) ->
     for k in 0..7 {
         r[k] = sel(rev, b[6 - k], b[k]);
     }
-    // `poly::power`: forward differences.
-    const C6: [f64; 7] = [1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0];
-    let mut c = [splat(0.0); 7];
-    c[0] = r[0];
-    for k in 1..7 {
-        for i in 0..=(6 - k) {
-            r[i] = r[i + 1] - r[i];
-        }
-        c[k] = C6[k] * r[0];
-    }
+    let c = power(r);
     let u = halley(
         &c,
         going & !at_mid,
