@@ -802,6 +802,27 @@ fn bump_scene() -> (isolux_render::Scene, DVec3) {
     (scene, DVec3::new(-2.5, 0.45, 0.0))
 }
 
+/// `object`'s condition (`worst_bump_condition`), `scene` holding it alone
+/// (and still after, for `f32_ill_conditioned`).
+fn condition_of(scene: &mut isolux_render::Scene, object: &Object) -> f64 {
+    scene.geometry = isolux_geometry::Aggregate::new(vec![object.clone()]);
+    isolux_gpu::worst_bump_condition(scene).unwrap().ratio
+}
+
+/// A point inside [`bumped_base`]'s base sphere, where half its rays start.
+const BASE_INSIDE: DVec3 = DVec3::new(-2.0, 0.5, 0.3);
+
+/// The object of the fixed-shape dwarfing-bump tests: a sphere of radius
+/// 0.45 at `(-2.5, 0, 0)` under one perturbation.
+fn bumped_base(quadric: Quadric, factor: f64, bounds: Option<isolux_core::Aabb>) -> Object {
+    Object::new(
+        Quadric::sphere(DVec3::new(-2.5, 0.0, 0.0), 0.45),
+        vec![Perturbation { quadric, factor }],
+        bounds,
+    )
+    .unwrap()
+}
+
 /// The unbounded supports of the dwarfing-bump tests, and the `bounds`
 /// (80 units) their objects take.
 struct BumpShapes {
@@ -905,14 +926,8 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
         ("cone", cone, 100.0, Some(big), true),
     ];
     for (name, quadric, factor, bounds, ill) in cases {
-        let object = Object::new(
-            Quadric::sphere(DVec3::new(-2.5, 0.0, 0.0), 0.45),
-            vec![Perturbation { quadric, factor }],
-            bounds,
-        )
-        .unwrap();
-        scene.geometry = isolux_geometry::Aggregate::new(vec![object.clone()]);
-        let ratio = isolux_gpu::worst_bump_condition(&scene).unwrap().ratio;
+        let object = bumped_base(quadric, factor, bounds);
+        let ratio = condition_of(&mut scene, &object);
         let named = isolux_gpu::f32_ill_conditioned(&scene);
         assert_eq!(named.is_some(), ill, "{name}, f {factor}: ratio {ratio:e}");
         if let Some(why) = &named {
@@ -927,7 +942,7 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
             isolux_gpu::Precision::F32
         };
         gpu.set_precision(precision).unwrap();
-        let worst = bump_errors(&gpu, &object, DVec3::new(-2.0, 0.5, 0.3))
+        let worst = bump_errors(&gpu, &object, BASE_INSIDE)
             .into_iter()
             .fold(0.0, f64::max);
         eprintln!(
@@ -1032,12 +1047,10 @@ fn f32_holds_random_bumps_below_the_limit() {
             )
             .unwrap()
         };
-        scene.geometry = isolux_geometry::Aggregate::new(vec![object_with(1.0)]);
-        let unit = isolux_gpu::worst_bump_condition(&scene).unwrap().ratio;
+        let unit = condition_of(&mut scene, &object_with(1.0));
         let target = 10f64.powf(u(&mut rng, 3.0, 6.0)) * 0.999;
         let object = object_with(target / unit);
-        scene.geometry = isolux_geometry::Aggregate::new(vec![object.clone()]);
-        let ratio = isolux_gpu::worst_bump_condition(&scene).unwrap().ratio;
+        let ratio = condition_of(&mut scene, &object);
         assert!(
             isolux_gpu::f32_ill_conditioned(&scene).is_none(),
             "{k}: ratio {ratio:e}"
@@ -1112,17 +1125,11 @@ fn f32_condition_table() {
     println!("| support, factor | ratio | f32: rays off by over 1e-5 | f32: worst | f64: worst |");
     println!("|---|---:|---:|---:|---:|");
     for (name, quadric, factor, bounds) in cases {
-        let object = Object::new(
-            Quadric::sphere(DVec3::new(-2.5, 0.0, 0.0), 0.45),
-            vec![Perturbation { quadric, factor }],
-            bounds,
-        )
-        .unwrap();
-        scene.geometry = isolux_geometry::Aggregate::new(vec![object.clone()]);
-        let ratio = isolux_gpu::worst_bump_condition(&scene).unwrap().ratio;
+        let object = bumped_base(quadric, factor, bounds);
+        let ratio = condition_of(&mut scene, &object);
         let mut errors = |precision| {
             gpu.set_precision(precision).unwrap();
-            bump_errors(&gpu, &object, DVec3::new(-2.0, 0.5, 0.3))
+            bump_errors(&gpu, &object, BASE_INSIDE)
         };
         let f32s = errors(isolux_gpu::Precision::F32);
         let missed = |e: &[f64]| e.iter().any(|x| x.is_infinite());
