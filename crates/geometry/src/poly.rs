@@ -182,9 +182,11 @@ impl Poly {
 /// product of polynomials that are small near an end has coefficients
 /// small near that end ([`Bernstein6::add_cube`] multiplies the
 /// quadratic's three coefficients, `Q(a)`, `Q(a) + Q'(a) len / 2`,
-/// `Q(b)`), and de Casteljau's evaluation is accurate relative to those
-/// coefficients, so both ends of the segment are as well conditioned as
-/// the power basis' origin was.
+/// `Q(b)`), and de Casteljau's subdivision, which isolates the root, is
+/// accurate relative to those coefficients, so both ends of the segment
+/// are as well conditioned as the power basis' origin was (the root is
+/// then refined in the power basis about the nearer end,
+/// [`Bernstein6::refine`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Bernstein6 {
     /// The Bernstein coefficients `b_k` of `sum b_k C(6, k) s^k (1 - s)^(6 - k)`.
