@@ -6,9 +6,12 @@
 // polynomial of degree <= 6. Each segment [a, b] is reparameterized to
 // s in [0, 1] (t = a + (b - a) s), which keeps the f32 coefficients well
 // conditioned, and held by its Bernstein coefficients, built from the
-// quadratics' own (`bern_elevate`, `bern_add_cube`; the CPU's
+// quadratics' own (`bern_q`, `bern_elevate`, `bern_add_cube`; the CPU's
 // `Bernstein6`): accurate at both ends of the segment, where a support's
-// `f Q^3` vanishes (docs/geometry.md, "Why the Bernstein form"). Its
+// `f Q^3` vanishes (docs/geometry.md, "Why the Bernstein form"). Each
+// quadratic is taken about a point near where it matters (the base about
+// its vertex along the ray when the box's entry is far from it, the
+// supports about the segment's start; `object_hit`). Its
 // first root is isolated by Bernstein subdivision: the control points
 // bound the polynomial on a sub-interval, an interval whose control
 // points share one sign holds no root, the others are halved (left
@@ -163,9 +166,18 @@ fn roots(c: vec3<real>) -> vec2<real> {
     return vec2<real>(r0, r1);
 }
 
-// Coefficients in s of the quadratic (A, B, C) on t = a + l s.
-fn shift2(c: vec3<real>, a: real, l: real) -> vec3<real> {
-    return vec3<real>(c.z + a * (c.y + a * c.x), (2.0 * c.x * a + c.y) * l, c.x * l * l);
+// The Bernstein coefficients on [u0, u1] of the quadratic (A, B, C) in
+// u: its value at u0, `C + B (u0 + u1) / 2 + A u0 u1`, its value at u1.
+// Each is evaluated where it belongs rather than summed from a power
+// basis about u0, whose sum at u1 cancels (a segment ending at the base's
+// vertex, `object_hit`'s `tv`, took its end value as a difference of
+// terms near 1700 and saw a sign there that the vertex did not have).
+fn bern_q(q: vec3<real>, u0: real, u1: real) -> vec3<real> {
+    return vec3<real>(
+        q.z + u0 * (q.y + u0 * q.x),
+        q.z + 0.5 * q.y * (u0 + u1) + q.x * (u0 * u1),
+        q.z + u1 * (q.y + u1 * q.x),
+    );
 }
 
 fn poly_eval(p: array<real, 7>, s: real) -> real {
@@ -175,12 +187,6 @@ fn poly_eval(p: array<real, 7>, s: real) -> real {
         v = v * s + q[k];
     }
     return v;
-}
-
-// The Bernstein coefficients on [0, 1] of the quadratic c.x + c.y s +
-// c.z s^2 (`poly::bernstein2`).
-fn bern2(c: vec3<real>) -> vec3<real> {
-    return vec3<real>(c.x, c.x + 0.5 * c.y, c.x + c.y + c.z);
 }
 
 // The quadratic with Bernstein coefficients f raised to degree 6
@@ -526,6 +532,11 @@ fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack:
 // (the CPU's `BUMP_NEGLIGIBLE`, 1e-14 in f64; here about 20 ulp of f32).
 const BUMP_NEGLIGIBLE: f32 = 1e-6;
 
+// How many times the base's value at the vertex its value at the entry
+// must be for `object_hit` to expand the base about the vertex (2^11: f32
+// then keeps 12 of its 24 bits there about the entry).
+const VERTEX_GAIN: real = 2048.0;
+
 // The perturbations of the object being walked (the candidate set) at
 // `x` (its frame): `sum f Q^3` and its gradient `sum 3 f Q^2 grad Q`, over
 // those with `Q(x) > 0`.
@@ -549,8 +560,8 @@ fn bumps_at(x: vec3<real>) -> vec4<real> {
 
 // Whether the perturbations of the object being walked (the candidate
 // set) add under BUMP_NEGLIGIBLE of the base's terms (`base`: its
-// quadratic along the ray) at `t` on the ray `o + t d` (the object's
-// frame), each `f Q^3` summed in its factored form, which does not
+// quadratic along the ray, in `u`) at the point `x` of the ray at `u`
+// (the object's frame), each `f Q^3` summed in its factored form, which does not
 // cancel. Then a root of the base at `t` is a
 // crossing of `F'` (`Object::segment_root` on the CPU): a support that
 // ends where the base crosses leaves one, which the degree-6 polynomial's
@@ -558,9 +569,9 @@ fn bumps_at(x: vec3<real>) -> vec4<real> {
 // third order. Asked once per object walk, after it (`object_hit`'s
 // `pending`), so that the segment loop carries one value more, not this
 // loop's.
-fn negligible_bump(base: vec3<real>, o: vec3<real>, d: vec3<real>, t: real) -> bool {
-    let bump = bumps_at(o + t * d).x;
-    let scale = abs(base.z) + abs(base.y * t) + abs(base.x * t * t);
+fn negligible_bump(base: vec3<real>, u: real, x: vec3<real>) -> bool {
+    let bump = bumps_at(x).x;
+    let scale = abs(base.z) + abs(base.y * u) + abs(base.x * u * u);
     return abs(bump) <= real(BUMP_NEGLIGIBLE) * scale;
 }
 
@@ -573,8 +584,10 @@ fn negligible_bump(base: vec3<real>, o: vec3<real>, d: vec3<real>, t: real) -> b
 // computed near the object, at the object's own scale: a quadric along a
 // ray from far away is a difference of large terms (its value at the
 // origin, |o - c|^2 - r^2 for a sphere), which f32 resolves only to about
-// |o - c|^2 2^-24. Parameters `t` inside are from the entry point; the
-// answer is the world ray's.
+// |o - c|^2 2^-24. (A box far larger than its base leaves the entry far
+// from it too: then the base is taken about its vertex along the ray, and
+// the supports about each segment's start.) Parameters `t` inside are
+// from the entry point; the answer is the world ray's.
 fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, any: bool) -> vec4<real> {
     let obj = objects[oi];
     let o_obj = o_world - vec3<real>(obj.origin.xyz);
@@ -612,7 +625,33 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     let span = vec2<real>(0.0, end - shift);
     let first = obj.range.x;
     let count = obj.range.y;
-    let base = q_along(obj.base, o, d);
+    // The base's quadratic along the ray about its vertex `tv` (where it
+    // is extremal along the ray), when that lies inside the span and the
+    // base's value at the entry dwarfs its value there: an object whose
+    // box is far larger than its base (bounds stretched by an unbounded
+    // support) is entered far from the base, and the quadratic about the
+    // entry is a difference of large terms near the base (its
+    // discriminant, and its Bernstein coefficients over a segment across
+    // the base), which f32 resolved to 7% of a sphere's radius 139 units
+    // away (`small_bases_in_large_boxes_are_hit_from_afar`). About the
+    // vertex, its value and slope there are computed at the vertex
+    // itself; the closed form's roots are `tv +- sqrt(-Q*/A)`, and the
+    // vertex is a breakpoint of the walk, so that no segment spans it.
+    // Otherwise `tv` is 0, the entry, as before. The walk below runs in
+    // `u = t - tv` (from `-tv` to `u_end`), so that the vertex is `u = 0`
+    // and `tv` need not be kept: `origin` is the entry's `t` plus `tv`.
+    // (On RADV one register fewer through the walk, the wavefront's
+    // `trace_extend` 100 -> 96 before scheduling: 10 waves instead of 8.)
+    let entry_q = q_along(obj.base, o, d);
+    let tv_guess = -entry_q.y / (2.0 * entry_q.x);
+    let q_vertex = entry_q.z + 0.5 * tv_guess * entry_q.y;
+    // (A ray along which the base is linear, `A = 0`, has none.)
+    let far = entry_q.x != 0.0 && tv_guess > 0.0 && tv_guess < span.y
+        && abs(entry_q.z) > VERTEX_GAIN * abs(q_vertex);
+    let tv = select(0.0, tv_guess, far);
+    let base = q_along(obj.base, o + tv * d, d);
+    let origin = shift + tv;
+    let u_end = span.y - tv;
     // Culling: the object's hierarchy over its perturbations' supports
     // (clipped to its box) yields those whose box the span crosses; of
     // these, a Q_i(t) with a negative leading coefficient (every bounded
@@ -674,7 +713,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     cand_count = select(nc, count, all);
     cand_mode = select(select(CAND_LIST, CAND_ALL, all), CAND_MASK, masked);
     let live = select(cand_count, countOneBits(mask), masked);
-    var a = span.x;
+    var a = -tv;
     var guard = 0u;
     // The sign of F' at the end of the last segment (0 before the first):
     // a segment that starts on the other side of zero had a crossing at
@@ -688,21 +727,32 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     // root, which the Newton step below polishes).
     var searched = false;
     var pending = real(NO_ROOT);
+    // The ray's point at `a` (the walk's segment start): the supports'
+    // quadratics are taken about it, in `u - a`, near where they are
+    // used; about the entry, a support's value near the base was a
+    // difference of terms as large as the entry's distance squared (`tv`
+    // above). Carried from segment to segment, in place of the entry
+    // point `o`, which would hold three more registers through the walk.
+    var oa = o;
     loop {
-        if (a >= span.y || guard > 2u * live + 2u) {
+        if (a >= u_end || guard > 2u * live + 3u) {
             break;
         }
         guard++;
-        // Next breakpoint: the nearest root of an active Q_i beyond a.
-        var b = span.y;
+        // Next breakpoint: the nearest root of an active Q_i beyond a, or
+        // the base's vertex, `u = 0` (where `tv` is 0, never beyond a).
+        var b = u_end;
         let eps = 1e-6 * max(1.0, abs(a));
+        if (0.0 > a + eps && 0.0 < b) {
+            b = 0.0;
+        }
         var walk = vec2<u32>(cand_mask, 0u);
         loop {
             let pi = next_candidate(&walk);
             if (pi == NO_NODE) {
                 break;
             }
-            let r = roots(q_along(perturbations[pi].q, o, d));
+            let r = a + roots(q_along(perturbations[pi].q, oa, d));
             if (r.x > a + eps && r.x < b) {
                 b = r.x;
             }
@@ -711,9 +761,8 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             }
         }
         let l = b - a;
-        let mid = a + 0.5 * l;
-        let c = shift2(base, a, l);
-        var p = bern_elevate(bern2(c));
+        let half = 0.5 * l;
+        var p = bern_elevate(bern_q(base, a, b));
         var n_active = 0u;
         walk = vec2<u32>(cand_mask, 0u);
         loop {
@@ -722,12 +771,12 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
                 break;
             }
             let pert = perturbations[pi];
-            let qa = q_along(pert.q, o, d);
-            if (qa.z + mid * (qa.y + mid * qa.x) <= 0.0) {
+            let qa = q_along(pert.q, oa, d);
+            if (qa.z + half * (qa.y + half * qa.x) <= 0.0) {
                 continue;
             }
             n_active++;
-            bern_add_cube(&p, real(pert.factor.x), bern2(shift2(qa, a, l)));
+            bern_add_cube(&p, real(pert.factor.x), bern_q(qa, 0.0, l));
         }
         // No perturbation active: the base quadric's closed form (as on the
         // CPU), its first root in [0, 1] where the sign changes.
@@ -735,15 +784,14 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         if (before * p[0] < 0.0) {
             s = 0.0;
         } else if (n_active == 0u) {
-            // The base's power basis `c` (p is its Bernstein form here).
-            let r = roots(vec3<real>(c.z, c.y, c.x));
-            let f0 = c.x;
-            if (f0 == 0.0) {
+            // The base's roots, about its vertex (or the entry).
+            let r = roots(base);
+            if (p[0] == 0.0) {
                 s = 0.0;
-            } else if (r.x >= 0.0 && r.x <= 1.0 && r.x != r.y) {
-                s = r.x;
-            } else if (r.y >= 0.0 && r.y <= 1.0 && r.y < NO_ROOT && r.x != r.y) {
-                s = r.y;
+            } else if (r.x >= a && r.x <= b && r.x != r.y) {
+                s = (r.x - a) / l;
+            } else if (r.y >= a && r.y <= b && r.y < NO_ROOT && r.x != r.y) {
+                s = (r.y - a) / l;
             }
         } else {
             s = first_root(p, any);
@@ -780,16 +828,19 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             break;
         }
         before = sign(p[6]);
+        oa += l * d;
         a = b;
     }
-    if (pending < t_hit && negligible_bump(base, o, d, pending)) {
+    // The ray's point at `u = 0` (so that `a` is not kept with `oa`).
+    let ov = oa - a * d;
+    if (pending < t_hit && negligible_bump(base, pending, ov + pending * d)) {
         t_hit = pending;
     }
     if (t_hit == NO_ROOT) {
         return vec4<real>(MISS, 0.0, 0.0, 0.0);
     }
     if (any) {
-        return vec4<real>(shift + t_hit, 0.0, 0.0, 0.0);
+        return vec4<real>(origin + t_hit, 0.0, 0.0, 0.0);
     }
     // One Newton step on F' itself, evaluated at the hit from the
     // quadrics (`bumps_at`, which the normal needs anyway), not from the
@@ -798,15 +849,15 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     // on a support of radius 7: terms of 1e6 around a value of 20), and
     // the root came out up to 5.7e-4 long, beyond the 1e-4 at which rays
     // leave the surface, so that they started on its far side. A step
-    // longer than a thousandth of the span (a graze, a slope near zero)
-    // is not taken. The base's closed form needs none (most hits: a GPU
+    // longer than a thousandth of the span (a graze, a slope near zero;
+    // beyond the vertex where that is used) is not taken. The base's closed form needs none (most hits: a GPU
     // warp whose threads all hit a base skips it).
-    let x0 = o + t_hit * d;
+    let x0 = ov + t_hit * d;
     let b0 = bumps_at(x0);
     let g = q_grad(obj.base, x0) + b0.yzw;
     if (searched) {
         let step = (q_eval(obj.base, x0) + b0.x) / dot(g, d);
-        if (abs(step) <= 1e-3 * span.y) {
+        if (abs(step) <= 1e-3 * u_end) {
             t_hit -= step;
         }
     }
@@ -816,7 +867,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     } else {
         n = -normalize(d);
     }
-    return vec4<real>(shift + t_hit, n);
+    return vec4<real>(origin + t_hit, n);
 }
 
 
