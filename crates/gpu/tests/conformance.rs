@@ -897,33 +897,28 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
         plane,
     } = BumpShapes::new();
     // Below the limit, cases the power basis had off (plane 1000: 53 of
-    // 400 rays, up to 1.7 times the box; the cone at 0.1: 14) or barely
-    // inside it; above it, one of each shape.
+    // 400 rays, up to 1.7 times the box; the cone at 0.1: 14), one that the
+    // Bernstein basis about the box's entry had off (the cone at 100, 2.5e6)
+    // and others up to the limit; above it, one of each shape.
+    let cyl = Quadric::cylinder(at, DVec3::Y, 20.0);
     let cases = [
         ("sphere 0.2", Quadric::sphere(at, 0.2), 3000.0, None, false),
         ("sphere 20", Quadric::sphere(at, 20.0), 2.5, None, false),
         ("sphere 5", Quadric::sphere(at, 5.0), 3000.0, None, false),
-        ("sphere 50", Quadric::sphere(at, 50.0), 3000.0, None, true),
+        ("sphere 50", Quadric::sphere(at, 50.0), 3000.0, None, false),
+        ("sphere 50", Quadric::sphere(at, 50.0), 3e6, None, true),
         ("plane", plane, 1000.0, Some(big), false),
-        ("plane", plane, 1e5, Some(big), true),
-        (
-            "cylinder 20",
-            Quadric::cylinder(at, DVec3::Y, 20.0),
-            1.0,
-            Some(big),
-            false,
-        ),
-        (
-            "cylinder 20",
-            Quadric::cylinder(at, DVec3::Y, 20.0),
-            1e3,
-            Some(big),
-            true,
-        ),
+        ("plane", plane, 1e5, Some(big), false),
+        ("plane", plane, 1e10, Some(big), true),
+        ("cylinder 20", cyl, 1.0, Some(big), false),
+        ("cylinder 20", cyl, 1e3, Some(big), false),
+        ("cylinder 20", cyl, 1e7, Some(big), true),
         ("paraboloid", parab, 10.0, Some(big), false),
-        ("paraboloid", parab, 1e4, Some(big), true),
+        ("paraboloid", parab, 1e4, Some(big), false),
+        ("paraboloid", parab, 1e8, Some(big), true),
         ("cone", cone, 0.1, Some(big), false),
-        ("cone", cone, 100.0, Some(big), true),
+        ("cone", cone, 100.0, Some(big), false),
+        ("cone", cone, 1e6, Some(big), true),
     ];
     for (name, quadric, factor, bounds, ill) in cases {
         let object = bumped_base(quadric, factor, bounds);
@@ -958,23 +953,22 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
 /// sphere or an ellipsoid under one support of six shapes (sphere,
 /// ellipsoid, plane, cylinder, cone, paraboloid, at random places and
 /// orientations), its factor scaled so that the object's condition
-/// (`worst_bump_condition`) is aimed log-uniformly at `[1e3, 1e6]` (it
+/// (`worst_bump_condition`) is aimed log-uniformly at `[1e3, 1e10]` (it
 /// can come out lower: the object's box, over which the base's `|F|` is
-/// taken, shrinks with the factor), where
-/// the power basis' f32 walk lost surfaces and f64 was used before
-/// 2026-12-05. What is asserted is that the condition adds no error:
-/// each object's worst ray (of 400, relative to the box) is within 1e-5,
-/// or within 4 times the same object's worst with its factor scaled to
-/// a condition of 1 (f32's own floor for that geometry, which conditioning
-/// does not cause: in an 80-unit box up to 2e-4 for cones, planes and
-/// paraboloids, and 1.7 for one object that a ray from 138 units away
-/// grazes, in either basis).
+/// taken, shrinks with the factor), where the power basis' f32 walk lost
+/// surfaces and f64 was used before 2026-12-05. Each object's rays (400,
+/// errors relative to the box) are within 1e-4, all but one within 1e-5,
+/// and at most 2 of the 14,400 are over 1e-5 (grazes; measured: one, at
+/// 1.07e-5).
 ///
 /// Measured 2026-12-05 on lavapipe, 240 such objects at conditions 10 to
-/// 1e8 (docs/gpu.md, "Precision"): the Bernstein basis keeps every shape
-/// at its floor at every condition; the power basis, below 1e3 already,
-/// had random ellipsoids off by 0.24, planes 1.8, cylinders 0.03, and
-/// above it every shape off.
+/// 1e10 (docs/gpu.md, "Precision"): every ray within 1e-5 but one graze.
+/// The Bernstein basis about the box's entry had a floor of up to 2e-4
+/// for the unbounded shapes in their 80-unit box, whatever the condition,
+/// and missed a graze from 138 units away (this test then asked only
+/// for 4 times each object's worst at a condition of 1); the power basis,
+/// below 1e3 already, had random ellipsoids off by 0.24, planes 1.8,
+/// cylinders 0.03, and above it every shape off.
 #[test]
 fn f32_holds_random_bumps_below_the_limit() {
     let Some(mut gpu) = common::open("random bumps below the limit") else {
@@ -984,7 +978,7 @@ fn f32_holds_random_bumps_below_the_limit() {
     let (mut scene, _) = bump_scene();
     let big = BumpShapes::new().big;
     let mut rng = Pcg32::new(17, 5);
-    let mut worst_all = 0.0f64;
+    let (mut worst_all, mut off_all) = (0.0f64, 0);
     const SHAPES: [&str; 6] = [
         "sphere",
         "ellipsoid",
@@ -1048,32 +1042,30 @@ fn f32_holds_random_bumps_below_the_limit() {
             .unwrap()
         };
         let unit = condition_of(&mut scene, &object_with(1.0));
-        let target = 10f64.powf(u(&mut rng, 3.0, 6.0)) * 0.999;
+        let target = 10f64.powf(u(&mut rng, 3.0, 10.0)) * 0.999;
         let object = object_with(target / unit);
         let ratio = condition_of(&mut scene, &object);
         assert!(
             isolux_gpu::f32_ill_conditioned(&scene).is_none(),
             "{k}: ratio {ratio:e}"
         );
-        let worst = bump_errors(&gpu, &object, centre)
-            .into_iter()
-            .fold(0.0, f64::max);
-        let floor = bump_errors(&gpu, &object_with(1.0 / unit), centre)
-            .into_iter()
-            .fold(0.0, f64::max);
+        let errs = bump_errors(&gpu, &object, centre);
+        let worst = errs.iter().copied().fold(0.0, f64::max);
         eprintln!(
-            "object {k} ({}): ratio {ratio:.2e}, f32 worst |t_gpu - t_cpu| / size {worst:.2e}, \
-             at a condition of 1 {floor:.2e}",
+            "object {k} ({}): ratio {ratio:.2e}, f32 worst |t_gpu - t_cpu| / size {worst:.2e}",
             SHAPES[k % 6]
         );
+        let off = errs.iter().filter(|&&e| e > 1e-5).count();
         assert!(
-            worst <= 1e-5 || worst <= 4.0 * floor,
-            "object {k} ({}): ratio {ratio:e}: worst {worst:e}, at a condition of 1 {floor:e}",
+            worst <= 1e-4 && off <= 1,
+            "object {k} ({}): ratio {ratio:e}: worst {worst:e}, {off} rays over 1e-5",
             SHAPES[k % 6]
         );
+        off_all += off;
         worst_all = worst_all.max(worst);
     }
-    eprintln!("36 random bumps in [1e3, 1e6]: worst {worst_all:.2e}");
+    eprintln!("36 random bumps in [1e3, 1e10]: worst {worst_all:.2e}, {off_all} rays over 1e-5");
+    assert!(off_all <= 2, "{off_all} rays over 1e-5");
 }
 
 /// The table behind `F32_CONDITION_LIMIT` (docs/gpu.md, "Bumps that

@@ -217,7 +217,7 @@ fn viewer_refuses_bad_flags() {
     );
 }
 
-/// A bump that dwarfs its base quadric (a support of radius 50 and factor
+/// A bump that dwarfs its base quadric (a support of radius 200 and factor
 /// 3000 around a sphere of radius 0.45: a shell around the camera) is
 /// intersected in f64 by the viewer as by `render --gpu`, which says so,
 /// naming the object (`Gpu::precision_for`; docs/gpu.md, "Precision").
@@ -248,7 +248,7 @@ metal = "Cu"
 material = "copper"
 base = { type = "sphere", center = [-2.5, 0.0, 0.0], radius = 0.45 }
 [[object.perturbation]]
-quadric = { type = "sphere", center = [-2.5, 0.45, 0.0], radius = 50 }
+quadric = { type = "sphere", center = [-2.5, 0.45, 0.0], radius = 200 }
 factor = 3000.0
 "#,
     )
