@@ -532,9 +532,10 @@ fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack:
 // (the CPU's `BUMP_NEGLIGIBLE`, 1e-14 in f64; here about 20 ulp of f32).
 const BUMP_NEGLIGIBLE: f32 = 1e-6;
 
-// How many times the base's value at the vertex its value at the entry
-// must be for `object_hit` to expand the base about the vertex (2^11: f32
-// then keeps 12 of its 24 bits there about the entry).
+// By how many times the base's value at the box's entry must exceed its
+// value at the vertex along the ray for `object_hit` to take the base
+// about the vertex (2^11: about the entry, f32 would keep no more than 13
+// of its 24 bits at the vertex).
 const VERTEX_GAIN: real = 2048.0;
 
 // The perturbations of the object being walked (the candidate set) at
