@@ -930,26 +930,69 @@ fn innermost(packed: u32, bits: u32) -> u32 {
 /// (`path.medium`, `params.camera.w`; `medium_bits()` in render.wgsl),
 /// the narrowest that names every random-walk medium's `1 +` material
 /// index below the slot's mask (all ones is kept out of the slots, so
-/// that no packing equals `MEDIA_TOO_DEEP`): 4, eight deep as on the CPU
-/// (`isolux_render::integrator::MAX_NESTED_MEDIA`), where the media's materials are
-/// among the scene's first 14; 8, four deep, among its first 254; else
-/// 16, two deep, among its first 65534, which [`nested_too_deep`]
+/// that no packing equals `MEDIA_TOO_DEEP`), the media's materials
+/// coming first on the GPU ([`media_first`]): 4, eight deep as on the CPU
+/// (`isolux_render::integrator::MAX_NESTED_MEDIA`), where the scene's
+/// random-walk media take at most 14 materials; 8, four deep, at most
+/// 254; else 16, two deep, at most 65534, which [`nested_too_deep`]
 /// checks.
 pub fn medium_bits(scene: &Scene) -> u32 {
-    let largest = scene
-        .media()
-        .map(|(i, ..)| scene.object_material[i] + 1)
-        .max()
-        .unwrap_or(0);
+    let count = media_materials(scene).len();
     MEDIUM_SLOTS
         .iter()
-        .find(|(.., first)| largest <= *first)
+        .find(|(.., most)| count <= *most)
         .map_or(16, |(bits, ..)| *bits)
 }
 
+/// The materials of `scene`'s random-walk media, ascending, each once.
+fn media_materials(scene: &Scene) -> Vec<usize> {
+    let mut ms: Vec<usize> = scene
+        .media()
+        .map(|(i, ..)| scene.object_material[i])
+        .collect();
+    ms.sort_unstable();
+    ms.dedup();
+    ms
+}
+
+/// `scene` with the materials of its random-walk media first (in their
+/// order in the file, then the others in theirs; `material_names` and
+/// `object_material` to match), or `None` where they come first already.
+/// The kernels name a medium by `1 +` its material in slots of 4 bits
+/// ([`medium_bits`]), so that media nest eight deep where their materials
+/// are among the first 14: reordered, any scene whose media take at most
+/// 14 materials nests them eight deep, however many materials come
+/// before them in the file (until 2026-12-05 such a scene nested four
+/// deep, or two, and `--gpu` asked for the media's materials to be listed
+/// first). Messages name materials by name and objects by index, which
+/// the order does not change.
+fn media_first(scene: &Scene) -> Option<Scene> {
+    let media = media_materials(scene);
+    if media.iter().enumerate().all(|(k, &m)| k == m) {
+        return None;
+    }
+    let order: Vec<usize> = media
+        .iter()
+        .copied()
+        .chain((0..scene.materials.len()).filter(|m| media.binary_search(m).is_err()))
+        .collect();
+    let mut place = vec![0; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        place[old] = new;
+    }
+    let mut out = scene.clone();
+    out.materials = order.iter().map(|&m| scene.materials[m].clone()).collect();
+    out.material_names = order
+        .iter()
+        .map(|&m| scene.material_names.get(m).cloned().unwrap_or_default())
+        .collect();
+    out.object_material = scene.object_material.iter().map(|&m| place[m]).collect();
+    Some(out)
+}
+
 /// Each width of [`medium_bits`]' slots, in bits, how many media they
-/// hold, and the scene's materials every medium's must be among for them
-/// (`1 +` its index below the slot's mask, `2^bits - 1`).
+/// hold, and how many materials the scene's media may take for them
+/// (`1 +` the last one's index below the slot's mask, `2^bits - 1`).
 const MEDIUM_SLOTS: [(u32, &str, usize); 3] =
     [(4, "eight", 14), (8, "four", 254), (16, "two", 65534)];
 
@@ -1146,21 +1189,19 @@ fn flat_routes(
 /// Random-walk media of `scene` whose bounding boxes all overlap, one
 /// more than the kernels' packed media hold ([`medium_bits`]: eight deep
 /// as on the CPU, a fish in a jelly in a drop under water and more, where
-/// the media's materials are among the scene's first 14; four among its
-/// first 254; two beyond), so that a path could be inside them all; or a
-/// medium whose material index does not fit the kernels' 16 bits: why
-/// `--gpu` refuses the scene. (Boxes that overlap pairwise share a point,
+/// the media take at most 14 materials; four where at most 254; two
+/// beyond), so that a path could be inside them all; or media of more
+/// materials than the kernels' 16 bits name: why `--gpu` refuses the
+/// scene. (Boxes that overlap pairwise share a point,
 /// so growing a set while its boxes' common part is not empty finds every
 /// such set.)
 pub fn nested_too_deep(scene: &Scene) -> Option<String> {
     let media: Vec<_> = scene.media_nested();
-    if let Some((i, ..)) = media
-        .iter()
-        .find(|(i, ..)| scene.object_material[*i] + 1 >= 0xffff)
-    {
+    let count = media_materials(scene).len();
+    if count + 1 >= 0xffff {
         return Some(format!(
-            "object[{i}]: a random-walk medium whose material comes after the first 65534, \
-             which the GPU's kernels cannot name: render without --gpu"
+            "{count} materials of random-walk media, more than the GPU's kernels can name \
+             (65534): render without --gpu"
         ));
     }
     let bits = medium_bits(scene);
@@ -1180,19 +1221,19 @@ pub fn nested_too_deep(scene: &Scene) -> Option<String> {
     let deeper: Vec<_> = MEDIUM_SLOTS
         .iter()
         .filter(|(b, ..)| *b < bits)
-        .map(|(_, depth, first)| format!("{depth} where every random-walk medium's material is among the scene's first {first}"))
+        .map(|(_, depth, most)| format!("{depth} where they take at most {most}"))
         .collect();
-    let (why, fix) = if deeper.is_empty() {
-        (String::new(), "")
+    let why = if deeper.is_empty() {
+        String::new()
     } else {
-        (
-            format!(" ({})", deeper.join("; ")),
-            "list the media's materials first, or ",
+        format!(
+            " (the scene's random-walk media take {count} materials; {})",
+            deeper.join(", ")
         )
     };
     Some(format!(
         "objects {ids}: {} random-walk media whose bounding boxes overlap, so that a path \
-         could be inside them all; the GPU follows media nested {depth} deep{why}: {fix}render \
+         could be inside them all; the GPU follows media nested {depth} deep{why}: render \
          without --gpu",
         depth + 1
     ))
@@ -1374,6 +1415,9 @@ impl Gpu {
         realtime: bool,
         with_aov: bool,
     ) -> Result<GpuFrame, GpuError> {
+        // The kernels name media by material, the media's first.
+        let reordered = media_first(scene);
+        let scene = reordered.as_ref().unwrap_or(scene);
         if let Some((name, type_name)) = unsupported_material(scene) {
             return Err(GpuError::Unsupported { name, type_name });
         }
@@ -2413,10 +2457,25 @@ mod tests {
     /// [`nested_spheres`] with the `k`-th sphere's centre at `x = k
     /// spacing`.
     fn nested_spheres_at(n: usize, padding: usize, spacing: f64) -> Scene {
+        nested_spheres_beside(n, padding, spacing, 0)
+    }
+
+    /// [`nested_spheres_at`] and `beside` more random-walk media, each of
+    /// its own material, small spheres side by side far from the others.
+    fn nested_spheres_beside(n: usize, padding: usize, spacing: f64, beside: usize) -> Scene {
         let mut text =
             String::from("[camera]\nposition = [0.0, 0.0, 9.0]\nlook_at = [0.0, 0.0, 0.0]\n");
         for k in 0..padding {
             text += &format!("[[material]]\nname = \"pad{k}\"\ntype = \"diffuse\"\n");
+        }
+        for k in 0..beside {
+            text += &format!(
+                "[[material]]\nname = \"side{k}\"\ntype = \"subsurface\"\nmode = \"random_walk\"\n\
+                 sigma_s = [1.0, 1.0, 1.0]\nsigma_a = [0.0, 0.0, 0.0]\n\
+                 [[object]]\nmaterial = \"side{k}\"\n\
+                 base = {{ type = \"sphere\", center = [{}, 50.0, 0.0], radius = 0.1 }}\n",
+                k as f64
+            );
         }
         for k in 0..n {
             text += &format!(
@@ -2491,30 +2550,56 @@ mod tests {
             "{why}"
         );
         assert!(!why.contains("  "), "{why}");
-        // A medium's `1 +` material of 15 is the 4-bit mask: 8-bit slots,
-        // four deep.
-        assert_eq!(medium_bits(&nested_spheres(5, 9)), 4);
+        // Media behind other materials: the GPU lists their materials
+        // first (`media_first`), so 4-bit slots still name them (until
+        // 2026-12-05, five deep behind 10 materials were refused).
         let five = nested_spheres(5, 10);
+        assert_eq!(medium_bits(&five), 4);
+        assert_eq!(nested_too_deep(&five), None);
+        let first = media_first(&five).expect("reordered");
+        assert_eq!(first.object_material, vec![0, 1, 2, 3, 4]);
+        for (i, &m) in five.object_material.iter().enumerate() {
+            let r = first.object_material[i];
+            assert_eq!(five.material_names[m], first.material_names[r]);
+            assert_eq!(
+                format!("{:?}", five.materials[m]),
+                format!("{:?}", first.materials[r])
+            );
+        }
+        assert_eq!(first.materials.len(), 15);
+        assert_eq!(first.material_names[5], "pad0");
+        assert!(media_first(&first).is_none());
+        assert!(media_first(&eight).is_none());
+        // Media of 15 materials (a 16th `1 +` material is the 4-bit mask):
+        // 8-bit slots, four deep.
+        assert_eq!(medium_bits(&nested_spheres_beside(4, 3, 0.0, 10)), 4);
+        let five = nested_spheres_beside(5, 3, 0.0, 10);
         assert_eq!(medium_bits(&five), 8);
-        assert_eq!(nested_too_deep(&nested_spheres(4, 10)), None);
+        assert_eq!(nested_too_deep(&nested_spheres_beside(4, 3, 0.0, 11)), None);
         let why = nested_too_deep(&five).expect("five deep at 8 bits refused");
         assert!(
             why.contains(
-                "nested 4 deep (eight where every random-walk medium's material is among the \
-                 scene's first 14): list the media's materials first, or render without --gpu"
+                "nested 4 deep (the scene's random-walk media take 15 materials; eight where \
+                 they take at most 14): render without --gpu"
             ),
             "{why}"
         );
-        // A medium after the first 254 materials: 16-bit slots, two deep.
-        let late = nested_spheres(3, 254);
+        // Media of 255 materials: 16-bit slots, two deep.
+        let late = nested_spheres_beside(3, 0, 0.0, 252);
         assert_eq!(medium_bits(&late), 16);
-        assert_eq!(medium_bits(&nested_spheres(3, 251)), 8);
+        assert_eq!(medium_bits(&nested_spheres_beside(3, 0, 0.0, 251)), 8);
         let why = nested_too_deep(&late).expect("three deep at 16 bits refused");
         assert!(
-            why.contains("nested 2 deep (eight where every random-walk medium's material is among the scene's first 14; four where every random-walk medium's material is among the scene's first 254)"),
+            why.contains(
+                "nested 2 deep (the scene's random-walk media take 255 materials; eight where \
+                 they take at most 14, four where they take at most 254)"
+            ),
             "{why}"
         );
-        assert_eq!(nested_too_deep(&nested_spheres(2, 254)), None);
+        assert_eq!(
+            nested_too_deep(&nested_spheres_beside(2, 0, 0.0, 253)),
+            None
+        );
         // Nine media side by side, and eight nested beside a ninth: none
         // holds more than eight.
         assert_eq!(nested_too_deep(&nested_spheres_at(9, 0, 10.0)), None);

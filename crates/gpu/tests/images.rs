@@ -1039,13 +1039,38 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
     ] {
         closed_form(text, "[0.5, 0.0, 0.3]", camera, n);
     }
-    // Behind eleven other materials the slots are 8 bits wide: four deep
-    // still render, five are refused.
-    let pad = |n: usize, text: &str| {
+    // The GPU lists the media's materials first (`media_first`): behind
+    // eleven other materials the slots are still 4 bits wide, and five
+    // deep render, the camera in the fifth seeing its index squared (until
+    // 2026-12-05, refused: 8-bit slots).
+    let behind = |n: usize, text: &str| {
         let padding: String = (0..n)
             .map(|k| format!("[[material]]\nname = \"pad{k}\"\ntype = \"diffuse\"\n"))
             .collect();
         text.replacen("[[material]]", &format!("{padding}[[material]]"), 1)
+    };
+    let fifth = behind(11, &deep) + &deeper_medium("fifth", 1.6, 0.14);
+    let scene = isolux_scene::parse_str(&fifth, Path::new("fifth.toml"), Path::new(".")).unwrap();
+    assert_eq!(isolux_gpu::medium_bits(&scene), 4);
+    closed_form(&fifth, "[0.5, 0.0, 0.3]", "[0.5, 0.0, 0.3]", 1.6);
+    // Media of 15 materials: the slots are 8 bits wide, four deep still
+    // render, five are refused. (The other media: grey spheres of index 1
+    // that scatter and do not absorb, side by side far above, each of its
+    // own material; under the white sky a path through one keeps its
+    // radiance.)
+    let pad = |n: usize, text: &str| {
+        let padding: String = (0..n)
+            .map(|k| {
+                format!(
+                    "[[material]]\nname = \"pad{k}\"\ntype = \"subsurface\"\n\
+                     mode = \"random_walk\"\nior = 1.0\nsigma_s = [1.0, 1.0, 1.0]\n\
+                     sigma_a = [0.0, 0.0, 0.0]\n[[object]]\nmaterial = \"pad{k}\"\n\
+                     base = {{ type = \"sphere\", center = [{}, 50.0, 0.0], radius = 0.1 }}\n",
+                    0.3 * k as f64
+                )
+            })
+            .collect();
+        format!("{text}\n{padding}")
     };
     let padded = pad(11, &deep);
     closed_form(&padded, "[0.5, 0.0, 0.3]", "[0.5, 0.0, 0.3]", 1.9);
@@ -1056,9 +1081,13 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
     let Err(e) = gpu.prepare(&scene) else {
         panic!("five nested media accepted in 8-bit slots")
     };
-    assert!(e.to_string().contains("nested 4 deep (eight where"), "{e}");
-    // Behind 254 other materials the slots are 16 bits wide: two deep
-    // still render, three are refused.
+    assert!(
+        e.to_string()
+            .contains("nested 4 deep (the scene's random-walk media take 16 materials; eight"),
+        "{e}"
+    );
+    // Media of 256 materials: the slots are 16 bits wide, two deep still
+    // render, three are refused.
     let late = pad(254, &nested);
     let scene = isolux_scene::parse_str(&late, Path::new("late.toml"), Path::new(".")).unwrap();
     assert_eq!(isolux_gpu::medium_bits(&scene), 16);
