@@ -931,7 +931,7 @@ fn innermost(packed: u32, bits: u32) -> u32 {
 /// the narrowest that names every random-walk medium's `1 +` material
 /// index below the slot's mask (all ones is kept out of the slots, so
 /// that no packing equals `MEDIA_TOO_DEEP`), the media's materials
-/// coming first on the GPU ([`media_first`]): 4, eight deep as on the CPU
+/// coming first on the GPU (`media_first`): 4, eight deep as on the CPU
 /// (`isolux_render::integrator::MAX_NESTED_MEDIA`), where the scene's
 /// random-walk media take at most 14 materials; 8, four deep, at most
 /// 254; else 16, two deep, at most 65534, which [`nested_too_deep`]
