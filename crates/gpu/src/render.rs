@@ -2468,23 +2468,24 @@ mod tests {
         for k in 0..padding {
             text += &format!("[[material]]\nname = \"pad{k}\"\ntype = \"diffuse\"\n");
         }
-        for k in 0..beside {
-            text += &format!(
-                "[[material]]\nname = \"side{k}\"\ntype = \"subsurface\"\nmode = \"random_walk\"\n\
+        // A random-walk medium of its own material: a sphere.
+        let medium = |name: String, x: f64, y: f64, radius: f64| {
+            format!(
+                "[[material]]\nname = \"{name}\"\ntype = \"subsurface\"\nmode = \"random_walk\"\n\
                  sigma_s = [1.0, 1.0, 1.0]\nsigma_a = [0.0, 0.0, 0.0]\n\
-                 [[object]]\nmaterial = \"side{k}\"\n\
-                 base = {{ type = \"sphere\", center = [{}, 50.0, 0.0], radius = 0.1 }}\n",
-                k as f64
-            );
+                 [[object]]\nmaterial = \"{name}\"\n\
+                 base = {{ type = \"sphere\", center = [{x}, {y}, 0.0], radius = {radius} }}\n"
+            )
+        };
+        for k in 0..beside {
+            text += &medium(format!("side{k}"), k as f64, 50.0, 0.1);
         }
         for k in 0..n {
-            text += &format!(
-                "[[material]]\nname = \"m{k}\"\ntype = \"subsurface\"\nmode = \"random_walk\"\n\
-                 sigma_s = [1.0, 1.0, 1.0]\nsigma_a = [0.0, 0.0, 0.0]\n\
-                 [[object]]\nmaterial = \"m{k}\"\n\
-                 base = {{ type = \"sphere\", center = [{}, 0.0, 0.0], radius = {} }}\n",
+            text += &medium(
+                format!("m{k}"),
                 k as f64 * spacing,
-                4.0 - k as f64 * 0.4
+                0.0,
+                4.0 - k as f64 * 0.4,
             );
         }
         isolux_scene::parse_str(

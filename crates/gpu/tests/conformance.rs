@@ -799,8 +799,11 @@ fn bump_scene() -> (isolux_render::Scene, DVec3) {
         std::path::Path::new("."),
     )
     .unwrap();
-    (scene, DVec3::new(-2.5, 0.45, 0.0))
+    (scene, BUMP_AT)
 }
+
+/// The point the dwarfing-bump tests centre their bumps on.
+const BUMP_AT: DVec3 = DVec3::new(-2.5, 0.45, 0.0);
 
 /// `object`'s condition (`worst_bump_condition`), `scene` holding it alone
 /// (and still after, for `f32_ill_conditioned`).
@@ -823,11 +826,13 @@ fn bumped_base(quadric: Quadric, factor: f64, bounds: Option<isolux_core::Aabb>)
     .unwrap()
 }
 
-/// The unbounded supports of the dwarfing-bump tests, and the `bounds`
-/// (80 units) their objects take.
+/// The unbounded supports of the dwarfing-bump tests (the cylinder of
+/// radius 20 about the bumps' centre `BUMP_AT`), and the `bounds` (80
+/// units) their objects take.
 struct BumpShapes {
     big: isolux_core::Aabb,
     cone: Quadric,
+    cyl: Quadric,
     parab: Quadric,
     plane: Quadric,
 }
@@ -840,6 +845,7 @@ impl BumpShapes {
                 max: DVec3::splat(40.0),
             },
             cone: Quadric::cone(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 0.5),
+            cyl: Quadric::cylinder(BUMP_AT, DVec3::Y, 20.0),
             parab: Quadric::paraboloid(DVec3::new(0.0, -1.0, 0.0), DVec3::Y, 1.0),
             plane: Quadric::plane(DVec3::new(0.0, 0.3, 0.0), DVec3::Y),
         }
@@ -893,6 +899,7 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
     let BumpShapes {
         big,
         cone,
+        cyl,
         parab,
         plane,
     } = BumpShapes::new();
@@ -900,7 +907,6 @@ fn ill_conditioned_bumps_are_named_and_hit_in_f64() {
     // 400 rays, up to 1.7 times the box; the cone at 0.1: 14), one that the
     // Bernstein basis about the box's entry had off (the cone at 100, 2.5e6)
     // and others up to the limit; above it, one of each shape.
-    let cyl = Quadric::cylinder(at, DVec3::Y, 20.0);
     let cases = [
         ("sphere 0.2", Quadric::sphere(at, 0.2), 3000.0, None, false),
         ("sphere 20", Quadric::sphere(at, 20.0), 2.5, None, false),
@@ -1086,10 +1092,10 @@ fn f32_condition_table() {
     let BumpShapes {
         big,
         cone,
+        cyl,
         parab,
         plane,
     } = BumpShapes::new();
-    let cyl = Quadric::cylinder(at, DVec3::Y, 20.0);
     let cases = [
         ("sphere 0.2", Quadric::sphere(at, 0.2), 3000.0, None),
         ("cone", cone, 0.01, Some(big)),
