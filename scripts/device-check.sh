@@ -2,14 +2,16 @@
 # Runs on a lent NVIDIA machine (the `device` tool), over the folder that
 # scripts/device-prepare.sh filled here, everything issue 7 asks to be
 # measured on real hardware, in one call:
-#   1. `isolux bench gpu --general --f64 --wavefront --sorted --checked`
+#   1. `isolux bench gpu --f64 --wavefront --sorted --checked --kernels`
 #      on the gallery at 1920 x 1080 (real-time 4 spp, path traced 16 spp,
-#      direct light; the specialized and the general kernels, f32 and f64,
+#      direct light; f32 and f64,
 #      the megakernel, the wavefront path tracer and the sorted wavefront
 #      with and without its sort by material, the kernels with and
-#      without wgpu's run-time checks, and the CPU on all cores; the
+#      without wgpu's run-time checks, and the CPU on all cores; then each
+#      frame's GPU time kernel by kernel and step by step; the
 #      columns of `--per-sample` and `--tiles` were 1.00-1.02 on an H200,
-#      2026-12-04, and are left out for time), then
+#      2026-12-04, and `--general`'s 2.6-9.6x, and are left out for
+#      time), then
 #      the same geometry with every material diffuse (a control: what the
 #      material library costs); each table's "first hit" row times the
 #      camera rays' intersection alone;
@@ -74,7 +76,7 @@ if [ -x "$bin/isolux-baseline" ] && [ "${QUICK:-0}" != 1 ]; then
     step 45 "$bin/isolux" bench gpu examples/scenes/gallery.toml --skip-cpu "${size[@]}" "${repeat[@]}"
     rm -f "$old_gallery"
 fi
-step 240 "$bin/isolux" bench gpu --general --f64 --wavefront --sorted --checked "${size[@]}" "${repeat[@]}"
+step 255 "$bin/isolux" bench gpu --f64 --wavefront --sorted --checked --kernels "${size[@]}" "${repeat[@]}"
 # The gallery's geometry with every material diffuse (examples/bench): how
 # much of the frame the material library costs on this GPU.
 step 60 "$bin/isolux" bench gpu examples/bench/gallery-diffuse.toml --skip-cpu "${size[@]}" "${few[@]}"

@@ -55,26 +55,165 @@ const LAYERS_MAX: u32 = 16;
 /// more memory.
 const LAYER_BYTES_MAX: u64 = 512 << 20;
 
-/// A compute pass of a frame, with the frame's timestamps (`ts`, when
-/// timed) at its start if it is the `first` and at its end if the `last`.
+/// How a frame's passes are timed on the GPU.
+enum Clock<'a> {
+    /// Not at all.
+    Off,
+    /// The frame: a timestamp at the start of its first pass and one at
+    /// the end of its last (`Gpu::timestamps`, [`GpuFrame::run_timed`]).
+    Frame,
+    /// Each dispatch in a pass of its own, with timestamps at its start
+    /// and end ([`GpuFrame::profile`]).
+    Each(&'a mut Stamps),
+}
+
+impl Clock<'_> {
+    /// The timestamps of the pass of `kernel` (at wavefront `step`, if
+    /// any), the `first` or the `last` of the frame's passes.
+    fn writes<'s>(
+        &'s mut self,
+        gpu: &'s Gpu,
+        kernel: &'static str,
+        step: Option<u32>,
+        first: bool,
+        last: bool,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'s>> {
+        match self {
+            Clock::Off => None,
+            Clock::Frame => gpu.timestamps.as_ref().filter(|_| first || last).map(|ts| {
+                wgpu::ComputePassTimestampWrites {
+                    query_set: &ts.set,
+                    beginning_of_pass_write_index: first.then_some(0),
+                    end_of_pass_write_index: last.then_some(1),
+                }
+            }),
+            Clock::Each(stamps) => stamps.next(kernel, step),
+        }
+    }
+
+    /// Whether each dispatch takes a pass of its own.
+    fn each(&self) -> bool {
+        matches!(self, Clock::Each(_))
+    }
+
+    /// Queues the copy of the frame's timestamps to where they are read.
+    fn resolve(&self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder) {
+        match self {
+            Clock::Off => {}
+            Clock::Frame => {
+                if let Some(ts) = gpu.timestamps.as_ref() {
+                    enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
+                }
+            }
+            Clock::Each(stamps) => {
+                let n = 2 * stamps.kernels.len() as u32;
+                if n > 0 {
+                    enc.resolve_query_set(&stamps.set, 0..n, &stamps.resolve, 0);
+                }
+            }
+        }
+    }
+}
+
+/// A compute pass of a frame, with the timestamps `writes`.
 fn begin_pass<'e>(
     enc: &'e mut wgpu::CommandEncoder,
     label: &str,
-    ts: Option<&'e crate::Timestamps>,
-    first: bool,
-    last: bool,
+    writes: Option<wgpu::ComputePassTimestampWrites<'e>>,
 ) -> wgpu::ComputePass<'e> {
-    let writes = ts
-        .filter(|_| first || last)
-        .map(|ts| wgpu::ComputePassTimestampWrites {
-            query_set: &ts.set,
-            beginning_of_pass_write_index: first.then_some(0),
-            end_of_pass_write_index: last.then_some(1),
-        });
     enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
         timestamp_writes: writes,
     })
+}
+
+/// Timestamps around each dispatch of one submission
+/// ([`GpuFrame::profile`]): two per dispatch, in the order queued, and
+/// which kernel each pair timed.
+struct Stamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    /// Per dispatch, its kernel and wavefront step.
+    kernels: Vec<(&'static str, Option<u32>)>,
+    /// Dispatches were queued past [`Stamps::MAX`] (those went untimed).
+    full: bool,
+}
+
+impl Stamps {
+    /// Dispatches one submission can time: a query set holds at most
+    /// `wgpu::QUERY_SET_MAX_QUERIES` (4096) timestamps.
+    const MAX: u32 = wgpu::QUERY_SET_MAX_QUERIES / 2;
+
+    fn new(gpu: &Gpu) -> Self {
+        let n = 2 * Self::MAX;
+        Self {
+            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("dispatch timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: n,
+            }),
+            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("dispatch timestamps"),
+                size: n as u64 * wgpu::QUERY_SIZE as u64,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            kernels: Vec::new(),
+            full: false,
+        }
+    }
+
+    /// The timestamps of the next dispatch's pass, of `kernel` at `step`.
+    fn next(
+        &mut self,
+        kernel: &'static str,
+        step: Option<u32>,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        let i = self.kernels.len() as u32;
+        if i >= Self::MAX {
+            self.full = true;
+            return None;
+        }
+        self.kernels.push((kernel, step));
+        Some(wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(2 * i),
+            end_of_pass_write_index: Some(2 * i + 1),
+        })
+    }
+}
+
+/// One dispatch's GPU time in a [`Profile`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct DispatchTime {
+    /// The kernel's entry point in `render.wgsl` (`main`, `resolve`,
+    /// `realtime`, `aov_main`, `trace`, `trace_last`, `trace_extend`,
+    /// `trace_prefix`, `trace_scatter`, `trace_shadow`, `trace_shade`).
+    pub kernel: &'static str,
+    /// The wavefront's step (0: the camera rays; `None` outside the
+    /// wavefronts).
+    pub step: Option<u32>,
+    /// GPU seconds from the start of the dispatch's pass to its end.
+    pub seconds: f64,
+}
+
+/// A frame's GPU time dispatch by dispatch ([`GpuFrame::profile`]).
+#[derive(Clone, Debug, Default)]
+pub struct Profile {
+    /// Every dispatch, in the order queued.
+    pub dispatches: Vec<DispatchTime>,
+    /// GPU seconds from each submission's first dispatch's start to its
+    /// last's end, summed over the submissions: the dispatches' time and
+    /// what passes between them (barriers, the copies of each dispatch's
+    /// parameters, the start of the next).
+    pub span: f64,
+}
+
+impl Profile {
+    /// The dispatches' time, summed.
+    pub fn dispatch_seconds(&self) -> f64 {
+        self.dispatches.iter().map(|d| d.seconds).sum()
+    }
 }
 
 /// What the sorted wavefront's sort did in a tile
@@ -1773,14 +1912,62 @@ impl GpuFrame {
     /// once; [`Gpu::wait`] or [`GpuFrame::image`] waits). In the real-time
     /// mode the pass is a whole new frame of `count` samples per pixel.
     pub fn run(&mut self, gpu: &Gpu, count: u32) {
-        self.run_with(gpu, count, false);
+        self.run_with(gpu, count, Clock::Off);
     }
 
     /// [`GpuFrame::run`] with GPU timestamps at the start of the pass's
     /// first dispatch and the end of its last, where the adapter offers
     /// them; [`GpuFrame::gpu_time`] reads them.
     pub fn run_timed(&mut self, gpu: &Gpu, count: u32) {
-        self.run_with(gpu, count, true);
+        self.run_with(gpu, count, Clock::Frame);
+    }
+
+    /// [`GpuFrame::run`] with each dispatch in a compute pass of its own,
+    /// GPU timestamps at its start and end: the frame's time kernel by
+    /// kernel (and in the wavefronts, step by step), for `isolux bench gpu
+    /// --kernels`. `None` (and nothing run) where the adapter offers no
+    /// timestamps. The samples and the image are those of `run`; the
+    /// wavefronts run one submission per sample here (`run` queues all
+    /// samples in one), and the sorted wavefront's sort, shadow and
+    /// shading kernels a pass each (one pass in `run`), so the time
+    /// between dispatches may differ from `run`'s a little, not the
+    /// dispatches' own. Waits for the queue.
+    pub fn profile(&mut self, gpu: &Gpu, count: u32) -> Result<Option<Profile>, GpuError> {
+        let Some(ts) = gpu.timestamps.as_ref() else {
+            return Ok(None);
+        };
+        let per = if self.wavefront && !self.realtime && !self.first_hits {
+            1
+        } else {
+            count.max(1)
+        };
+        let mut out = Profile::default();
+        let mut done = 0;
+        while done < count {
+            let n = per.min(count - done);
+            let mut stamps = Stamps::new(gpu);
+            self.run_with(gpu, n, Clock::Each(&mut stamps));
+            if stamps.full {
+                return Err(GpuError::Setup(format!(
+                    "profile: more than {} dispatches in one submission",
+                    Stamps::MAX
+                )));
+            }
+            let ticks: Vec<u64> = gpu.read_back(&stamps.resolve)?;
+            let secs = |a: u64, b: u64| b.wrapping_sub(a) as f64 * ts.period * 1e-9;
+            for (i, &(kernel, step)) in stamps.kernels.iter().enumerate() {
+                out.dispatches.push(DispatchTime {
+                    kernel,
+                    step,
+                    seconds: secs(ticks[2 * i], ticks[2 * i + 1]),
+                });
+            }
+            if let Some(last) = stamps.kernels.len().checked_sub(1) {
+                out.span += secs(ticks[0], ticks[2 * last + 1]);
+            }
+            done += n;
+        }
+        Ok(Some(out))
     }
 
     /// The GPU's own time of the last [`GpuFrame::run_timed`] pass, in
@@ -1797,7 +1984,7 @@ impl GpuFrame {
         ))
     }
 
-    fn run_with(&mut self, gpu: &Gpu, count: u32, timed: bool) {
+    fn run_with(&mut self, gpu: &Gpu, count: u32, mut clock: Clock) {
         if count == 0 {
             return;
         }
@@ -1805,18 +1992,19 @@ impl GpuFrame {
             // One dispatch per sample, adding to the AOV layers in place
             // (as `aovs` does).
             let aov = gpu.aov_pipeline(self.features);
-            self.queue_dispatches(gpu, &aov, self.samples, count, 1, 1, None, timed);
+            let aov = ("aov_main", &aov);
+            self.queue_dispatches(gpu, aov, self.samples, count, 1, 1, None, &mut clock);
             self.samples += count;
             return;
         }
         if self.realtime {
             self.dispatch_samples(
                 gpu,
-                &gpu.render_pipeline(true, self.features),
+                ("realtime", &gpu.render_pipeline(true, self.features)),
                 0,
                 count,
                 count,
-                timed,
+                &mut clock,
             );
             self.params.pass_info[0] = 0;
             self.params.pass_info[1] = count;
@@ -1824,7 +2012,7 @@ impl GpuFrame {
             return;
         }
         if self.wavefront {
-            self.dispatch_wavefront(gpu, count, timed);
+            self.dispatch_wavefront(gpu, count, &mut clock);
             self.samples += count;
             return;
         }
@@ -1835,11 +2023,11 @@ impl GpuFrame {
         // came out 38% dark).
         self.dispatch_samples(
             gpu,
-            &gpu.render_pipeline(false, self.features),
+            ("main", &gpu.render_pipeline(false, self.features)),
             self.samples,
             count,
             1,
-            timed,
+            &mut clock,
         );
         self.samples += count;
     }
@@ -2044,7 +2232,7 @@ impl GpuFrame {
     /// [`Features::shadows_ahead`]) and `trace_shade` over the paths
     /// `trace_extend` listed (an indirect dispatch whose workgroups it
     /// counted). Timestamps as in [`GpuFrame::dispatch_samples`].
-    fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, timed: bool) {
+    fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, clock: &mut Clock) {
         let first = self.samples;
         let params = self.params;
         let pipeline = gpu.trace_pipeline(self.features, false);
@@ -2054,7 +2242,6 @@ impl GpuFrame {
         let Some(wf) = self.wf.as_ref() else {
             return;
         };
-        let ts = gpu.timestamps.as_ref().filter(|_| timed);
         let size = std::mem::size_of::<GpuParams>() as u64;
         let mut blocks = Vec::new();
         for s in 0..count {
@@ -2093,12 +2280,14 @@ impl GpuFrame {
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
             let last = k + 1 == wf.steps;
             let kernels = sorted.as_ref().filter(|_| !last);
-            let mut pass = begin_pass(&mut enc, "wavefront step", ts, i == 0, i + 1 == total);
-            pass.set_pipeline(match kernels {
-                Some([extend, ..]) => extend,
-                None if last => &last_pipeline,
-                None => &pipeline,
-            });
+            let (name, step_pipeline) = match kernels {
+                Some([extend, ..]) => ("trace_extend", extend),
+                None if last => ("trace_last", &last_pipeline),
+                None => ("trace", &pipeline),
+            };
+            let writes = clock.writes(gpu, name, Some(k), i == 0, i + 1 == total);
+            let mut pass = begin_pass(&mut enc, "wavefront step", writes);
+            pass.set_pipeline(step_pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
             if k == 0 {
@@ -2112,26 +2301,43 @@ impl GpuFrame {
                 // words a step (render.wgsl `sort_base`).
                 let at = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
                 enc.copy_buffer_to_buffer(&wf.ctl, at, &wf.indirect, 16, 16);
-                // One pass: wgpu orders a pass's dispatches by their
-                // storage use (as `samples` runs `main`, then `resolve`).
-                let mut pass = begin_pass(&mut enc, "wavefront sort", None, false, false);
-                pass.set_bind_group(0, &self.bind, &[]);
-                pass.set_bind_group(1, &wf.bind, &[]);
-                pass.set_pipeline(prefix);
-                pass.dispatch_workgroups(1, 1, 1);
-                pass.set_pipeline(scatter);
-                pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                // One pass (a pass each when profiled): wgpu orders a
+                // pass's dispatches by their storage use (as `samples`
+                // runs `main`, then `resolve`). The prefix sums take one
+                // thread, the rest one per listed path (the list's
+                // workgroups, counted by `trace_extend`).
+                let mut kernels = vec![
+                    ("trace_prefix", prefix, false),
+                    ("trace_scatter", scatter, true),
+                ];
                 if self.features.shadows_ahead() {
-                    pass.set_pipeline(shadow);
-                    pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                    kernels.push(("trace_shadow", shadow, true));
                 }
-                pass.set_pipeline(shade);
-                pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                kernels.push(("trace_shade", shade, true));
+                let dispatch = |pass: &mut wgpu::ComputePass, pipeline, indirect| {
+                    pass.set_bind_group(0, &self.bind, &[]);
+                    pass.set_bind_group(1, &wf.bind, &[]);
+                    pass.set_pipeline(pipeline);
+                    if indirect {
+                        pass.dispatch_workgroups_indirect(&wf.indirect, 16);
+                    } else {
+                        pass.dispatch_workgroups(1, 1, 1);
+                    }
+                };
+                if clock.each() {
+                    for (name, pipeline, indirect) in kernels {
+                        let writes = clock.writes(gpu, name, Some(k), false, false);
+                        dispatch(&mut begin_pass(&mut enc, name, writes), pipeline, indirect);
+                    }
+                } else {
+                    let mut pass = begin_pass(&mut enc, "wavefront sort", None);
+                    for (_, pipeline, indirect) in kernels {
+                        dispatch(&mut pass, pipeline, indirect);
+                    }
+                }
             }
         }
-        if let Some(ts) = ts {
-            enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
-        }
+        clock.resolve(gpu, &mut enc);
         gpu.queue.submit(Some(enc.finish()));
     }
 
@@ -2183,11 +2389,11 @@ impl GpuFrame {
     fn dispatch_samples(
         &mut self,
         gpu: &Gpu,
-        pipeline: &wgpu::ComputePipeline,
+        pipeline: (&'static str, &wgpu::ComputePipeline),
         first: u32,
         count: u32,
         field: u32,
-        timed: bool,
+        clock: &mut Clock,
     ) {
         let per = self.layers_per_dispatch(gpu, count);
         self.grow_layers(gpu, per);
@@ -2200,7 +2406,7 @@ impl GpuFrame {
             field,
             per,
             Some(&resolve),
-            timed,
+            clock,
         );
     }
 
@@ -2209,22 +2415,21 @@ impl GpuFrame {
     /// when there is one, in one submission. Each dispatch's parameters
     /// are copied into the parameter buffer from a staging buffer inside
     /// the command stream, so no submission waits on a `write_buffer` (on
-    /// an H100 four submissions cost about 2 ms). `timed`: timestamps at
-    /// the start of the first dispatch and the end of the last, resolved
-    /// for [`GpuFrame::run_timed`].
+    /// an H100 four submissions cost about 2 ms). `clock`: how the passes
+    /// are timed (`pipeline`'s name is its entry point, for
+    /// [`GpuFrame::profile`]).
     #[allow(clippy::too_many_arguments)]
     fn queue_dispatches(
         &self,
         gpu: &Gpu,
-        pipeline: &wgpu::ComputePipeline,
+        (name, pipeline): (&'static str, &wgpu::ComputePipeline),
         first: u32,
         count: u32,
         field: u32,
         per: u32,
         resolve: Option<&wgpu::ComputePipeline>,
-        timed: bool,
+        clock: &mut Clock,
     ) {
-        let ts = gpu.timestamps.as_ref().filter(|_| timed);
         let size = std::mem::size_of::<GpuParams>() as u64;
         let chunks: Vec<(u32, u32)> = (0..count)
             .step_by(per as usize)
@@ -2258,18 +2463,26 @@ impl GpuFrame {
         );
         for (i, &(_, n)) in chunks.iter().enumerate() {
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
-            let mut pass = begin_pass(&mut enc, "samples", ts, i == 0, i + 1 == chunks.len());
+            let (first, last) = (i == 0, i + 1 == chunks.len());
+            // `resolve` in the same pass, or when profiled in its own.
+            let each = clock.each();
+            let writes = clock.writes(gpu, name, None, first, last);
+            let mut pass = begin_pass(&mut enc, "samples", writes);
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(groups.0, groups.1, n);
             if let Some(resolve) = resolve {
+                if each {
+                    drop(pass);
+                    let writes = clock.writes(gpu, "resolve", None, false, false);
+                    pass = begin_pass(&mut enc, "resolve", writes);
+                    pass.set_bind_group(0, &self.bind, &[]);
+                }
                 pass.set_pipeline(resolve);
                 pass.dispatch_workgroups(groups.0, groups.1, 1);
             }
         }
-        if let Some(ts) = ts {
-            enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
-        }
+        clock.resolve(gpu, &mut enc);
         gpu.queue.submit(Some(enc.finish()));
     }
 
@@ -2293,7 +2506,8 @@ impl GpuFrame {
             enc.clear_buffer(buf, 0, None);
             gpu.queue.submit(Some(enc.finish()));
             let aov = gpu.aov_pipeline(self.features);
-            self.queue_dispatches(gpu, &aov, 0, count, 1, 1, None, false);
+            let aov = ("aov_main", &aov);
+            self.queue_dispatches(gpu, aov, 0, count, 1, 1, None, &mut Clock::Off);
         }
         let raw: Vec<[f32; 4]> = gpu.read_back(buf)?;
         let inv = 1.0 / count as f32;

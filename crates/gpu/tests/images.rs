@@ -1475,6 +1475,115 @@ fn wavefront_tiles_trace_the_films_paths() {
     }
 }
 
+/// `GpuFrame::profile` times each dispatch of a frame and runs the same
+/// samples as `run`: the image (or the first hits) bit for bit, each
+/// path kernel's dispatches in the order it queues them (the wavefronts'
+/// steps one after another, sample by sample, the sorted wavefront's
+/// five kernels a step and `trace_last` at the end), and times that are
+/// finite, not negative and within the frame's span.
+#[test]
+fn profiles_time_each_dispatch_of_the_same_frame() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = common::example("gallery.toml");
+    scene.film.width = 40;
+    scene.film.height = 24;
+    scene.film.spp = 3;
+    let depth = scene.integrator.max_depth;
+    for mode in [
+        "megakernel",
+        "wavefront",
+        "sorted",
+        "real-time",
+        "first hits",
+    ] {
+        let frame = |profiled: bool| {
+            let mut f = match mode {
+                "real-time" => gpu.prepare_realtime(&scene),
+                "first hits" => gpu.prepare_first_hits(&scene),
+                _ => gpu.prepare(&scene),
+            }
+            .unwrap();
+            if !matches!(mode, "real-time" | "first hits") {
+                f.set_wavefront(mode != "megakernel");
+                f.set_sorted(mode == "sorted");
+            }
+            let profile = if profiled {
+                f.profile(&gpu, 3).unwrap()
+            } else {
+                f.run(&gpu, 3);
+                None
+            };
+            let values: Vec<f32> = if mode == "first hits" {
+                f.aovs(&gpu).unwrap().depth
+            } else {
+                f.image(&gpu).unwrap().0.rgb.into_iter().flatten().collect()
+            };
+            (values, profile, f.features().shadows_ahead())
+        };
+        let (plain, _, _) = frame(false);
+        let (profiled, profile, shadows) = frame(true);
+        assert!(plain.iter().all(|v| v.is_finite()), "{mode}");
+        assert_eq!(
+            plain, profiled,
+            "{mode}: profile ran other samples than run"
+        );
+        // Lavapipe and GPUs offer timestamps; an adapter without gets None.
+        let Some(profile) = profile else {
+            eprintln!("{mode}: the adapter offers no timestamps");
+            continue;
+        };
+        let kernels: Vec<&str> = profile.dispatches.iter().map(|d| d.kernel).collect();
+        let steps: Vec<Option<u32>> = profile.dispatches.iter().map(|d| d.step).collect();
+        let expected: Vec<(&str, Option<u32>)> = match mode {
+            "megakernel" => vec![("main", None), ("resolve", None)],
+            "real-time" => vec![("realtime", None), ("resolve", None)],
+            "first hits" => vec![("aov_main", None); 3],
+            _ => {
+                // As many steps as the scene's depth takes (at most 16
+                // and the last), the same for every sample.
+                let last = (depth + 1).min(16);
+                let mut per = Vec::new();
+                for k in 0..last {
+                    if mode == "wavefront" {
+                        per.push(("trace", Some(k)));
+                        continue;
+                    }
+                    per.extend([
+                        ("trace_extend", Some(k)),
+                        ("trace_prefix", Some(k)),
+                        ("trace_scatter", Some(k)),
+                    ]);
+                    if shadows {
+                        per.push(("trace_shadow", Some(k)));
+                    }
+                    per.push(("trace_shade", Some(k)));
+                }
+                per.push(("trace_last", Some(last)));
+                per.repeat(3)
+            }
+        };
+        let got: Vec<(&str, Option<u32>)> = kernels.iter().copied().zip(steps).collect();
+        assert_eq!(got, expected, "{mode}");
+        let sum = profile.dispatch_seconds();
+        eprintln!(
+            "{mode}: {} dispatches, {:.3} ms in them, {:.3} ms from the first's start to the last's end",
+            got.len(),
+            sum * 1e3,
+            profile.span * 1e3
+        );
+        for d in &profile.dispatches {
+            assert!(d.seconds.is_finite() && d.seconds >= 0.0, "{mode}: {d:?}");
+        }
+        assert!(
+            sum > 0.0 && sum <= profile.span * (1.0 + 1e-9),
+            "{mode}: {sum} > {}",
+            profile.span
+        );
+    }
+}
+
 /// Asserts that two renders of the same paths agree: at least 97% of the
 /// values within 1e-4 (relative above 1), the means within 1%, the
 /// second all finite and non-negative.

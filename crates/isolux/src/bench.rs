@@ -92,6 +92,15 @@ pub struct BenchArgs {
     /// default), in a column beside them, with their ratio.
     #[arg(long)]
     pub checked: bool,
+    /// `gpu`: also print each frame's GPU time kernel by kernel, in a
+    /// second table: per mode and path kernel (the megakernel, and the
+    /// wavefronts where `--wavefront` or `--sorted` time them), each
+    /// kernel's dispatches and time (the wavefronts' at step 0, the camera
+    /// rays, step 1 and the steps after), and the time between
+    /// dispatches, from GPU timestamps around each dispatch
+    /// (`GpuFrame::profile`; best of `--repeat` by the frame's span).
+    #[arg(long)]
+    pub kernels: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -541,6 +550,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         extra += " GPU run-time checks (ms/frame) | checked / unchecked |";
         rule += "---:|---:|";
     }
+    // `--kernels`' table, printed after the first.
+    let mut kernel_table: Vec<String> = Vec::new();
     println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
     println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
@@ -621,6 +632,17 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             };
             let (g, kernels, first) = time(&gpu, &mut frame)?;
             let kernels = kernels.map_or("-".to_string(), |k| format!("{:.2}", k * 1e3));
+            let path_modes = !(realtime || first_hit);
+            if a.kernels {
+                let kernel = if path_modes { "megakernel" } else { "-" };
+                kernel_table.extend(kernel_rows(
+                    &gpu,
+                    &mut frame,
+                    spp,
+                    a.repeat,
+                    [&name, mode, kernel],
+                )?);
+            }
             let mut cols = String::new();
             if a.f64 {
                 gpu.set_precision(Precision::F64)?;
@@ -646,6 +668,15 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     frame.set_wavefront(true);
                     frame.set_sorted(false);
                     let gw = time(&gpu, &mut frame)?.0;
+                    if a.kernels {
+                        kernel_table.extend(kernel_rows(
+                            &gpu,
+                            &mut frame,
+                            spp,
+                            a.repeat,
+                            [&name, mode, "wavefront"],
+                        )?);
+                    }
                     frame.set_wavefront(false);
                     cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);
                     wavefront = Some(gw);
@@ -658,6 +689,15 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     cols += " - | - | - | - |";
                 } else {
                     let gs = time(&gpu, &mut frame)?.0;
+                    if a.kernels {
+                        kernel_table.extend(kernel_rows(
+                            &gpu,
+                            &mut frame,
+                            spp,
+                            a.repeat,
+                            [&name, mode, "sorted wavefront"],
+                        )?);
+                    }
                     frame.set_sort_by_material(false);
                     let gu = time(&gpu, &mut frame);
                     frame.set_sort_by_material(true);
@@ -731,5 +771,95 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             );
         }
     }
+    if a.kernels {
+        println!();
+        if kernel_table.is_empty() {
+            println!(
+                "(--kernels: the adapter {} offers no timestamps)",
+                gpu.adapter
+            );
+        } else {
+            println!("GPU time per kernel (ms per frame; `-`: not a wavefront step):");
+            println!("| scene | mode | path kernel | kernel | dispatches | step 0 (ms) | step 1 (ms) | steps 2+ (ms) | total (ms) | share |");
+            println!("|---|---|---|---|---:|---:|---:|---:|---:|---:|");
+            for row in kernel_table {
+                println!("{row}");
+            }
+        }
+    }
     Ok(())
+}
+
+/// `bench gpu --kernels`: the rows of `frame`'s GPU time kernel by kernel
+/// (`spp` samples, best of `repeat` by the frame's span), labelled
+/// `[scene, mode, path kernel]`: per kernel in the order first queued,
+/// its dispatches, its time at step 0, step 1 and the steps after (the
+/// wavefronts; `-` elsewhere), its total and share of the frame's span;
+/// then the time between dispatches and the span. None where the
+/// adapter offers no timestamps.
+fn kernel_rows(
+    gpu: &isolux_gpu::Gpu,
+    frame: &mut isolux_gpu::GpuFrame,
+    spp: u32,
+    repeat: u32,
+    [scene, mode, kernel]: [&str; 3],
+) -> Result<Vec<String>> {
+    let mut best: Option<isolux_gpu::Profile> = None;
+    for _ in 0..repeat.max(1) {
+        frame.reset(gpu);
+        let Some(p) = frame.profile(gpu, spp)? else {
+            return Ok(Vec::new());
+        };
+        if best.as_ref().is_none_or(|b| p.span < b.span) {
+            best = Some(p);
+        }
+    }
+    let Some(p) = best else {
+        return Ok(Vec::new());
+    };
+    // Per kernel: dispatches, then ms at step 0, 1, 2+ (or none), total.
+    let mut order: Vec<&str> = Vec::new();
+    let mut sums: std::collections::HashMap<&str, (usize, [f64; 3], bool, f64)> =
+        std::collections::HashMap::new();
+    for d in &p.dispatches {
+        let e = sums.entry(d.kernel).or_insert_with(|| {
+            order.push(d.kernel);
+            (0, [0.0; 3], false, 0.0)
+        });
+        e.0 += 1;
+        if let Some(k) = d.step {
+            e.1[(k as usize).min(2)] += d.seconds;
+            e.2 = true;
+        }
+        e.3 += d.seconds;
+    }
+    let span = p.span.max(f64::MIN_POSITIVE);
+    let ms = |s: f64| format!("{:.3}", s * 1e3);
+    let share = |s: f64| format!("{:.1}%", 100.0 * s / span);
+    let mut rows = Vec::new();
+    for k in order {
+        let (n, steps, stepped, total) = sums[k];
+        let [s0, s1, s2] = if stepped {
+            steps.map(ms)
+        } else {
+            ["-".to_string(), "-".to_string(), "-".to_string()]
+        };
+        rows.push(format!(
+            "| {scene} | {mode} | {kernel} | {k} | {n} | {s0} | {s1} | {s2} | {} | {} |",
+            ms(total),
+            share(total)
+        ));
+    }
+    let between = (p.span - p.dispatch_seconds()).max(0.0);
+    rows.push(format!(
+        "| {scene} | {mode} | {kernel} | (between dispatches) | - | - | - | - | {} | {} |",
+        ms(between),
+        share(between)
+    ));
+    rows.push(format!(
+        "| {scene} | {mode} | {kernel} | (frame) | {} | - | - | - | {} | 100% |",
+        p.dispatches.len(),
+        ms(p.span)
+    ));
+    Ok(rows)
 }

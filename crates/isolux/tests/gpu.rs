@@ -179,7 +179,9 @@ fn ratio_agrees(ratio: f64, num: &str, den: &str) -> bool {
 
 /// `isolux bench gpu` prints its table: the adapter, one row per mode, each
 /// naming the kernel features of its frame (the diffuse model alone, and
-/// no candidate list, for the furnace) and a positive, finite GPU time.
+/// no candidate list, for the furnace) and a positive, finite GPU time;
+/// with `--kernels` a second table of each frame's time kernel by kernel
+/// (`kernels_table_adds_up`).
 #[test]
 fn bench_gpu_prints_a_table_naming_the_kernel_features() {
     let o = run(&[
@@ -197,6 +199,7 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         "--per-sample",
         "--tiles",
         "--checked",
+        "--kernels",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     if no_adapter(&err) {
@@ -204,7 +207,11 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         return;
     }
     assert!(o.status.success(), "{err}");
-    let out = String::from_utf8_lossy(&o.stdout);
+    let all = String::from_utf8_lossy(&o.stdout);
+    let (out, kernels) = all
+        .split_once("\nGPU time per kernel")
+        .expect("--kernels' table (lavapipe offers timestamps)");
+    kernels_table_adds_up(kernels, &all);
     assert!(out.starts_with("adapter: "), "{out}");
     assert!(
         out.contains("| kernel features | GPU (ms/frame) |"),
@@ -264,6 +271,77 @@ fn bench_gpu_prints_a_table_naming_the_kernel_features() {
         let ratio: f64 = cells[15].parse().unwrap();
         assert!(checked.is_finite() && checked > 0.0, "{row}");
         assert!(ratio_agrees(ratio, cells[14], cells[5]), "{row}");
+    }
+}
+
+/// `bench gpu --kernels`' table for the furnace with `--wavefront`: per
+/// mode and path kernel the kernels each kernel queues (the megakernel's
+/// `main` and `resolve`, the wavefront's `trace` over its steps and
+/// `trace_last`, real time's and first hits' own), and the kernels' times
+/// and the time between them adding up to the frame's span, the shares
+/// to 100%, within the table's rounding.
+fn kernels_table_adds_up(table: &str, all: &str) {
+    let rows: Vec<Vec<&str>> = table
+        .lines()
+        .filter(|l| l.starts_with("| furnace.toml |"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    let mut groups: Vec<(String, Vec<&Vec<&str>>)> = Vec::new();
+    for r in &rows {
+        let key = format!("{} / {}", r[2], r[3]);
+        match groups.last_mut() {
+            Some((k, g)) if *k == key => g.push(r),
+            _ => groups.push((key, vec![r])),
+        }
+    }
+    let names = |g: &[&Vec<&str>]| g.iter().map(|r| r[4].to_string()).collect::<Vec<_>>();
+    let expect: [(&str, &[&str]); 6] = [
+        ("real-time / -", &["realtime", "resolve"]),
+        ("path traced / megakernel", &["main", "resolve"]),
+        ("path traced / wavefront", &["trace", "trace_last"]),
+        ("direct only / megakernel", &["main", "resolve"]),
+        ("direct only / wavefront", &["trace", "trace_last"]),
+        ("first hit / -", &["aov_main"]),
+    ];
+    assert_eq!(groups.len(), 6, "{all}");
+    for ((key, g), (want, kernels)) in groups.iter().zip(expect) {
+        assert_eq!(key, want, "{all}");
+        let n = g.len();
+        let names = names(g);
+        assert_eq!(&names[..n - 2], kernels, "{all}");
+        assert_eq!(
+            &names[n - 2..],
+            ["(between dispatches)", "(frame)"],
+            "{all}"
+        );
+        let num = |s: &str| -> f64 { s.trim_end_matches('%').parse().unwrap() };
+        let frame = num(g[n - 1][9]);
+        let parts: f64 = g[..n - 1].iter().map(|r| num(r[9])).sum();
+        let shares: f64 = g[..n - 1].iter().map(|r| num(r[10])).sum();
+        assert!(frame > 0.0, "{key}: {all}");
+        assert!(
+            (parts - frame).abs() <= 0.0005 * n as f64 + 1e-9,
+            "{key}: {parts} against {frame}\n{all}"
+        );
+        assert!(
+            (shares - 100.0).abs() <= 0.05 * n as f64,
+            "{key}: shares {shares}\n{all}"
+        );
+        // Dispatches: the frame's count is the kernels' sum; the
+        // wavefront's steps add up to each kernel's total.
+        let count: usize = g[..n - 2]
+            .iter()
+            .map(|r| r[5].parse::<usize>().unwrap())
+            .sum();
+        assert_eq!(count, g[n - 1][5].parse::<usize>().unwrap(), "{key}: {all}");
+        for r in &g[..n - 2] {
+            if r[6] == "-" {
+                assert!(!key.contains("wavefront"), "{key}: {all}");
+                continue;
+            }
+            let steps: f64 = (6..9).map(|c| num(r[c])).sum();
+            assert!((steps - num(r[9])).abs() <= 0.0015 + 1e-9, "{key}: {r:?}");
+        }
     }
 }
 
