@@ -1076,7 +1076,11 @@ fn innermost(packed: u32, bits: u32) -> u32 {
 /// 254; else 16, two deep, at most 65534, which [`nested_too_deep`]
 /// checks.
 pub fn medium_bits(scene: &Scene) -> u32 {
-    let count = media_materials(scene).len();
+    slot_bits(media_materials(scene).len())
+}
+
+/// The width of [`medium_bits`]' slots for media of `count` materials.
+fn slot_bits(count: usize) -> u32 {
     MEDIUM_SLOTS
         .iter()
         .find(|(.., most)| count <= *most)
@@ -1343,7 +1347,7 @@ pub fn nested_too_deep(scene: &Scene) -> Option<String> {
              (65534): render without --gpu"
         ));
     }
-    let bits = medium_bits(scene);
+    let bits = slot_bits(count);
     let depth = (32 / bits) as usize;
     let boxes: Vec<_> = media.iter().map(|(i, o, _)| (*i, o.bbox())).collect();
     let mut set = Vec::new();
