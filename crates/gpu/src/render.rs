@@ -1030,6 +1030,9 @@ pub struct GpuFrame {
     /// The sorted wavefront sorts by material (else it keeps the order
     /// its hits were found in: [`GpuFrame::set_sort_by_material`]).
     by_material: bool,
+    /// The sorted wavefront's steps before it runs the rest as the plain
+    /// wavefront ([`GpuFrame::set_sorted_steps`]).
+    sorted_steps: u32,
     /// Paths per wavefront tile at most ([`GpuFrame::set_wavefront_tile`]).
     tile_max: u64,
     /// Runs trace first hits only ([`Gpu::prepare_first_hits`]).
@@ -1809,6 +1812,7 @@ impl Gpu {
             wf: None,
             sorted,
             by_material: true,
+            sorted_steps: u32::MAX,
             tile_max: WF_TILE_MAX,
             first_hits: false,
             random_walk,
@@ -2096,6 +2100,14 @@ impl GpuFrame {
         self.by_material = on;
     }
 
+    /// The sorted wavefront runs its first `n` steps (at least one: step
+    /// 0, the camera rays) sorted and the rest as the plain wavefront, one
+    /// dispatch a step: the same paths, so the same image. For
+    /// comparisons and tests.
+    pub fn set_sorted_steps(&mut self, n: u32) {
+        self.sorted_steps = n.max(1);
+    }
+
     /// Paths per tile of the wavefront at most (rounded down to a
     /// multiple of 64, at least 64; by default 2^22, or fewer where the
     /// adapter binds less): a film of more padded pixels runs
@@ -2283,7 +2295,7 @@ impl GpuFrame {
             }
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
             let last = k + 1 == wf.steps;
-            let kernels = sorted.as_ref().filter(|_| !last);
+            let kernels = sorted.as_ref().filter(|_| !last && k < self.sorted_steps);
             let (name, step_pipeline) = match kernels {
                 Some([extend, ..]) => ("trace_extend", extend),
                 None if last => ("trace_last", &last_pipeline),

@@ -1367,8 +1367,9 @@ fn wavefront_traces_the_megakernels_paths() {
 /// steps end in the last, unsorted one) and a scene of 70 materials,
 /// whose records beyond the sort's 63rd share its last bin; and on the
 /// gallery, the same split without the sort (`set_sort_by_material`: one
-/// bin). A scene with the subsurface integrator keeps the plain
-/// wavefront.
+/// bin), and the sorted wavefront for its first two steps, then the plain
+/// one (`set_sorted_steps`: nothing listed from step 2 on). A scene with
+/// the subsurface integrator keeps the plain wavefront.
 #[test]
 fn sorted_wavefront_traces_the_wavefronts_paths() {
     let Some(gpu) = common::open("GPU image tests") else {
@@ -1394,11 +1395,12 @@ fn sorted_wavefront_traces_the_wavefronts_paths() {
         scene.film.height = 35;
         scene.film.spp = 4;
         let mut sorted_bins = Vec::new();
-        let mut run = |sorted: bool, by_material: bool| {
+        let mut run = |sorted: bool, by_material: bool, steps: u32| {
             let mut frame = gpu.prepare(&scene).unwrap();
             frame.set_wavefront(true);
             frame.set_sorted(sorted);
             frame.set_sort_by_material(by_material);
+            frame.set_sorted_steps(steps);
             assert_eq!(frame.sorted(), sorted);
             frame.run(&gpu, 3);
             frame.run(&gpu, 1);
@@ -1417,6 +1419,12 @@ fn sorted_wavefront_traces_the_wavefronts_paths() {
                     assert_eq!(*n as usize, stamped, "{name}: step {k}");
                 }
                 assert!(sort.lengths[0] > 0, "{name}");
+                if steps < sort.lengths.len() as u32 {
+                    assert!(sort.lengths[1] > 0, "{name}");
+                    let late = &sort.lengths[steps as usize..];
+                    assert!(late.iter().all(|&n| n == 0), "{name}: {:?}", sort.lengths);
+                    assert!(sort.listed.iter().all(|&l| l <= steps), "{name}");
+                }
                 assert!(!sort.last.is_empty() && sort.last.is_sorted(), "{name}");
                 sorted_bins.push(used(&sort.counts[0]));
             }
@@ -1424,11 +1432,14 @@ fn sorted_wavefront_traces_the_wavefronts_paths() {
             assert_eq!(stats.rejected_samples, 0, "{name}");
             img
         };
-        let (wave, sorted) = (run(false, true), run(true, true));
+        let (wave, sorted) = (run(false, true, u32::MAX), run(true, true, u32::MAX));
         same_paths(name, ("wavefront", &wave), ("sorted", &sorted));
         if name == "gallery" {
-            let unsorted = run(true, false);
+            let unsorted = run(true, false, u32::MAX);
             same_paths(name, ("wavefront", &wave), ("unsorted", &unsorted));
+            // The sorted bins' count below is the first run's.
+            let two = run(true, true, 2);
+            same_paths(name, ("wavefront", &wave), ("sorted to step 1", &two));
         }
         // Camera rays meet the scene's materials (12 of the gallery's 16
         // at least), one per bin; without the sort, every hit in one.

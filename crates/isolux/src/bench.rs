@@ -69,7 +69,9 @@ pub struct BenchArgs {
     /// one kernel and shaded in order of their material in another;
     /// what `render --gpu` runs by default on GPUs, `--sorted`), and the
     /// same split without the sort
-    /// (the hits shaded in the order they were found in), in columns
+    /// (the hits shaded in the order they were found in), and the sorted
+    /// wavefront for steps 0-2 only, one dispatch a step after
+    /// (`GpuFrame::set_sorted_steps`), in columns
     /// beside the wavefront, with their ratios to it (`-` in the
     /// real-time mode and where the scene needs the subsurface
     /// integrator, which the sorted wavefront leaves out).
@@ -535,8 +537,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         rule += "---:|---:|";
     }
     if a.sorted {
-        extra += " GPU sorted wavefront (ms/frame) | sorted / wavefront | GPU split, unsorted (ms/frame) | unsorted / wavefront |";
-        rule += "---:|---:|---:|---:|";
+        extra += " GPU sorted wavefront (ms/frame) | sorted / wavefront | GPU split, unsorted (ms/frame) | unsorted / wavefront | GPU sorted to step 2 (ms/frame) | to step 2 / wavefront |";
+        rule += "---:|---:|---:|---:|---:|---:|";
     }
     if a.per_sample {
         extra += " GPU one sample per dispatch (ms/frame) | per sample / layered |";
@@ -686,7 +688,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 frame.set_wavefront(true);
                 frame.set_sorted(true);
                 if realtime || first_hit || !frame.sorted() {
-                    cols += " - | - | - | - |";
+                    cols += " - | - | - | - | - | - |";
                 } else {
                     let gs = time(&gpu, &mut frame)?.0;
                     if a.kernels {
@@ -702,17 +704,25 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     let gu = time(&gpu, &mut frame);
                     frame.set_sort_by_material(true);
                     let gu = gu?.0;
+                    // Steps 0-2 sorted, the rest (a few thousand paths
+                    // each at 1080p) one dispatch a step.
+                    frame.set_sorted_steps(3);
+                    let g3 = time(&gpu, &mut frame);
+                    frame.set_sorted_steps(u32::MAX);
+                    let g3 = g3?.0;
                     frame.set_sorted(false);
                     let gw = match wavefront {
                         Some(gw) => gw,
                         None => time(&gpu, &mut frame)?.0,
                     };
                     cols += &format!(
-                        " {:.2} | {:.2} | {:.2} | {:.2} |",
+                        " {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
                         gs * 1e3,
                         gs / gw,
                         gu * 1e3,
-                        gu / gw
+                        gu / gw,
+                        g3 * 1e3,
+                        g3 / gw
                     );
                 }
                 frame.set_sorted(false);
