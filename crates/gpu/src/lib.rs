@@ -617,9 +617,9 @@ pub enum PathKernel {
     Megakernel,
     /// One dispatch per bounce over the paths still alive (`trace`).
     Wavefront,
-    /// The wavefront with each bounce in four or five dispatches, its
+    /// The wavefront with each bounce in three or four dispatches, its
     /// hits shaded in order of their material (`trace_extend`,
-    /// `trace_prefix`, `trace_scatter`, `trace_shadow` where
+    /// `trace_scatter`, `trace_shadow` where
     /// [`Features::shadows_ahead`], `trace_shade`; docs/gpu.md "The
     /// sorted wavefront"): the same image, for a GPU's SIMT groups to shade one
     /// material each. The default on GPUs ([`PathKernel::Auto`]); not yet
@@ -1045,13 +1045,12 @@ impl Gpu {
     }
 
     /// The sorted wavefront's kernels of one step, in their order:
-    /// `trace_extend`, `trace_prefix`, `trace_scatter`, `trace_shadow`
+    /// `trace_extend`, `trace_scatter`, `trace_shadow`
     /// (run where [`Features::shadows_ahead`]), `trace_shade`
     /// ([`PathKernel::Sorted`]).
-    fn sorted_pipelines(&self, features: Features) -> [wgpu::ComputePipeline; 5] {
+    fn sorted_pipelines(&self, features: Features) -> [wgpu::ComputePipeline; 4] {
         [
             "trace_extend",
-            "trace_prefix",
             "trace_scatter",
             "trace_shadow",
             "trace_shade",
@@ -1422,7 +1421,7 @@ mod tests {
             // (Its shadow rays ask the material's lobes.)
             assert_eq!(f.reached_by("trace_shadow"), *f);
             // The sorted wavefront's other kernels reach no material.
-            for entry in ["trace_extend", "trace_prefix", "trace_scatter"] {
+            for entry in ["trace_extend", "trace_scatter"] {
                 assert_eq!(f.reached_by(entry).models, 0, "{entry}");
             }
             let rt = f.reached_by("realtime");

@@ -188,7 +188,7 @@ impl Stamps {
 pub struct DispatchTime {
     /// The kernel's entry point in `render.wgsl` (`main`, `resolve`,
     /// `realtime`, `aov_main`, `trace`, `trace_last`, `trace_extend`,
-    /// `trace_prefix`, `trace_scatter`, `trace_shadow`, `trace_shade`).
+    /// `trace_scatter`, `trace_shadow`, `trace_shade`).
     pub kernel: &'static str,
     /// The wavefront's step (0: the camera rays; `None` outside the
     /// wavefronts).
@@ -2243,8 +2243,8 @@ impl GpuFrame {
     /// cleared, step 0 over the tile's pixels, then each step `k` over the
     /// paths step `k - 1` queued (an indirect dispatch whose workgroups
     /// step `k - 1` counted). The sorted wavefront runs each step but the
-    /// last as `trace_extend` (as `trace`'s dispatch), `trace_prefix` (one
-    /// thread), then `trace_scatter`, `trace_shadow` (where
+    /// last as `trace_extend` (as `trace`'s dispatch), then
+    /// `trace_scatter`, `trace_shadow` (where
     /// [`Features::shadows_ahead`]) and `trace_shade` over the paths
     /// `trace_extend` listed (an indirect dispatch whose workgroups it
     /// counted). Timestamps as in [`GpuFrame::dispatch_samples`].
@@ -2312,43 +2312,35 @@ impl GpuFrame {
                 pass.dispatch_workgroups_indirect(&wf.indirect, 0);
             }
             drop(pass);
-            if let Some([_, prefix, scatter, shadow, shade]) = kernels {
+            if let Some([_, scatter, shadow, shade]) = kernels {
                 // The list's counters: after the steps', 4 + 2 WF_BINS
                 // words a step (render.wgsl `sort_base`).
                 let at = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
                 enc.copy_buffer_to_buffer(&wf.ctl, at, &wf.indirect, 16, 16);
                 // One pass (a pass each when profiled): wgpu orders a
                 // pass's dispatches by their storage use (as `samples`
-                // runs `main`, then `resolve`). The prefix sums take one
-                // thread, the rest one per listed path (the list's
-                // workgroups, counted by `trace_extend`).
-                let mut kernels = vec![
-                    ("trace_prefix", prefix, false),
-                    ("trace_scatter", scatter, true),
-                ];
+                // runs `main`, then `resolve`), each a thread per listed
+                // path (the list's workgroups, counted by `trace_extend`).
+                let mut kernels = vec![("trace_scatter", scatter)];
                 if self.features.shadows_ahead() {
-                    kernels.push(("trace_shadow", shadow, true));
+                    kernels.push(("trace_shadow", shadow));
                 }
-                kernels.push(("trace_shade", shade, true));
-                let dispatch = |pass: &mut wgpu::ComputePass, pipeline, indirect| {
+                kernels.push(("trace_shade", shade));
+                let dispatch = |pass: &mut wgpu::ComputePass, pipeline| {
                     pass.set_bind_group(0, &self.bind, &[]);
                     pass.set_bind_group(1, &wf.bind, &[]);
                     pass.set_pipeline(pipeline);
-                    if indirect {
-                        pass.dispatch_workgroups_indirect(&wf.indirect, 16);
-                    } else {
-                        pass.dispatch_workgroups(1, 1, 1);
-                    }
+                    pass.dispatch_workgroups_indirect(&wf.indirect, 16);
                 };
                 if clock.each() {
-                    for (name, pipeline, indirect) in kernels {
+                    for (name, pipeline) in kernels {
                         let writes = clock.writes(gpu, name, Some(k), false, false);
-                        dispatch(&mut begin_pass(&mut enc, name, writes), pipeline, indirect);
+                        dispatch(&mut begin_pass(&mut enc, name, writes), pipeline);
                     }
                 } else {
                     let mut pass = begin_pass(&mut enc, "wavefront sort", None);
-                    for (_, pipeline, indirect) in kernels {
-                        dispatch(&mut pass, pipeline, indirect);
+                    for (_, pipeline) in kernels {
+                        dispatch(&mut pass, pipeline);
                     }
                 }
             }

@@ -1561,11 +1561,7 @@ fn profiles_time_each_dispatch_of_the_same_frame() {
                         per.push(("trace", Some(k)));
                         continue;
                     }
-                    per.extend([
-                        ("trace_extend", Some(k)),
-                        ("trace_prefix", Some(k)),
-                        ("trace_scatter", Some(k)),
-                    ]);
+                    per.extend([("trace_extend", Some(k)), ("trace_scatter", Some(k))]);
                     if shadows {
                         per.push(("trace_shadow", Some(k)));
                     }

@@ -2427,12 +2427,12 @@ fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // ---- The sorted wavefront (`PathKernel::Sorted`) ---------------------------
 //
-// Each step but the last in four or five dispatches instead of `trace`'s
+// Each step but the last in three or four dispatches instead of `trace`'s
 // one (render.rs `dispatch_wavefront`, docs/gpu.md "The sorted
 // wavefront"): `trace_extend` finds each queued path's next surface (a
-// path that escapes or reaches max depth ends there) and lists the path
-// with its hit; `trace_prefix` counts the list by material;
-// `trace_scatter` reorders it by material; `trace_shadow` (where
+// path that escapes or reaches max depth ends there), lists the path
+// with its hit and counts the list by material; `trace_scatter`
+// reorders it by material; `trace_shadow` (where
 // SHADOWS_AHEAD) traces each hit's shadow rays in that order;
 // `trace_shade` shades each hit in that order and queues the path for
 // the next step as `trace` does. So a SIMT group
@@ -2618,29 +2618,42 @@ fn trace_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
                                         bitcast<f32>(shadow_lights));
 }
 
-// The bins' first places in the sorted list: the counts' exclusive
-// prefix sums, as the cursors `trace_scatter` advances. One thread.
-@compute @workgroup_size(1)
-fn trace_prefix() {
-    let base = sort_base();
-    var sum = 0u;
-    for (var b = 0u; b < WF_BINS; b++) {
-        let c = atomicLoad(&wf_ctl[base + 4u + b]);
-        atomicStore(&wf_ctl[base + 4u + WF_BINS + b], sum);
-        sum += c;
-    }
-}
+// The bins' first places in the sorted list (the counts' exclusive prefix
+// sums), which each workgroup of `trace_scatter` takes itself, a bin per
+// thread: until 2026-12-05 a kernel of one thread, `trace_prefix`, took
+// them between `trace_extend` and `trace_scatter`, a dispatch and a
+// barrier more per step.
+const_assert WF_BINS == 64u;
+var<workgroup> wf_first: array<u32, WF_BINS>;
 
+// Each listed path to its place in the sorted list: its bin's first place
+// and, after the paths placed there before it, the bin's cursor (from 0).
 @compute @workgroup_size(64)
-fn trace_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn trace_scatter(@builtin(global_invocation_id) gid: vec3<u32>,
+                 @builtin(local_invocation_index) li: u32) {
     let base = sort_base();
+    let count = atomicLoad(&wf_ctl[base + 4u + li]);
+    wf_first[li] = count;
+    workgroupBarrier();
+    // The inclusive sums (Hillis and Steele), then less the bin's own.
+    for (var o = 1u; o < WF_BINS; o <<= 1u) {
+        var v = 0u;
+        if (li >= o) {
+            v = wf_first[li - o];
+        }
+        workgroupBarrier();
+        wf_first[li] += v;
+        workgroupBarrier();
+    }
+    wf_first[li] -= count;
+    workgroupBarrier();
     if (gid.x >= atomicLoad(&wf_ctl[base + 3u])) {
         return;
     }
     let tile = params.wave.w;
     let slot = wf_queue[2u * tile + gid.x];
     let bin = bitcast<u32>(wf_hits[2u * slot + 1u].y);
-    let at = atomicAdd(&wf_ctl[base + 4u + WF_BINS + bin], 1u);
+    let at = wf_first[bin] + atomicAdd(&wf_ctl[base + 4u + WF_BINS + bin], 1u);
     wf_queue[3u * tile + at] = slot;
 }
 
