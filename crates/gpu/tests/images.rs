@@ -1580,14 +1580,22 @@ fn profiles_time_each_dispatch_of_the_same_frame() {
             sum * 1e3,
             profile.span * 1e3
         );
+        // Each dispatch within the frame's span. Their sum within it too
+        // where passes run one after another (lavapipe); a GPU may write
+        // a pass's first timestamp before the previous pass has drained,
+        // so that the intervals overlap there.
         for d in &profile.dispatches {
             assert!(d.seconds.is_finite() && d.seconds >= 0.0, "{mode}: {d:?}");
+            assert!(d.seconds <= profile.span * (1.0 + 1e-9), "{mode}: {d:?}");
         }
-        assert!(
-            sum > 0.0 && sum <= profile.span * (1.0 + 1e-9),
-            "{mode}: {sum} > {}",
-            profile.span
-        );
+        assert!(sum > 0.0, "{mode}");
+        if gpu.is_cpu() {
+            assert!(
+                sum <= profile.span * (1.0 + 1e-9),
+                "{mode}: {sum} > {}",
+                profile.span
+            );
+        }
     }
 }
 
