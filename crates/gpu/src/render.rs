@@ -231,9 +231,10 @@ pub struct SortedSteps {
     /// The bins of the last non-empty list, in shading order.
     pub last: Vec<u32>,
     /// Per slot of the tile (on step 0 its padded pixels, 8 x 8 blocks row
-    /// by row of blocks), 1 + the last step whose list held the path in
-    /// this sample, 0 where none did (the camera ray missed, or the tile
-    /// has no such pixel). A path listed at step `k` was listed at every
+    /// by row of blocks, one padded film after another where the tile
+    /// holds several samples), 1 + the last step whose list held the path
+    /// in the last run, 0 where none did (the camera ray missed, or the
+    /// tile has no such pixel). A path listed at step `k` was listed at every
     /// step before: its steps are `0 .. listed[slot]`. What
     /// `examples/wavefront_lanes.rs` models the SIMT lanes' use with.
     pub listed: Vec<u32>,
@@ -263,6 +264,11 @@ struct Wavefront {
     steps: u32,
     /// Padded pixels of the film (8 x 8 blocks).
     padded: u32,
+    /// Samples per run at most: a film that fits a tile several times runs
+    /// that many samples' paths in one (`tile` = `samples * padded`, one
+    /// tile per film), each sample's into a sample layer that `resolve`
+    /// adds after the run; 1 where the film takes one tile or more.
+    samples: u32,
     /// Made for the sorted wavefront (its hits, its lists and their
     /// counters; [`GpuFrame::set_sorted`]).
     sorted: bool,
@@ -1035,6 +1041,12 @@ pub struct GpuFrame {
     sorted_steps: u32,
     /// Paths per wavefront tile at most ([`GpuFrame::set_wavefront_tile`]).
     tile_max: u64,
+    /// Samples per wavefront run at most
+    /// ([`GpuFrame::set_wavefront_samples`]).
+    wf_samples_max: u32,
+    /// The last wavefront run's first sample and its samples (for the
+    /// diagnostics).
+    wf_last_run: (u32, u32),
     /// Runs trace first hits only ([`Gpu::prepare_first_hits`]).
     first_hits: bool,
     /// The scene has a random-walk medium (long paths: more wavefront
@@ -1814,6 +1826,8 @@ impl Gpu {
             by_material: true,
             sorted_steps: u32::MAX,
             tile_max: WF_TILE_MAX,
+            wf_samples_max: LAYERS_MAX,
+            wf_last_run: (0, 1),
             first_hits: false,
             random_walk,
             media,
@@ -1935,8 +1949,9 @@ impl GpuFrame {
     /// kernel (and in the wavefronts, step by step), for `isolux bench gpu
     /// --kernels`. `None` (and nothing run) where the adapter offers no
     /// timestamps. The samples and the image are those of `run`; the
-    /// wavefronts run one submission per sample here (`run` queues all
-    /// samples in one), and the sorted wavefront's sort, shadow and
+    /// wavefronts run one submission per run of samples here
+    /// ([`GpuFrame::set_wavefront_samples`]; `run` queues all runs in
+    /// one), and the sorted wavefront's scatter, shadow and
     /// shading kernels a pass each (one pass in `run`), so the time
     /// between dispatches may differ from `run`'s a little, not the
     /// dispatches' own. Waits for the queue.
@@ -1945,7 +1960,9 @@ impl GpuFrame {
             return Ok(None);
         };
         let per = if self.wavefront && !self.realtime && !self.first_hits {
-            1
+            // A run a submission (`set_wavefront_samples`).
+            self.make_wavefront(gpu);
+            self.wf.as_ref().map_or(1, |wf| wf.samples)
         } else {
             count.max(1)
         };
@@ -2118,23 +2135,41 @@ impl GpuFrame {
         self.wf = None;
     }
 
+    /// Samples the wavefront runs together at most (1 to 16, the
+    /// default): a film whose padded pixels fit a tile `n` times or more
+    /// runs `n` samples' paths in one tile (at 1920 x 1080 two fit the
+    /// default tile of 2^22 paths), so that each step is one dispatch
+    /// for all of them: fewer dispatches and fuller late steps. Each
+    /// sample ends in a sample layer, added to the pixels in sample order
+    /// after the run (`resolve`), so the image is the same whatever `n`.
+    /// For comparisons and tests.
+    pub fn set_wavefront_samples(&mut self, n: u32) {
+        self.wf_samples_max = n.clamp(1, LAYERS_MAX);
+        self.wf = None;
+    }
+
     /// How many paths each step of the wavefront ran, in the last tile of
-    /// the last sample queued (step 0: the tile's padded pixels; waits for
-    /// the queue); `None` before the wavefront ran. A diagnostic: the
-    /// counts fall as paths end.
+    /// the last run queued (step 0: the tile's padded pixels, or the run's
+    /// samples' where a tile holds several, [`GpuFrame::set_wavefront_samples`];
+    /// waits for the queue); `None` before the wavefront ran. A
+    /// diagnostic: the counts fall as paths end.
     pub fn wavefront_steps(&self, gpu: &Gpu) -> Result<Option<Vec<u32>>, GpuError> {
         let Some(wf) = self.wf.as_ref() else {
             return Ok(None);
         };
         let ctl: Vec<[u32; 4]> = gpu.read_back(&wf.ctl)?;
         let last = (wf.tiles - 1) * wf.tile;
-        let mut out = vec![wf.tile.min(wf.padded - last)];
+        let mut out = vec![if wf.samples > 1 {
+            self.wf_last_run.1 * wf.padded
+        } else {
+            wf.tile.min(wf.padded - last)
+        }];
         out.extend(ctl[1..wf.steps as usize].iter().map(|c| c[3]));
         Ok(Some(out))
     }
 
     /// What the sorted wavefront's sort did in the last tile of the last
-    /// sample queued; `None` unless the sorted wavefront ran. A
+    /// run queued (its samples); `None` unless the sorted wavefront ran. A
     /// diagnostic ([`SortedSteps`]).
     pub fn sorted_steps(&self, gpu: &Gpu) -> Result<Option<SortedSteps>, GpuError> {
         let Some(wf) = self.wf.as_ref().filter(|wf| wf.sorted) else {
@@ -2155,8 +2190,9 @@ impl GpuFrame {
         let hits: Vec<[u32; 8]> = gpu.read_back(&wf.hits)?;
         let list = &queue[3 * wf.tile as usize..][..len];
         // trace_extend's stamp: 1 + step in bits 0-6, the tile's index in
-        // bits 8-15, the sample's in bits 16-31 (each modulo its room).
-        let (tile, sample) = (wf.tiles - 1, self.samples.saturating_sub(1));
+        // bits 8-15, the run's first sample's in bits 16-31 (each modulo
+        // its room).
+        let (tile, sample) = (wf.tiles - 1, self.wf_last_run.0);
         let ours = |h: &[u32; 8]| h[6] >> 8 == (tile & 0xff) | (sample & 0xffff) << 8;
         let (listed, bins) = hits[..wf.tile as usize]
             .iter()
@@ -2178,6 +2214,8 @@ impl GpuFrame {
         let medium = self.random_walk;
         let sorted = self.sorted();
         let tile_max = self.tile_max;
+        let samples_max = self.wf_samples_max as u64;
+        let layers_fit = gpu.binding_limit().min(LAYER_BYTES_MAX) / self.layer_bytes().max(1);
         if self.wf.as_ref().is_some_and(|wf| wf.sorted != sorted) {
             self.wf = None;
         }
@@ -2185,7 +2223,17 @@ impl GpuFrame {
             let (w, h) = (params.film[0], params.film[1]);
             let padded = w.div_ceil(TILE) * h.div_ceil(TILE) * TILE * TILE;
             let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(tile_max) / 64 * 64;
-            let tile = (padded as u64).min(fit.max(64)) as u32;
+            // Several samples per run where the film fits the tile that
+            // many times (and their layers the binding).
+            let samples = (fit / padded as u64)
+                .min(samples_max)
+                .min(layers_fit)
+                .max(1) as u32;
+            let tile = if samples > 1 {
+                samples * padded
+            } else {
+                (padded as u64).min(fit.max(64)) as u32
+            };
             let tiles = padded.div_ceil(tile);
             let steps = if medium {
                 WF_MEDIUM_STEPS
@@ -2233,21 +2281,28 @@ impl GpuFrame {
                 tiles,
                 steps,
                 padded,
+                samples,
                 sorted,
             }
         });
+        let samples = self.wf.as_ref().map_or(1, |wf| wf.samples);
+        self.grow_layers(gpu, samples);
     }
 
     /// Queues samples `self.samples ..` (`count` of them) of the wavefront
-    /// path tracer in one submission: per sample and tile, the counters
-    /// cleared, step 0 over the tile's pixels, then each step `k` over the
+    /// path tracer in one submission: per run of up to `Wavefront::samples`
+    /// samples, its layers cleared, then per tile the counters cleared,
+    /// step 0 over the tile's pixels (the run's samples' where the tile
+    /// holds several), then each step `k` over the
     /// paths step `k - 1` queued (an indirect dispatch whose workgroups
     /// step `k - 1` counted). The sorted wavefront runs each step but the
     /// last as `trace_extend` (as `trace`'s dispatch), then
     /// `trace_scatter`, `trace_shadow` (where
     /// [`Features::shadows_ahead`]) and `trace_shade` over the paths
     /// `trace_extend` listed (an indirect dispatch whose workgroups it
-    /// counted). Timestamps as in [`GpuFrame::dispatch_samples`].
+    /// counted). After the run's last tile, `resolve` adds its layers to
+    /// the sums in sample order. Timestamps as in
+    /// [`GpuFrame::dispatch_samples`].
     fn dispatch_wavefront(&mut self, gpu: &Gpu, count: u32, clock: &mut Clock) {
         let first = self.samples;
         let params = self.params;
@@ -2258,17 +2313,26 @@ impl GpuFrame {
         let Some(wf) = self.wf.as_ref() else {
             return;
         };
+        let resolve = gpu.resolve_pipeline();
         let size = std::mem::size_of::<GpuParams>() as u64;
+        // Runs of up to `wf.samples` samples, each of all its tiles.
+        let per = wf.samples;
+        let runs: Vec<(u32, u32)> = (0..count)
+            .step_by(per as usize)
+            .map(|s| (first + s, per.min(count - s)))
+            .collect();
         let mut blocks = Vec::new();
-        for s in 0..count {
+        for &(s0, n) in &runs {
             for t in 0..wf.tiles {
                 for k in 0..wf.steps {
                     let mut p = params;
-                    p.pass_info[0] = first + s;
+                    p.pass_info[0] = s0;
                     p.pass_info[1] = 1;
                     p.wave = [k, wf.steps, t * wf.tile, wf.tile];
+                    // The run's samples (sample `s0 + z` ends in layer z,
+                    // which `resolve` adds to the sums after the run) and
                     // `trace_extend`'s sort key: material or none.
-                    p.layers[2] = self.by_material as u32;
+                    p.layers = [n, 0, self.by_material as u32, 0];
                     blocks.push(p);
                 }
             }
@@ -2288,6 +2352,12 @@ impl GpuFrame {
         let total = blocks.len();
         for (i, block) in blocks.iter().enumerate() {
             let [k, _, start, _] = block.wave;
+            let n = block.layers[0];
+            let last_tile = start / wf.tile + 1 == wf.tiles;
+            if k == 0 && start == 0 {
+                // The run's layers, which its paths add to as they end.
+                enc.clear_buffer(&self.layers, 0, Some(n as u64 * self.layer_bytes()));
+            }
             if k == 0 {
                 enc.copy_buffer_to_buffer(&wf.ctl_init, 0, &wf.ctl, 0, wf.ctl.size());
             } else {
@@ -2301,13 +2371,20 @@ impl GpuFrame {
                 None if last => ("trace_last", &last_pipeline),
                 None => ("trace", &pipeline),
             };
-            let writes = clock.writes(gpu, name, Some(k), i == 0, i + 1 == total);
+            let writes = clock.writes(gpu, name, Some(k), i == 0, false);
             let mut pass = begin_pass(&mut enc, "wavefront step", writes);
             pass.set_pipeline(step_pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
             if k == 0 {
-                pass.dispatch_workgroups(wf.tile.min(wf.padded - start).div_ceil(64), 1, 1);
+                // The camera rays: the tile's pixels, or the run's
+                // samples' where it holds several.
+                let slots = if wf.samples > 1 {
+                    n * wf.padded
+                } else {
+                    wf.tile.min(wf.padded - start)
+                };
+                pass.dispatch_workgroups(slots.div_ceil(64), 1, 1);
             } else {
                 pass.dispatch_workgroups_indirect(&wf.indirect, 0);
             }
@@ -2344,9 +2421,25 @@ impl GpuFrame {
                     }
                 }
             }
+            if last && last_tile {
+                // The run's layers added to the sums in sample order (the
+                // parameters' `layers`: n of them, not replacing).
+                let writes = clock.writes(gpu, "resolve", None, false, i + 1 == total);
+                let mut pass = begin_pass(&mut enc, "resolve", writes);
+                pass.set_bind_group(0, &self.bind, &[]);
+                pass.set_pipeline(&resolve);
+                pass.dispatch_workgroups(
+                    self.params.film[0].div_ceil(TILE),
+                    self.params.film[1].div_ceil(TILE),
+                    1,
+                );
+            }
         }
         clock.resolve(gpu, &mut enc);
         gpu.queue.submit(Some(enc.finish()));
+        if let Some(&run) = runs.last() {
+            self.wf_last_run = run;
+        }
     }
 
     /// Samples of one dispatch of the path tracer or the real-time mode

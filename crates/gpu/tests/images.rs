@@ -1458,7 +1458,10 @@ fn sorted_wavefront_traces_the_wavefronts_paths() {
 /// 640 paths a tile, so 61 x 35, 2,560 padded pixels, in four) traces the
 /// same paths as in one tile, with the plain and the sorted wavefront:
 /// each tile clears its counters (the sorted lists' too), starts its own
-/// pixels and ends its paths before the next.
+/// pixels and ends its paths before the next. So do several samples in
+/// one tile (`set_wavefront_samples`: three samples in runs of 3, 2 + 1
+/// and 1 + 1 + 1), each sample's paths ending in its layer and the layers
+/// added in sample order: the same image bit for bit.
 #[test]
 fn wavefront_tiles_trace_the_films_paths() {
     let Some(gpu) = common::open("GPU image tests") else {
@@ -1467,31 +1470,47 @@ fn wavefront_tiles_trace_the_films_paths() {
     let mut scene = common::example("gallery.toml");
     scene.film.width = 61;
     scene.film.height = 35;
-    scene.film.spp = 2;
+    scene.film.spp = 3;
     for sorted in [false, true] {
-        let run = |tile: Option<u64>| {
+        let run = |tile: Option<u64>, samples: u32| {
             let mut frame = gpu.prepare(&scene).unwrap();
             frame.set_wavefront(true);
             frame.set_sorted(sorted);
+            frame.set_wavefront_samples(samples);
             if let Some(tile) = tile {
                 frame.set_wavefront_tile(tile);
             }
-            frame.run(&gpu, 2);
+            frame.run(&gpu, 3);
+            // The last run's step 0: its samples' padded pixels.
+            let steps = frame.wavefront_steps(&gpu).unwrap().unwrap();
+            let last = match (tile, samples) {
+                (Some(t), _) => t as u32,
+                (None, 2) => 2560,
+                (None, n) => n.min(3) * 2560,
+            };
+            assert_eq!(steps[0], last, "{tile:?} {samples}");
             frame.image(&gpu).unwrap().0
         };
-        let (one, four) = (run(None), run(Some(640)));
         let name = if sorted { "sorted" } else { "wavefront" };
-        same_paths(name, ("one tile", &one), ("four tiles", &four));
-        assert_eq!(one.rgb, four.rgb, "{name}");
+        let one = run(None, 1);
+        for (label, tile, samples) in [
+            ("four tiles", Some(640), 16),
+            ("three samples a run", None, 16),
+            ("two samples a run", None, 2),
+        ] {
+            let other = run(tile, samples);
+            same_paths(name, ("one tile, one sample a run", &one), (label, &other));
+            assert_eq!(one.rgb, other.rgb, "{name}: {label}");
+        }
     }
 }
 
 /// `GpuFrame::profile` times each dispatch of a frame and runs the same
 /// samples as `run`: the image (or the first hits) bit for bit, each
 /// path kernel's dispatches in the order it queues them (the wavefronts'
-/// steps one after another, sample by sample, the sorted wavefront's
-/// five kernels a step and `trace_last` at the end), and times that are
-/// finite, not negative and within the frame's span.
+/// steps one after another, run by run, the sorted wavefront's four
+/// kernels a step, `trace_last` and `resolve` at the end of each), and
+/// times that are finite, not negative and within the frame's span.
 #[test]
 fn profiles_time_each_dispatch_of_the_same_frame() {
     let Some(gpu) = common::open("GPU image tests") else {
@@ -1519,6 +1538,8 @@ fn profiles_time_each_dispatch_of_the_same_frame() {
             if !matches!(mode, "real-time" | "first hits") {
                 f.set_wavefront(mode != "megakernel");
                 f.set_sorted(mode == "sorted");
+                // Runs of two samples and one.
+                f.set_wavefront_samples(2);
             }
             let profile = if profiled {
                 f.profile(&gpu, 3).unwrap()
@@ -1568,7 +1589,8 @@ fn profiles_time_each_dispatch_of_the_same_frame() {
                     per.push(("trace_shade", Some(k)));
                 }
                 per.push(("trace_last", Some(last)));
-                per.repeat(3)
+                per.push(("resolve", None));
+                per.repeat(2)
             }
         };
         let got: Vec<(&str, Option<u32>)> = kernels.iter().copied().zip(steps).collect();

@@ -71,8 +71,10 @@ pub struct BenchArgs {
     /// same split without the sort
     /// (the hits shaded in the order they were found in), and the sorted
     /// wavefront for steps 0-2 only, one dispatch a step after
-    /// (`GpuFrame::set_sorted_steps`), in columns
-    /// beside the wavefront, with their ratios to it (`-` in the
+    /// (`GpuFrame::set_sorted_steps`), and the sorted wavefront with one
+    /// sample's paths a run (`GpuFrame::set_wavefront_samples`), in columns
+    /// beside the wavefront, with their ratios to it (the last to the
+    /// sorted wavefront; `-` in the
     /// real-time mode and where the scene needs the subsurface
     /// integrator, which the sorted wavefront leaves out).
     #[arg(long)]
@@ -537,8 +539,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         rule += "---:|---:|";
     }
     if a.sorted {
-        extra += " GPU sorted wavefront (ms/frame) | sorted / wavefront | GPU split, unsorted (ms/frame) | unsorted / wavefront | GPU sorted to step 2 (ms/frame) | to step 2 / wavefront |";
-        rule += "---:|---:|---:|---:|---:|---:|";
+        extra += " GPU sorted wavefront (ms/frame) | sorted / wavefront | GPU split, unsorted (ms/frame) | unsorted / wavefront | GPU sorted to step 2 (ms/frame) | to step 2 / wavefront | GPU sorted, a sample a run (ms/frame) | a sample a run / sorted |";
+        rule += "---:|---:|---:|---:|---:|---:|---:|---:|";
     }
     if a.per_sample {
         extra += " GPU one sample per dispatch (ms/frame) | per sample / layered |";
@@ -688,7 +690,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 frame.set_wavefront(true);
                 frame.set_sorted(true);
                 if realtime || first_hit || !frame.sorted() {
-                    cols += " - | - | - | - | - | - |";
+                    cols += " - | - | - | - | - | - | - | - |";
                 } else {
                     let gs = time(&gpu, &mut frame)?.0;
                     if a.kernels {
@@ -710,19 +712,26 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     let g3 = time(&gpu, &mut frame);
                     frame.set_sorted_steps(u32::MAX);
                     let g3 = g3?.0;
+                    // One sample's paths a run, as before 2026-12-05.
+                    frame.set_wavefront_samples(1);
+                    let g1 = time(&gpu, &mut frame);
+                    frame.set_wavefront_samples(16);
+                    let g1 = g1?.0;
                     frame.set_sorted(false);
                     let gw = match wavefront {
                         Some(gw) => gw,
                         None => time(&gpu, &mut frame)?.0,
                     };
                     cols += &format!(
-                        " {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+                        " {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
                         gs * 1e3,
                         gs / gw,
                         gu * 1e3,
                         gu / gw,
                         g3 * 1e3,
-                        g3 / gw
+                        g3 / gw,
+                        g1 * 1e3,
+                        g1 / gs
                     );
                 }
                 frame.set_sorted(false);

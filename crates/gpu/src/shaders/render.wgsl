@@ -8,7 +8,8 @@
 //     split into dispatches; one dispatch for many samples pays a GPU's
 //     drain, the wait for its slowest workgroup, once instead of once a
 //     sample; a loop over samples inside a thread lost some of them,
-//     docs/gpu.md);
+//     docs/gpu.md); the wavefront's paths add to the same layers, a run
+//     of samples at a time (`add_sample`), which `resolve` then adds;
 //   * sample s of a pixel takes cell (s + offset) mod (m n) of the m x n
 //     sub-pixel grid (offset random per pixel), jittered inside the cell:
 //     distinct cells for distinct samples, each sample uniform over the
@@ -2226,10 +2227,12 @@ fn store_sample(gid: vec3<u32>, v: vec3<f32>) {
     layers[(gid.z * params.film.y + gid.y) * width + gid.x] = sample_value(v);
 }
 
-// Adds a sample's radiance v to the pixel's sum (the wavefront's paths,
-// which end in any order of pixels, not by layers).
+// Adds a sample's radiance v to its layer's pixel (`wf_camera`'s index:
+// the wavefront's paths, which end in any order of pixels; the run's
+// layers, cleared before it, are added to the sums after it by
+// `resolve`, in sample order).
 fn add_sample(pixel: u32, v: vec3<f32>) {
-    accum[pixel] = accum[pixel] + sample_value(v);
+    layers[pixel] = layers[pixel] + sample_value(v);
 }
 
 // The layers of one dispatch of `main` or `realtime`, added in sample
@@ -2320,28 +2323,39 @@ fn wf_load(slot: u32) -> u32 {
 }
 
 // The camera path of slot `slot` on step 0 started in `path` and
-// `rng_state` (the tile's padded pixel `params.wave.z + slot`): the
-// pixel's (x, y), or `NO_SLOT` in x where the slot has none. The same
-// path and random numbers each time, so `trace_shade` starts it again
-// on step 0 instead of loading what `trace_extend` would have stored.
+// `rng_state` (the run's padded pixel `params.wave.z + slot`: of sample
+// `pass_info.x + z` where a tile holds the run's `layers.x` samples, z
+// padded films after the first): the pixel's (x, y) and z, or `NO_SLOT`
+// in x where the slot has none. The same path and random numbers each
+// time, so `trace_shade` starts it again on step 0 instead of loading
+// what `trace_extend` would have stored.
 const NO_SLOT: u32 = 0xffffffffu;
-fn wf_camera(slot: u32) -> vec2<u32> {
+fn wf_camera(slot: u32) -> vec3<u32> {
     if (slot >= params.wave.w) {
-        return vec2<u32>(NO_SLOT, 0u);
+        return vec3<u32>(NO_SLOT, 0u, 0u);
     }
     // Padded pixel index q in 8 x 8 blocks, row by row of blocks, so a
     // workgroup's camera rays are one block (as `main`'s 8 x 8 groups).
-    let q = params.wave.z + slot;
     let width = params.film.x;
     let blocks = (width + 7u) / 8u;
+    let padded = blocks * ((params.film.y + 7u) / 8u) * 64u;
+    let qz = params.wave.z + slot;
+    let z = qz / padded;
+    let q = qz % padded;
     let b = q / 64u;
     let x = (b % blocks) * 8u + q % 8u;
     let y = (b / blocks) * 8u + (q % 64u) / 8u;
-    if (x >= width || y >= params.film.y) {
-        return vec2<u32>(NO_SLOT, 0u);
+    if (x >= width || y >= params.film.y || z >= params.layers.x) {
+        return vec3<u32>(NO_SLOT, 0u, 0u);
     }
-    start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, 0u)));
-    return vec2<u32>(x, y);
+    start_path(params.origin.xyz, camera_sample(vec3<u32>(x, y, z)));
+    return vec3<u32>(x, y, z);
+}
+
+// The index of sample layer z's pixel (x, y) (`store_sample`'s), where the
+// wavefront's path of that pixel and sample adds its radiance.
+fn wf_pixel(c: vec3<u32>) -> u32 {
+    return (c.z * params.film.y + c.y) * params.film.x + c.x;
 }
 
 // The path of slot `gid.x` at the start of step `params.wave.x` (of the
@@ -2353,14 +2367,14 @@ fn wf_begin(gid: vec3<u32>) -> vec2<u32> {
     let tile = params.wave.w;
     let slot = gid.x;
     if (step == 0u) {
-        let xy = wf_camera(slot);
-        if (xy.x == NO_SLOT) {
-            return xy;
+        let c = wf_camera(slot);
+        if (c.x == NO_SLOT) {
+            return vec2<u32>(NO_SLOT, 0u);
         }
         // (Not in `wf_camera`: the tile's list serves the next
         // intersection, which only here is the camera ray's.)
-        use_tile(vec3<u32>(xy, 0u));
-        return vec2<u32>(slot, xy.y * params.film.x + xy.x);
+        use_tile(vec3<u32>(c.xy, 0u));
+        return vec2<u32>(slot, wf_pixel(c));
     }
     if (gid.x >= atomicLoad(&wf_ctl[4u * step + 3u])) {
         return vec2<u32>(NO_SLOT, 0u);
@@ -2508,8 +2522,7 @@ fn wf_listed(gid: vec3<u32>) -> vec2<u32> {
     }
     let slot = wf_queue[3u * params.wave.w + gid.x];
     if (params.wave.x == 0u) {
-        let xy = wf_camera(slot);
-        return vec2<u32>(slot, xy.y * params.film.x + xy.x);
+        return vec2<u32>(slot, wf_pixel(wf_camera(slot)));
     }
     return vec2<u32>(slot, wf_load(slot));
 }
