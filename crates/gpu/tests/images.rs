@@ -1574,7 +1574,7 @@ fn profiles_time_each_dispatch_of_the_same_frame() {
             "first hits" => vec![("aov_main", None); 3],
             _ => {
                 // As many steps as the scene's depth takes (at most 16
-                // and the last), the same for every sample.
+                // and the last), the same for each run.
                 let last = (depth + 1).min(16);
                 let mut per = Vec::new();
                 for k in 0..last {
