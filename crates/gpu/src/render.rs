@@ -274,6 +274,15 @@ struct Wavefront {
     sorted: bool,
 }
 
+impl Wavefront {
+    /// The camera rays' slots of a run of `n` samples in the tile that
+    /// starts at padded pixel `start`: the tile's pixels, or the run's
+    /// samples' where the tile holds several (`n * padded`, `start` 0).
+    fn camera_slots(&self, n: u32, start: u32) -> u32 {
+        self.tile.min(n * self.padded - start)
+    }
+}
+
 /// Whether `materials` hold a random-walk medium's record.
 fn random_walk(materials: &GpuMaterials) -> bool {
     materials
@@ -2159,11 +2168,7 @@ impl GpuFrame {
         };
         let ctl: Vec<[u32; 4]> = gpu.read_back(&wf.ctl)?;
         let last = (wf.tiles - 1) * wf.tile;
-        let mut out = vec![if wf.samples > 1 {
-            self.wf_last_run.1 * wf.padded
-        } else {
-            wf.tile.min(wf.padded - last)
-        }];
+        let mut out = vec![wf.camera_slots(self.wf_last_run.1, last)];
         out.extend(ctl[1..wf.steps as usize].iter().map(|c| c[3]));
         Ok(Some(out))
     }
@@ -2377,13 +2382,7 @@ impl GpuFrame {
             pass.set_bind_group(0, &self.bind, &[]);
             pass.set_bind_group(1, &wf.bind, &[]);
             if k == 0 {
-                // The camera rays: the tile's pixels, or the run's
-                // samples' where it holds several.
-                let slots = if wf.samples > 1 {
-                    n * wf.padded
-                } else {
-                    wf.tile.min(wf.padded - start)
-                };
+                let slots = wf.camera_slots(n, start);
                 pass.dispatch_workgroups(slots.div_ceil(64), 1, 1);
             } else {
                 pass.dispatch_workgroups_indirect(&wf.indirect, 0);
@@ -2428,11 +2427,8 @@ impl GpuFrame {
                 let mut pass = begin_pass(&mut enc, "resolve", writes);
                 pass.set_bind_group(0, &self.bind, &[]);
                 pass.set_pipeline(&resolve);
-                pass.dispatch_workgroups(
-                    self.params.film[0].div_ceil(TILE),
-                    self.params.film[1].div_ceil(TILE),
-                    1,
-                );
+                let (gx, gy) = self.film_groups();
+                pass.dispatch_workgroups(gx, gy, 1);
             }
         }
         clock.resolve(gpu, &mut enc);
@@ -2458,6 +2454,15 @@ impl GpuFrame {
     fn layers_per_dispatch(&self, gpu: &Gpu, count: u32) -> u32 {
         let fit = gpu.binding_limit().min(LAYER_BYTES_MAX) / self.layer_bytes().max(1);
         (fit.min(self.max_layers as u64) as u32).min(count).max(1)
+    }
+
+    /// Workgroups of 8 x 8 pixels (`TILE`) that cover the film, per axis:
+    /// a dispatch of a thread per pixel, or the number of tiles.
+    fn film_groups(&self) -> (u32, u32) {
+        (
+            self.params.film[0].div_ceil(TILE),
+            self.params.film[1].div_ceil(TILE),
+        )
     }
 
     /// Bytes of one sample layer: a `vec4<f32>` per pixel.
@@ -2558,10 +2563,7 @@ impl GpuFrame {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("samples"),
             });
-        let groups = (
-            self.params.film[0].div_ceil(TILE),
-            self.params.film[1].div_ceil(TILE),
-        );
+        let groups = self.film_groups();
         for (i, &(_, n)) in chunks.iter().enumerate() {
             enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
             let (first, last) = (i == 0, i + 1 == chunks.len());
@@ -2660,7 +2662,8 @@ impl GpuFrame {
             });
         let size = std::mem::size_of::<GpuParams>() as u64;
         enc.copy_buffer_to_buffer(&staging, 0, &self.params_buf, 0, size);
-        let tiles = self.params.film[0].div_ceil(TILE) * self.params.film[1].div_ceil(TILE);
+        let (gx, gy) = self.film_groups();
+        let tiles = gx * gy;
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("tile lists"),

@@ -636,17 +636,24 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             };
             let (g, kernels, first) = time(&gpu, &mut frame)?;
             let kernels = kernels.map_or("-".to_string(), |k| format!("{:.2}", k * 1e3));
+            // `--kernels`: the rows of `frame` as the path kernel `kernel`
+            // runs it (the `Gpu` passed in, which `--f64` changes between).
+            let mut profile = |gpu: &isolux_gpu::Gpu,
+                               frame: &mut isolux_gpu::GpuFrame,
+                               kernel: &str|
+             -> Result<()> {
+                if a.kernels {
+                    let rows = kernel_rows(gpu, frame, spp, a.repeat, [&name, mode, kernel])?;
+                    kernel_table.extend(rows);
+                }
+                Ok(())
+            };
             let path_modes = !(realtime || first_hit);
-            if a.kernels {
-                let kernel = if path_modes { "megakernel" } else { "-" };
-                kernel_table.extend(kernel_rows(
-                    &gpu,
-                    &mut frame,
-                    spp,
-                    a.repeat,
-                    [&name, mode, kernel],
-                )?);
-            }
+            profile(
+                &gpu,
+                &mut frame,
+                if path_modes { "megakernel" } else { "-" },
+            )?;
             let mut cols = String::new();
             if a.f64 {
                 gpu.set_precision(Precision::F64)?;
@@ -672,15 +679,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     frame.set_wavefront(true);
                     frame.set_sorted(false);
                     let gw = time(&gpu, &mut frame)?.0;
-                    if a.kernels {
-                        kernel_table.extend(kernel_rows(
-                            &gpu,
-                            &mut frame,
-                            spp,
-                            a.repeat,
-                            [&name, mode, "wavefront"],
-                        )?);
-                    }
+                    profile(&gpu, &mut frame, "wavefront")?;
                     frame.set_wavefront(false);
                     cols += &format!(" {:.2} | {:.2} |", gw * 1e3, gw / g);
                     wavefront = Some(gw);
@@ -693,15 +692,7 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                     cols += " - | - | - | - | - | - | - | - |";
                 } else {
                     let gs = time(&gpu, &mut frame)?.0;
-                    if a.kernels {
-                        kernel_table.extend(kernel_rows(
-                            &gpu,
-                            &mut frame,
-                            spp,
-                            a.repeat,
-                            [&name, mode, "sorted wavefront"],
-                        )?);
-                    }
+                    profile(&gpu, &mut frame, "sorted wavefront")?;
                     frame.set_sort_by_material(false);
                     let gu = time(&gpu, &mut frame);
                     frame.set_sort_by_material(true);
