@@ -29,12 +29,12 @@ pub use render::{
     refracted_media, replace_unsupported, scene_features, thin_object_warning,
     unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio, BumpCondition,
     DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT, F32_VALUE_LIMIT,
-    MAX_SCALE_RATIO,
+    MAX_SCALE_RATIO, PARAM_BLOCKS,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
 
-use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuQuery, GpuRay, GpuScene};
+use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuParams, GpuQuery, GpuRay, GpuScene};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 use wgpu::util::DeviceExt;
@@ -88,6 +88,18 @@ pub const ENV_MAP: u32 = 1;
 /// environment, accumulation, parameters, AOVs, sample layers), shared by
 /// its entry points (`Gpu::render_layout`).
 pub const RENDER_BINDINGS: usize = 15;
+
+/// The render bindings' parameters (`params` of `render.wgsl`): one
+/// [`GpuParams`] block of the frame's parameter buffer, chosen by a
+/// dynamic offset per `set_bind_group`, so that a frame's dispatches
+/// (each wavefront step, each run of samples) read their blocks from one
+/// buffer written once per submission, with no copy between dispatches.
+pub(crate) const PARAMS_BINDING: u32 = 7;
+
+/// The size of a [`GpuParams`] block, as a binding size.
+fn params_size() -> wgpu::BufferSize {
+    wgpu::BufferSize::new(std::mem::size_of::<GpuParams>() as u64).expect("GpuParams is not empty")
+}
 /// Storage buffers of the wavefront's group 1 (paths, queues, step
 /// counters, the sorted wavefront's hits).
 pub const WAVEFRONT_BINDINGS: usize = 4;
@@ -1003,7 +1015,7 @@ impl Gpu {
                 B::Storage { read_only: false },
                 B::Storage { read_only: false },
             ];
-            let bgl = self.buffer_layout("render bindings", &kinds);
+            let bgl = self.buffer_layout("render bindings", &kinds, Some(PARAMS_BINDING));
             let pl = self
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -1063,7 +1075,7 @@ impl Gpu {
     fn wavefront_layout(&self) -> &(wgpu::BindGroupLayout, wgpu::PipelineLayout) {
         self.wavefront_layout.get_or_init(|| {
             let rw = wgpu::BufferBindingType::Storage { read_only: false };
-            let bgl = self.buffer_layout("wavefront bindings", &[rw; WAVEFRONT_BINDINGS]);
+            let bgl = self.buffer_layout("wavefront bindings", &[rw; WAVEFRONT_BINDINGS], None);
             let pl = self
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -1081,28 +1093,33 @@ impl Gpu {
         &self,
         buffers: &[&wgpu::Buffer; WAVEFRONT_BINDINGS],
     ) -> wgpu::BindGroup {
-        self.buffer_bind_group("wavefront", &self.wavefront_layout().0, buffers)
+        self.buffer_bind_group("wavefront", &self.wavefront_layout().0, buffers, None)
     }
 
     /// A compute bind group layout of buffers of `kinds` at bindings 0, 1,
-    /// 2, ... in order.
+    /// 2, ... in order; binding `params` (where given) is a [`GpuParams`]
+    /// block at a dynamic offset (see [`Gpu::params_stride`]).
     fn buffer_layout(
         &self,
         label: &str,
         kinds: &[wgpu::BufferBindingType],
+        params: Option<u32>,
     ) -> wgpu::BindGroupLayout {
         let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
             .iter()
             .enumerate()
-            .map(|(i, &ty)| wgpu::BindGroupLayoutEntry {
-                binding: i as u32,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
+            .map(|(i, &ty)| {
+                let block = params == Some(i as u32);
+                wgpu::BindGroupLayoutEntry {
+                    binding: i as u32,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty,
+                        has_dynamic_offset: block,
+                        min_binding_size: block.then(params_size),
+                    },
+                    count: None,
+                }
             })
             .collect();
         self.device
@@ -1113,19 +1130,30 @@ impl Gpu {
     }
 
     /// A bind group of `layout` with `buffers` whole at bindings 0, 1, 2,
-    /// ... in order.
+    /// ... in order, but for binding `params` (where given): one
+    /// [`GpuParams`] block of it, at the dynamic offset each
+    /// `set_bind_group` names.
     fn buffer_bind_group(
         &self,
         label: &str,
         layout: &wgpu::BindGroupLayout,
         buffers: &[&wgpu::Buffer],
+        params: Option<u32>,
     ) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
             .map(|(i, b)| wgpu::BindGroupEntry {
                 binding: i as u32,
-                resource: b.as_entire_binding(),
+                resource: if params == Some(i as u32) {
+                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: b,
+                        offset: 0,
+                        size: Some(params_size()),
+                    })
+                } else {
+                    b.as_entire_binding()
+                },
             })
             .collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -1168,7 +1196,12 @@ impl Gpu {
     }
 
     fn render_bind_group(&self, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-        self.buffer_bind_group("render", &self.render_layout().0, buffers)
+        self.buffer_bind_group(
+            "render",
+            &self.render_layout().0,
+            buffers,
+            Some(PARAMS_BINDING),
+        )
     }
 
     /// The largest storage buffer this device binds (and creates).
@@ -1194,7 +1227,7 @@ impl Gpu {
         pipeline: &wgpu::ComputePipeline,
         buffers: &[&wgpu::Buffer],
     ) -> wgpu::BindGroup {
-        self.buffer_bind_group("kernel", &pipeline.get_bind_group_layout(0), buffers)
+        self.buffer_bind_group("kernel", &pipeline.get_bind_group_layout(0), buffers, None)
     }
 
     /// A zeroed storage buffer of `size` bytes that can be read back.
@@ -1205,6 +1238,26 @@ impl Gpu {
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// The bytes between two [`GpuParams`] blocks of a frame's parameter
+    /// buffer: the block's size rounded up to the device's storage offset
+    /// alignment (256 bytes on most devices).
+    fn params_stride(&self) -> u64 {
+        let align = self.device.limits().min_storage_buffer_offset_alignment as u64;
+        (std::mem::size_of::<GpuParams>() as u64).next_multiple_of(align.max(1))
+    }
+
+    /// A frame's parameter buffer: `render::PARAM_BLOCKS` blocks, written
+    /// by copies (`render::ParamBlocks`), bound one block at a time
+    /// (read-only storage, not uniform: see [`Gpu::params_buffer`]).
+    fn param_blocks_buffer(&self) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("params"),
+            size: render::PARAM_BLOCKS as u64 * self.params_stride(),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
     }

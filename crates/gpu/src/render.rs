@@ -115,6 +115,64 @@ impl Clock<'_> {
     }
 }
 
+/// Parameter blocks a frame's parameter buffer holds, one per dispatch of
+/// a submission (256 bytes each on most devices: 256 KiB). A submission
+/// of more dispatches copies the next blocks in after every
+/// `PARAM_BLOCKS` dispatches.
+pub const PARAM_BLOCKS: usize = 1024;
+
+/// The [`GpuParams`] of each dispatch of one submission, staged at once
+/// and copied into the frame's parameter buffer ahead of the dispatches
+/// that read them, each of which binds its own block by a dynamic offset
+/// ([`crate::PARAMS_BINDING`]). Until 2026-12-05 each dispatch's
+/// parameters were copied into one block just before it: a copy, and the
+/// barriers around it, between every two dispatches of a frame (every
+/// wavefront step); now there is one copy per [`PARAM_BLOCKS`]
+/// dispatches.
+struct ParamBlocks {
+    staging: wgpu::Buffer,
+    count: usize,
+    stride: u64,
+}
+
+impl ParamBlocks {
+    /// `blocks`, each padded to the device's storage offset alignment.
+    fn new(gpu: &Gpu, blocks: &[GpuParams]) -> Self {
+        let stride = gpu.params_stride();
+        let mut bytes = vec![0u8; blocks.len().max(1) * stride as usize];
+        for (chunk, block) in bytes.chunks_exact_mut(stride as usize).zip(blocks) {
+            chunk[..std::mem::size_of::<GpuParams>()].copy_from_slice(bytemuck::bytes_of(block));
+        }
+        let staging = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("dispatch parameters"),
+                contents: &bytes,
+                usage: wgpu::BufferUsages::COPY_SRC,
+            });
+        ParamBlocks {
+            staging,
+            count: blocks.len(),
+            stride,
+        }
+    }
+
+    /// The dynamic offset of block `i` in `buffer` (of [`PARAM_BLOCKS`]
+    /// blocks), for a dispatch queued next in `enc`. Where `i` opens a run
+    /// of [`PARAM_BLOCKS`] blocks, first queues the copy of that run into
+    /// `buffer` (after the dispatches that read the previous run: wgpu
+    /// orders a copy after the earlier reads of its destination).
+    fn offset(&self, enc: &mut wgpu::CommandEncoder, buffer: &wgpu::Buffer, i: usize) -> u32 {
+        let at = i % PARAM_BLOCKS;
+        if at == 0 {
+            let n = (self.count - i).min(PARAM_BLOCKS) as u64;
+            let from = i as u64 * self.stride;
+            enc.copy_buffer_to_buffer(&self.staging, from, buffer, 0, n * self.stride);
+        }
+        (at as u64 * self.stride) as u32
+    }
+}
+
 /// A compute pass of a frame, with the timestamps `writes`.
 fn begin_pass<'e>(
     enc: &'e mut wgpu::CommandEncoder,
@@ -1771,7 +1829,7 @@ impl Gpu {
         let texels = self.storage("env texels", bytemuck::cast_slice(&texels));
         let cdf = self.storage("env cdf", bytemuck::cast_slice(&cdf));
         let accum = self.output("accumulation", npix * 16);
-        let params_buf = self.params_buffer("params", &params);
+        let params_buf = self.param_blocks_buffer();
         let levels = self.storage("env levels", bytemuck::cast_slice(&levels));
         let nodes = self.storage("bvh nodes", bytemuck::cast_slice(&geo.nodes));
         // Albedo per scene material (the CPU's `albedo()`, the AOV's
@@ -2319,7 +2377,6 @@ impl GpuFrame {
             return;
         };
         let resolve = gpu.resolve_pipeline();
-        let size = std::mem::size_of::<GpuParams>() as u64;
         // Runs of up to `wf.samples` samples, each of all its tiles.
         let per = wf.samples;
         let runs: Vec<(u32, u32)> = (0..count)
@@ -2342,13 +2399,7 @@ impl GpuFrame {
                 }
             }
         }
-        let staging = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("wavefront parameters"),
-                contents: bytemuck::cast_slice(&blocks),
-                usage: wgpu::BufferUsages::COPY_SRC,
-            });
+        let staged = ParamBlocks::new(gpu, &blocks);
         let mut enc = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -2368,7 +2419,7 @@ impl GpuFrame {
             } else {
                 enc.copy_buffer_to_buffer(&wf.ctl, k as u64 * 16, &wf.indirect, 0, 16);
             }
-            enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
+            let at = staged.offset(&mut enc, &self.params_buf, i);
             let last = k + 1 == wf.steps;
             let kernels = sorted.as_ref().filter(|_| !last && k < self.sorted_steps);
             let (name, step_pipeline) = match kernels {
@@ -2379,7 +2430,7 @@ impl GpuFrame {
             let writes = clock.writes(gpu, name, Some(k), i == 0, false);
             let mut pass = begin_pass(&mut enc, "wavefront step", writes);
             pass.set_pipeline(step_pipeline);
-            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_bind_group(0, &self.bind, &[at]);
             pass.set_bind_group(1, &wf.bind, &[]);
             if k == 0 {
                 let slots = wf.camera_slots(n, start);
@@ -2391,8 +2442,8 @@ impl GpuFrame {
             if let Some([_, scatter, shadow, shade]) = kernels {
                 // The list's counters: after the steps', 4 + 2 WF_BINS
                 // words a step (render.wgsl `sort_base`).
-                let at = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
-                enc.copy_buffer_to_buffer(&wf.ctl, at, &wf.indirect, 16, 16);
+                let list = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
+                enc.copy_buffer_to_buffer(&wf.ctl, list, &wf.indirect, 16, 16);
                 // One pass (a pass each when profiled): wgpu orders a
                 // pass's dispatches by their storage use (as `samples`
                 // runs `main`, then `resolve`), each a thread per listed
@@ -2403,7 +2454,7 @@ impl GpuFrame {
                 }
                 kernels.push(("trace_shade", shade));
                 let dispatch = |pass: &mut wgpu::ComputePass, pipeline| {
-                    pass.set_bind_group(0, &self.bind, &[]);
+                    pass.set_bind_group(0, &self.bind, &[at]);
                     pass.set_bind_group(1, &wf.bind, &[]);
                     pass.set_pipeline(pipeline);
                     pass.dispatch_workgroups_indirect(&wf.indirect, 16);
@@ -2425,7 +2476,7 @@ impl GpuFrame {
                 // parameters' `layers`: n of them, not replacing).
                 let writes = clock.writes(gpu, "resolve", None, false, i + 1 == total);
                 let mut pass = begin_pass(&mut enc, "resolve", writes);
-                pass.set_bind_group(0, &self.bind, &[]);
+                pass.set_bind_group(0, &self.bind, &[at]);
                 pass.set_pipeline(&resolve);
                 let (gx, gy) = self.film_groups();
                 pass.dispatch_workgroups(gx, gy, 1);
@@ -2518,10 +2569,10 @@ impl GpuFrame {
 
     /// Queues dispatches of `pipeline` over samples `first .. first +
     /// count`, `per` samples each (`gid.z`), each followed by `resolve`
-    /// when there is one, in one submission. Each dispatch's parameters
+    /// when there is one, in one submission. The dispatches' parameters
     /// are copied into the parameter buffer from a staging buffer inside
-    /// the command stream, so no submission waits on a `write_buffer` (on
-    /// an H100 four submissions cost about 2 ms). `clock`: how the passes
+    /// the command stream ([`ParamBlocks`]), so no submission waits on a
+    /// `write_buffer` (on an H100 four submissions cost about 2 ms). `clock`: how the passes
     /// are timed (`pipeline`'s name is its entry point, for
     /// [`GpuFrame::profile`]).
     #[allow(clippy::too_many_arguments)]
@@ -2536,7 +2587,6 @@ impl GpuFrame {
         resolve: Option<&wgpu::ComputePipeline>,
         clock: &mut Clock,
     ) {
-        let size = std::mem::size_of::<GpuParams>() as u64;
         let chunks: Vec<(u32, u32)> = (0..count)
             .step_by(per as usize)
             .map(|s| (s, per.min(count - s)))
@@ -2551,13 +2601,7 @@ impl GpuFrame {
                 p
             })
             .collect();
-        let staging = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("sample parameters"),
-                contents: bytemuck::cast_slice(&blocks),
-                usage: wgpu::BufferUsages::COPY_SRC,
-            });
+        let staged = ParamBlocks::new(gpu, &blocks);
         let mut enc = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -2565,13 +2609,13 @@ impl GpuFrame {
             });
         let groups = self.film_groups();
         for (i, &(_, n)) in chunks.iter().enumerate() {
-            enc.copy_buffer_to_buffer(&staging, i as u64 * size, &self.params_buf, 0, size);
+            let at = staged.offset(&mut enc, &self.params_buf, i);
             let (first, last) = (i == 0, i + 1 == chunks.len());
             // `resolve` in the same pass, or when profiled in its own.
             let each = clock.each();
             let writes = clock.writes(gpu, name, None, first, last);
             let mut pass = begin_pass(&mut enc, "samples", writes);
-            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_bind_group(0, &self.bind, &[at]);
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(groups.0, groups.1, n);
             if let Some(resolve) = resolve {
@@ -2579,7 +2623,7 @@ impl GpuFrame {
                     drop(pass);
                     let writes = clock.writes(gpu, "resolve", None, false, false);
                     pass = begin_pass(&mut enc, "resolve", writes);
-                    pass.set_bind_group(0, &self.bind, &[]);
+                    pass.set_bind_group(0, &self.bind, &[at]);
                 }
                 pass.set_pipeline(resolve);
                 pass.dispatch_workgroups(groups.0, groups.1, 1);
@@ -2648,20 +2692,13 @@ impl GpuFrame {
     /// the objects its camera rays can meet, for the camera of
     /// `self.params`. Runs before any later submission's samples.
     fn cull_tiles(&self, gpu: &Gpu) {
-        let staging = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("cull parameters"),
-                contents: bytemuck::bytes_of(&self.params),
-                usage: wgpu::BufferUsages::COPY_SRC,
-            });
+        let staged = ParamBlocks::new(gpu, std::slice::from_ref(&self.params));
         let mut enc = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("tile lists"),
             });
-        let size = std::mem::size_of::<GpuParams>() as u64;
-        enc.copy_buffer_to_buffer(&staging, 0, &self.params_buf, 0, size);
+        let at = staged.offset(&mut enc, &self.params_buf, 0);
         let (gx, gy) = self.film_groups();
         let tiles = gx * gy;
         {
@@ -2669,7 +2706,7 @@ impl GpuFrame {
                 label: Some("tile lists"),
                 timestamp_writes: None,
             });
-            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_bind_group(0, &self.bind, &[at]);
             pass.set_pipeline(&gpu.cull_pipeline());
             // Rows of at most 65535 workgroups (the per-dimension limit).
             let groups = tiles.div_ceil(64);

@@ -1505,6 +1505,53 @@ fn wavefront_tiles_trace_the_films_paths() {
     }
 }
 
+/// Each dispatch of a submission binds its own block of the frame's
+/// parameter buffer, which holds `PARAM_BLOCKS` blocks; a submission of
+/// more dispatches copies the next blocks in after the dispatches that
+/// read the last ones. A run of more dispatches than that (the megakernel
+/// one sample a dispatch, the wavefront one sample a run, each step a
+/// dispatch) gives the image of a run of a few dispatches bit for bit. A
+/// block read at the wrong offset (the wrong sample, step or layer
+/// count), or a copy that lands before the last reads, fails it.
+#[test]
+fn dispatches_past_the_parameter_blocks_read_their_own() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = common::example("gallery.toml");
+    scene.film.width = 8;
+    scene.film.height = 8;
+    let blocks = isolux_gpu::PARAM_BLOCKS as u32;
+    for wavefront in [false, true] {
+        let steps = if wavefront {
+            let mut frame = gpu.prepare(&scene).unwrap();
+            frame.set_wavefront(true);
+            frame.run(&gpu, 1);
+            frame.wavefront_steps(&gpu).unwrap().unwrap().len() as u32
+        } else {
+            1
+        };
+        // One dispatch (one wavefront step) per block, past the buffer.
+        let count = blocks / steps + 3;
+        let run = |few: bool| {
+            let mut frame = gpu.prepare(&scene).unwrap();
+            frame.set_wavefront(wavefront);
+            frame.set_max_layers(if few { 16 } else { 1 });
+            frame.set_wavefront_samples(if few { 16 } else { 1 });
+            frame.run(&gpu, count);
+            let (img, stats) = frame.image(&gpu).unwrap();
+            assert_eq!(stats.rejected_samples, 0);
+            img
+        };
+        let (many, few) = (run(false), run(true));
+        assert!(many.rgb.iter().flatten().any(|&c| c > 0.0));
+        assert!(
+            many.rgb == few.rgb,
+            "wavefront {wavefront}: {count} samples of {steps} dispatches each differ"
+        );
+    }
+}
+
 /// `GpuFrame::profile` times each dispatch of a frame and runs the same
 /// samples as `run`: the image (or the first hits) bit for bit, each
 /// path kernel's dispatches in the order it queues them (the wavefronts'
