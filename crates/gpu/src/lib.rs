@@ -100,6 +100,7 @@ pub(crate) const PARAMS_BINDING: u32 = 7;
 fn params_size() -> wgpu::BufferSize {
     wgpu::BufferSize::new(std::mem::size_of::<GpuParams>() as u64).expect("GpuParams is not empty")
 }
+
 /// Storage buffers of the wavefront's group 1 (paths, queues, step
 /// counters, the sorted wavefront's hits).
 pub const WAVEFRONT_BINDINGS: usize = 4;

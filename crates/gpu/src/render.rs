@@ -2572,9 +2572,9 @@ impl GpuFrame {
     /// when there is one, in one submission. The dispatches' parameters
     /// are copied into the parameter buffer from a staging buffer inside
     /// the command stream ([`ParamBlocks`]), so no submission waits on a
-    /// `write_buffer` (on an H100 four submissions cost about 2 ms). `clock`: how the passes
-    /// are timed (`pipeline`'s name is its entry point, for
-    /// [`GpuFrame::profile`]).
+    /// `write_buffer` (on an H100 four submissions cost about 2 ms).
+    /// `clock`: how the passes are timed (`pipeline`'s name is its entry
+    /// point, for [`GpuFrame::profile`]).
     #[allow(clippy::too_many_arguments)]
     fn queue_dispatches(
         &self,
