@@ -1004,12 +1004,12 @@ impl GpuMaterials {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
     /// `[x, y, z, m]`: `m` 1 + the material of the random-walk medium the
-    /// light lies in (0: none; `medium_light` in render.wgsl gathers a
+    /// light lies in (0: none; `medium_light` in media.wgsl gathers a
     /// light only at scattering events in its medium).
     pub position: [f32; 4],
     /// `[r, g, b, f]` (W/sr): `f` 1 + the material of the random-walk
     /// medium bounded by a plane whose inside the light reaches through
-    /// the plane by refraction (0: none; `refraction` in render.wgsl,
+    /// the plane by refraction (0: none; `refraction` in subsurface.wgsl,
     /// `isolux_render` `Scene::flat_boundary`).
     pub intensity: [f32; 4],
     /// That medium's plane: `[nx, ny, nz, offset]`, the outward unit
@@ -1049,12 +1049,12 @@ pub struct GpuParams {
     pub env_size: [u32; 4],
     /// The wavefront path tracer's `[step, steps, first padded pixel of
     /// the tile, paths in the tile]` (`trace` and `trace_last` in
-    /// render.wgsl, whose entry point says whether a step is the last, and
+    /// wavefront.wgsl, whose entry point says whether a step is the last, and
     /// the sorted wavefront's kernels; zero for the other kernels).
     pub wave: [u32; 4],
     /// `[sample layers of the dispatch, 1 when `resolve` replaces the
-    /// pixels' sums, 0, 0]` (`main`, `realtime` and `resolve` in
-    /// render.wgsl); in the wavefront's steps `[0, 0, 1 when the sorted
+    /// pixels' sums, 0, 0]` (`main` and `resolve` in
+    /// camera.wgsl, `realtime` in realtime.wgsl); in the wavefront's steps `[0, 0, 1 when the sorted
     /// wavefront sorts by material, 0]` (`trace_extend`).
     pub layers: [u32; 4],
     /// `[the random-walk media the camera is in, null boundaries,

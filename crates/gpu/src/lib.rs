@@ -17,7 +17,17 @@
 //! - `intersect.wgsl`, `material_eval.wgsl`: conformance entry points
 //!   ([`Gpu::intersect`], [`Gpu::eval_materials`]) compared with the CPU
 //!   in `tests/`;
-//! - `render.wgsl`: the path tracer ([`Gpu::render`], [`GpuFrame`]).
+//! - the path tracer ([`Gpu::render`], [`GpuFrame`]), in the files of
+//!   [`RENDER_FILES`], concatenated in that order: `render.wgsl` (its
+//!   parameters, bindings, random numbers and ray helpers),
+//!   `environment.wgsl`, `direct.wgsl` (next-event estimation and the
+//!   path's state), `subsurface.wgsl`, `manifold.wgsl` (light refracted
+//!   through curved boundaries, caustics), `media.wgsl` (transmittance,
+//!   lamps in media, the media a path is in), `integrator.wgsl` (a
+//!   bounce, shading, a path's radiance), `camera.wgsl` (camera rays, tile
+//!   lists, the megakernel `main`, `resolve`), `wavefront.wgsl` (the
+//!   wavefront and sorted wavefront steps), `aov.wgsl`; then
+//!   `realtime.wgsl`, the real-time mode.
 //!
 //! What is not on the GPU yet is listed in `docs/gpu.md`.
 
@@ -77,7 +87,7 @@ const _: () = assert!(LINEAR_CULL <= MAX_CANDIDATES);
 /// bit mask (a `u32` in `geometry.wgsl`) rather than in a list.
 pub const MASK_CANDIDATES: u32 = u32::BITS;
 /// Point lights whose shadow rays a vertex traces before it is shaded, at
-/// most (a bit mask; `MASK_LIGHTS` in `render.wgsl`); a scene with more
+/// most (a bit mask; `MASK_LIGHTS` in the render kernels); a scene with more
 /// traces the rest in the shading loop ([`Features::many_lights`]).
 pub const MASK_LIGHTS: u32 = u32::BITS;
 /// Environment kinds (`Params.counts.w`).
@@ -106,7 +116,7 @@ fn params_size() -> wgpu::BufferSize {
 pub const WAVEFRONT_BINDINGS: usize = 4;
 
 /// Bins of the sorted wavefront's sort by material (`WF_BINS` in
-/// render.wgsl): material records below `WF_BINS - 1` their own, the rest
+/// wavefront.wgsl): material records below `WF_BINS - 1` their own, the rest
 /// the last.
 pub const WF_BINS: u32 = 64;
 
@@ -289,7 +299,7 @@ pub fn render_source_with(precision: Precision) -> String {
 ///
 /// Two models switch whole parts of the integrator on: `wave` its
 /// placement and evaluation code (`wave.wgsl`, else `wave_stub.wgsl`),
-/// `subsurface` the subsurface integrator (`SUBSURFACE` in `render.wgsl`:
+/// `subsurface` the subsurface integrator (`SUBSURFACE` in the render kernels:
 /// free flights and scattering in a random-walk medium, the dipole's entry
 /// points and single scattering, a boundary's mirrored environment), which
 /// builds the two internal lobes `SSS_SINGLE_LOBE` and `SSS_ENTRY_LOBE`.
@@ -315,19 +325,19 @@ pub struct Features {
     /// which only a scene of more than [`MASK_LIGHTS`] point lights needs:
     /// the shadow rays of the first [`MASK_LIGHTS`] are traced before the
     /// vertex is shaded, their answers kept as a bit mask (`trace_shadows`
-    /// in `render.wgsl`), so that the shading state is not live across
+    /// in `direct.wgsl`), so that the shading state is not live across
     /// an intersection.
     pub many_lights: bool,
     /// Camera rays test their 8 x 8 pixel tile's list of objects instead
     /// of walking the object hierarchy each (`TILE_LISTS` in the WGSL;
-    /// `cull_tiles` and `use_tile` in `render.wgsl`). The same hits either
+    /// `cull_tiles` and `use_tile` in `camera.wgsl`). The same hits either
     /// way. On by default on GPUs, off on CPU drivers (lavapipe), where
     /// the list's code, run under an empty lane mask by every other ray,
     /// costs more than the camera rays save (docs/gpu.md, "Tile lists").
     pub tiles: bool,
     /// Point lights' shadow rays that pass null boundaries
     /// (`NULL_BOUNDARIES` in the WGSL; `shadow_transmittance` in
-    /// `render.wgsl`), which only a scene with a random-walk medium of
+    /// `media.wgsl`), which only a scene with a random-walk medium of
     /// the index around it needs (`Scene::may_have_null_boundaries`):
     /// without it a shadow ray is one occlusion test, and the loop of
     /// nearest hits is left out (lavapipe: the dipole example's path
@@ -335,12 +345,12 @@ pub struct Features {
     pub null_boundaries: bool,
     /// Point lights above a random-walk medium bounded by a plane (the
     /// sun above the sea) lighting its inside by refraction through the
-    /// plane (`REFRACTION` in the WGSL; `refraction` in `render.wgsl`,
+    /// plane (`REFRACTION` in the WGSL; `refraction` in `subsurface.wgsl`,
     /// [`refracted_media`]).
     pub refraction: bool,
     /// Point lights refracted into random-walk media through curved
     /// boundaries by manifold next-event estimation (`MANIFOLD` in the
-    /// WGSL; `manifold_refraction` in `render.wgsl`), which only a scene
+    /// WGSL; `manifold_refraction` in `manifold.wgsl`), which only a scene
     /// with a point light and a curved random-walk medium needs, with
     /// `integrator.refracted_lights = "manifold"` (it comes with
     /// [`Features::refraction`]). Without it a scene whose lamps refract
@@ -349,7 +359,7 @@ pub struct Features {
     pub manifold: bool,
     /// Point lights through glass objects by manifold next-event
     /// estimation over both crossings (`CAUSTICS` in the WGSL; `caustic`
-    /// in `render.wgsl`), which only a scene with
+    /// in `manifold.wgsl`), which only a scene with
     /// `integrator.caustics = "manifold"`, a point light and a
     /// `dielectric` material needs.
     pub caustics: bool,
@@ -426,7 +436,7 @@ impl Features {
 
     /// The sorted wavefront traces each hit's shadow rays in a kernel of
     /// their own, `trace_shadow`, before `trace_shade` (`SHADOWS_AHEAD`
-    /// in `render.wgsl`, which this mirrors): kernels of at most
+    /// in `wavefront.wgsl`, which this mirrors): kernels of at most
     /// [`MASK_LIGHTS`] lights, without the candidate list, caustics or
     /// the subsurface integrator.
     pub fn shadows_ahead(self) -> bool {
@@ -597,9 +607,40 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
         + &format!("const REFRACTION: bool = {};\n", features.refraction)
         + &format!("const MANIFOLD: bool = {};\n", features.manifold)
         + &format!("const CAUSTICS: bool = {};\n", features.caustics)
-        + include_str!("shaders/render.wgsl")
+        + RENDER_WGSL
         + include_str!("shaders/realtime.wgsl")
 }
+
+/// The path tracer's WGSL files (in `src/shaders/`), in the order
+/// [`render_source_variant`] concatenates them. WGSL declarations may come
+/// in any order; the files split one module by concern, mirroring the CPU
+/// integrator's modules (`crates/render/src`), and share its names.
+pub const RENDER_FILES: [&str; 10] = [
+    "render.wgsl",
+    "environment.wgsl",
+    "direct.wgsl",
+    "subsurface.wgsl",
+    "manifold.wgsl",
+    "media.wgsl",
+    "integrator.wgsl",
+    "camera.wgsl",
+    "wavefront.wgsl",
+    "aov.wgsl",
+];
+
+/// The files of [`RENDER_FILES`], concatenated.
+const RENDER_WGSL: &str = concat!(
+    include_str!("shaders/render.wgsl"),
+    include_str!("shaders/environment.wgsl"),
+    include_str!("shaders/direct.wgsl"),
+    include_str!("shaders/subsurface.wgsl"),
+    include_str!("shaders/manifold.wgsl"),
+    include_str!("shaders/media.wgsl"),
+    include_str!("shaders/integrator.wgsl"),
+    include_str!("shaders/camera.wgsl"),
+    include_str!("shaders/wavefront.wgsl"),
+    include_str!("shaders/aov.wgsl"),
+);
 
 /// Which of the two path tracers of `render.wgsl` a frame runs. Both trace
 /// the same paths with the same random numbers, so they give the same
@@ -1028,29 +1069,29 @@ impl Gpu {
         })
     }
 
-    /// The path tracer (`realtime` false, entry `main`) or the real-time
-    /// mode (entry `realtime`) of `render.wgsl`, with the code of
+    /// The path tracer (`realtime` false, entry `main`, camera.wgsl) or the real-time
+    /// mode (entry `realtime`, realtime.wgsl) of the render kernels, with the code of
     /// `features`.
     fn render_pipeline(&self, realtime: bool, features: Features) -> wgpu::ComputePipeline {
         self.render_entry(if realtime { "realtime" } else { "main" }, features)
     }
 
-    /// The sum of a dispatch's sample layers (`resolve` of `render.wgsl`).
+    /// The sum of a dispatch's sample layers (`resolve` of `camera.wgsl`).
     fn resolve_pipeline(&self) -> wgpu::ComputePipeline {
         self.render_entry("resolve", Features::NONE)
     }
 
-    /// The camera rays' tile lists (`cull_tiles` of `render.wgsl`).
+    /// The camera rays' tile lists (`cull_tiles` of `camera.wgsl`).
     fn cull_pipeline(&self) -> wgpu::ComputePipeline {
         self.render_entry("cull_tiles", Features::NONE)
     }
 
-    /// The AOV kernel (`aov_main` of `render.wgsl`).
+    /// The AOV kernel (`aov_main` of `aov.wgsl`).
     fn aov_pipeline(&self, features: Features) -> wgpu::ComputePipeline {
         self.render_entry("aov_main", features)
     }
 
-    /// The wavefront path tracer's step (`trace` of `render.wgsl`: one
+    /// The wavefront path tracer's step (`trace` of `wavefront.wgsl`: one
     /// bounce; `trace_last` on the `last` step: every bounce left), bound
     /// with the render group and [`Gpu::wavefront_layout`]'s group 1.
     fn trace_pipeline(&self, features: Features, last: bool) -> wgpu::ComputePipeline {
@@ -1433,6 +1474,38 @@ impl Gpu {
 #[cfg(test)]
 mod tests {
     use super::layout::tag;
+
+    /// The path tracer's source is its files, in `RENDER_FILES`' order, and
+    /// every `.wgsl` file of `src/shaders` is compiled into some kernel.
+    #[test]
+    fn render_files_are_the_render_source() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/shaders");
+        let read = |name: &str| {
+            std::fs::read_to_string(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+        };
+        let joined: String = super::RENDER_FILES.iter().map(|f| read(f)).collect();
+        assert_eq!(
+            joined,
+            super::RENDER_WGSL,
+            "RENDER_WGSL lists other files than RENDER_FILES"
+        );
+        let others = [
+            "geometry.wgsl",
+            "intersect.wgsl",
+            "materials.wgsl",
+            "material_eval.wgsl",
+            "wave.wgsl",
+            "wave_stub.wgsl",
+            "realtime.wgsl",
+        ];
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let name = entry.unwrap().file_name().into_string().unwrap();
+            assert!(
+                super::RENDER_FILES.contains(&name.as_str()) || others.contains(&name.as_str()),
+                "{name} is in src/shaders but no kernel includes it"
+            );
+        }
+    }
 
     /// Feature sets worth compiling in tests: none, all, each model alone,
     /// and the integrator's optional parts with and without the rest.

@@ -12,18 +12,18 @@ use wgpu::util::DeviceExt;
 /// Workgroup edge of the render kernel (8 x 8 pixels; `render.wgsl`).
 pub(crate) const TILE: u32 = 8;
 
-/// Objects in a tile's list at most (`cull_tiles` in `render.wgsl`); a
+/// Objects in a tile's list at most (`cull_tiles` in `camera.wgsl`); a
 /// tile whose rays' pyramid meets more walks the hierarchy per ray.
 pub(crate) const TILE_LIST_MAX: u32 = 16;
 
 /// Bytes of the tile lists of a `width x height` film (`tile_lists` in
-/// `render.wgsl`: `TILE_LIST_MAX + 1` words per tile).
+/// `render.wgsl`, written by `cull_tiles` in `camera.wgsl`: `TILE_LIST_MAX + 1` words per tile).
 fn tile_list_bytes(width: u32, height: u32) -> u64 {
     width.div_ceil(TILE) as u64 * height.div_ceil(TILE) as u64 * (TILE_LIST_MAX as u64 + 1) * 4
 }
 
 /// Bytes of one path's state between the wavefront's steps (`WfPath` in
-/// render.wgsl).
+/// wavefront.wgsl).
 const WF_PATH_BYTES: u64 = 112;
 
 /// The wavefront's steps of one bounce each, before the last step takes
@@ -244,7 +244,7 @@ impl Stamps {
 /// One dispatch's GPU time in a [`Profile`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct DispatchTime {
-    /// The kernel's entry point in `render.wgsl` (`main`, `resolve`,
+    /// The kernel's entry point in the render kernels (`main`, `resolve`,
     /// `realtime`, `aov_main`, `trace`, `trace_last`, `trace_extend`,
     /// `trace_scatter`, `trace_shadow`, `trace_shade`).
     pub kernel: &'static str,
@@ -302,7 +302,7 @@ pub struct SortedSteps {
 }
 
 /// The wavefront path tracer's buffers for one frame (`trace` in
-/// render.wgsl, docs/gpu.md "The wavefront path tracer").
+/// wavefront.wgsl, docs/gpu.md "The wavefront path tracer").
 struct Wavefront {
     bind: wgpu::BindGroup,
     /// The queues (and the sorted wavefront's lists), for diagnostics.
@@ -1148,7 +1148,7 @@ fn innermost(packed: u32, bits: u32) -> u32 {
 }
 
 /// The width in bits of each medium's slot in the kernels' packed media
-/// (`path.medium`, `params.camera.w`; `medium_bits()` in render.wgsl),
+/// (`path.medium`, `params.camera.w`; `medium_bits()` in direct.wgsl),
 /// the narrowest that names every random-walk medium's `1 +` material
 /// index below the slot's mask (all ones is kept out of the slots, so
 /// that no packing equals `MEDIA_TOO_DEEP`), the media's materials
@@ -1267,7 +1267,7 @@ fn scene_needs(scene: &Scene) -> Result<(Features, bool), GpuError> {
 }
 
 /// Lists, for manifold next-event estimation of point lights through
-/// curved boundaries (`manifold_refraction` in render.wgsl, as the CPU's
+/// curved boundaries (`manifold_refraction` in manifold.wgsl, as the CPU's
 /// `RefractedLights::Manifold`), the objects of each random-walk medium
 /// that is not flat, or is flat but in `listed`, those some light reaches
 /// so ([`flat_routes`]): in `materials`' data, `[count, objects...]` (as
@@ -1333,7 +1333,7 @@ fn bounded(b: &isolux_render::FlatBoundary) -> bool {
 /// Per point light of `scene`, the random-walk medium bounded by a
 /// plane (with or without `bounds`) that the light lies above (its
 /// object and plane, `Scene::flat_boundary`), whose inside it reaches by
-/// refraction through the plane (`refraction` in render.wgsl, as on the
+/// refraction through the plane (`refraction` in subsurface.wgsl, as on the
 /// CPU), where the light's record can name it: `None` for a light above
 /// no such medium, and, with `integrator.refracted_lights = "manifold"`,
 /// for a light whose flat media the GPU cannot tell by the record (the
@@ -2127,7 +2127,7 @@ impl GpuFrame {
     /// Camera rays test their tile's list of objects (`on`) or walk the
     /// object hierarchy each: kernels with or without [`Features::tiles`]
     /// (by default with on a GPU, without on a CPU driver). The lists
-    /// (`cull_tiles` in `render.wgsl`: one walk per 8 x 8 pixel tile
+    /// (`cull_tiles` in `camera.wgsl`: one walk per 8 x 8 pixel tile
     /// against the pyramid of its rays) are made either way. The hits are
     /// the same: a list holds, in the walk's order, every object a ray of
     /// the tile can reach. For comparisons (`isolux bench gpu --tiles`)
@@ -2306,7 +2306,7 @@ impl GpuFrame {
             let paths = gpu.output("wavefront paths", tile as u64 * WF_PATH_BYTES);
             // The sorted wavefront's two lists after the two queues, its
             // hits (two `vec4`s a path), and per step its lists' counters
-            // after the steps' (render.wgsl `sort_base`).
+            // after the steps' (wavefront.wgsl `sort_base`).
             let lists = if sorted { 4 } else { 2 };
             let queue = gpu.output("wavefront queues", lists * tile as u64 * 4);
             let hits = gpu.output("wavefront hits", if sorted { tile as u64 * 32 } else { 16 });
@@ -2441,7 +2441,7 @@ impl GpuFrame {
             drop(pass);
             if let Some([_, scatter, shadow, shade]) = kernels {
                 // The list's counters: after the steps', 4 + 2 WF_BINS
-                // words a step (render.wgsl `sort_base`).
+                // words a step (wavefront.wgsl `sort_base`).
                 let list = (wf.steps as u64 * 4 + k as u64 * (4 + 2 * WF_BINS as u64)) * 4;
                 enc.copy_buffer_to_buffer(&wf.ctl, list, &wf.indirect, 16, 16);
                 // One pass (a pass each when profiled): wgpu orders a
@@ -2688,7 +2688,7 @@ impl GpuFrame {
         Ok(())
     }
 
-    /// Queues `cull_tiles` (`render.wgsl`): each 8 x 8 pixel tile's list of
+    /// Queues `cull_tiles` (`camera.wgsl`): each 8 x 8 pixel tile's list of
     /// the objects its camera rays can meet, for the camera of
     /// `self.params`. Runs before any later submission's samples.
     fn cull_tiles(&self, gpu: &Gpu) {

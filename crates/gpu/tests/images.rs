@@ -2177,7 +2177,7 @@ fn far_wave_mappings_are_refused() {
 }
 
 /// Camera rays test their 8 x 8 tile's list of objects (`cull_tiles` and
-/// `use_tile` in render.wgsl) instead of walking the object hierarchy
+/// `use_tile` in camera.wgsl) instead of walking the object hierarchy
 /// each, and find the same hits: the list holds, in the walk's order, every
 /// object whose box the pyramid of the tile's rays meets. So the images are
 /// the walk's bit for bit, path traced (megakernel and wavefront) and real

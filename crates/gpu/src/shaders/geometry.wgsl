@@ -45,7 +45,7 @@ var<private> hit_object: u32;
 // Per-tile culling of camera rays (SPEC §1: "culled per tile"; the CPU's
 // coherent culling, docs/geometry.md). Kernels that trace one camera ray
 // per invocation read their 8 x 8 pixel tile's list of objects
-// (`tile_entry`, render.wgsl `cull_tiles`: the objects whose box the
+// (`tile_entry`, camera.wgsl `cull_tiles`: the objects whose box the
 // pyramid of the tile's rays meets, in the order of the object
 // hierarchy's walk) and each camera ray tests those objects instead of
 // walking the hierarchy (`scene_hit_real`). The list holds every object a
@@ -886,7 +886,7 @@ fn scene_first_hit(o: vec3<f32>, d: vec3<f32>, t0: f32, t_max: f32, n: u32, any:
 }
 
 // First hit of object `oi` alone on [t0, t1] (f32 in and out): the probe
-// rays of the dipole BSSRDF (render.wgsl).
+// rays of the dipole BSSRDF (subsurface.wgsl).
 fn object_first_hit(oi: u32, o: vec3<f32>, d: vec3<f32>, t0: f32, t1: f32) -> vec4<f32> {
     return vec4<f32>(object_hit(oi, vec3<real>(o), vec3<real>(d), real(t0), real(t1), false));
 }

@@ -22,10 +22,10 @@
 //                a.z r_max, a.w 1 - F_dr,ext; b.rgb sigma_s, b.w single
 //                scattering on; c.rgb sigma_a; tag.w 1 for random walk;
 //                tag.y - 1 the table of the materials seen from inside
-//                it (random walk; 0: none; render.wgsl `bounce`);
+//                it (random walk; 0: none; integrator.wgsl `bounce`);
 //                idx.x dipoles, then the single-scattering scale, then the local
 //                BRDF's R_d and single-scattering albedo (sss_local_brdf);
-//                idx.yzw radial tables (render.wgsl)
+//                idx.yzw radial tables (subsurface.wgsl)
 //   WAVE         wave.wgsl (placed per shading point by place_material)
 
 // i mod n in [0, n) for any i and n > 0, from unsigned remainders alone:
@@ -1219,7 +1219,7 @@ fn base_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
             if (!has_model(MAT_SSS_SINGLE_LOBE) && !has_model(MAT_SSS_ENTRY_LOBE)) {
                 return 0.0;
             }
-            // Estimated with cosine-sampled directions (render.wgsl).
+            // Estimated with cosine-sampled directions (direct.wgsl).
             return cosine_pdf(wi.z);
         }
         case MAT_MERL: {
@@ -1437,7 +1437,7 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
             if (!has_model(MAT_SSS_ENTRY_LOBE)) {
                 return no_sample();
             }
-            // The continuation from a dipole entry point (render.wgsl):
+            // The continuation from a dipole entry point (subsurface.wgsl):
             // cosine-weighted, weight S_w(cos) pi.
             wi = cosine_hemisphere(u);
             flags = FLAG_DIFFUSE;
@@ -1569,7 +1569,7 @@ fn material_pdf(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
 // the material's, at the direction: of a specular leaf's too, as on the
 // CPU); a plain material's specular or closed-form sample returns scored.
 // Its callers score it at the call site they evaluate light samples at
-// (render.wgsl `direct_light`): each call site inlines the library's
+// (direct.wgsl `direct_light`): each call site inlines the library's
 // switches. A `wave` (the material, or a mix's leaf) draws with
 // `wave_sample_dir`, whichever leaf drew the direction.
 fn material_draw(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample {

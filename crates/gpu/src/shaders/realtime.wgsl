@@ -1,6 +1,6 @@
 // The real-time mode on the GPU, mirroring crates/render/src/realtime.rs
-// (appended to render.wgsl: same bindings, random numbers, geometry and
-// environment helpers):
+// (appended to the path tracer's files, lib.rs `RENDER_FILES`: the same
+// bindings, random numbers, geometry and environment helpers):
 //   * one thread per pixel and sample, `pass_info.y` samples (4-25) of
 //     the pixel on the stratified sub-pixel grid, which `resolve` writes
 //     (not accumulates) to `accum`: each run is one whole frame;
@@ -82,7 +82,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     let p = o + h.x * d;
     let ng = h.yzw;
     // The point lights' shadow rays before the material is loaded
-    // (render.wgsl `trace_shadows`).
+    // (direct.wgsl `trace_shadows`).
     if (SHADOWS_FIRST) {
         trace_shadows(p, ng);
     }
@@ -122,7 +122,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
 }
 
 // One sample per thread (`pass_info.x + gid.z`, of `pass_info.y` per
-// pixel), written to its layer for `resolve` (render.wgsl), which
+// pixel), written to its layer for `resolve` (camera.wgsl), which
 // replaces the pixel's sum with the frame's first layers: no loop around
 // the shading (see the known defect in docs/gpu.md).
 @compute @workgroup_size(8, 8)
