@@ -4,6 +4,11 @@
 # `.device/` (carry it again), with whatever device time is left: what
 # device-check.sh leaves out, in order of worth, so that a call cut short
 # by the session's budget still returns the first of them.
+#   0. samples a run of the sorted wavefront (`bench gpu --runs`): the
+#      gallery path traced and direct lit at 1920 x 1080 with 1, 2
+#      (the default tile), 4, 8 and 16 samples' paths a run, to say
+#      whether larger tiles (fewer, fuller steps; up to 5.8 GB) should
+#      be the default;
 #   1. how the GPU frame scales with the film: the gallery at 480 x 270,
 #      960 x 540 and 3840 x 2160 (real time, path traced, direct light,
 #      first hits), beside device-check.sh's 1920 x 1080;
@@ -35,6 +40,11 @@ if [ "${QUICK:-0}" = 1 ]; then
 fi
 # The first seconds warm the GPU up (a fresh clock reads slow), though
 # this call follows device-check.sh's on a machine still warm.
+if [ "${QUICK:-0}" = 1 ]; then
+    step 60 "$bin/isolux" bench gpu --skip-cpu --runs --width 32 --height 18 --repeat 1
+else
+    step 90 "$bin/isolux" bench gpu --skip-cpu --runs --width 1920 --height 1080 "${repeat[@]}"
+fi
 for wh in "${sizes[@]}"; do
     read -r w h <<<"$wh"
     step 60 "$bin/isolux" bench gpu --skip-cpu --width "$w" --height "$h" "${repeat[@]}"

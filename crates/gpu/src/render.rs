@@ -41,8 +41,16 @@ const WF_SINGLE_STEPS: u32 = 16;
 /// 128 steps 10.5 / 9.1 s (the megakernel 16.4-18.0 s).
 const WF_MEDIUM_STEPS: u32 = 128;
 
-/// Paths per wavefront tile at most (a 2048 x 2048 film in one tile).
-const WF_TILE_MAX: u64 = 1 << 22;
+/// Paths per wavefront tile at most (a 2048 x 2048 film in one tile where
+/// the device dispatches 65,536 workgroups in x, in two where it
+/// dispatches 65,535: [`wavefront_shape`]).
+pub const WF_TILE_MAX: u64 = 1 << 22;
+
+/// Paths per wavefront tile at most where a caller asks for more than
+/// [`WF_TILE_MAX`] ([`GpuFrame::set_wavefront_tile`]): a 1920 x 1080
+/// film's 16 samples in one run (3.7 GB of path state; the device's
+/// binding and dispatch limits still cap it).
+const WF_TILE_LIMIT: u64 = 1 << 25;
 
 /// Sample layers of one dispatch of `main` or `realtime` at most: a run of
 /// more samples takes several dispatches ([`Gpu::render`] runs a film's
@@ -339,6 +347,27 @@ impl Wavefront {
     fn camera_slots(&self, n: u32, start: u32) -> u32 {
         self.tile.min(n * self.padded - start)
     }
+}
+
+/// The wavefront's samples a run and paths a tile for a film of `padded`
+/// pixels (whole 8 x 8 tiles): up to `samples_max` samples' paths in one
+/// tile where the film fits the tile that many times, else one sample's
+/// in tiles of up to `fit` paths (what the path buffer binds). Every
+/// step is a dispatch of a workgroup of 64 threads per path of the tile,
+/// in x alone (`wf_begin` reads `gid.x`), so a tile holds at most 64
+/// times `groups_max`, the device's workgroups per dimension: 65,535 on
+/// lavapipe, Intel, DX12 and wgpu's Metal, where a tile of 2^22 paths
+/// (a film larger than 2048 x 2048 in tiles of `WF_TILE_MAX`; NVIDIA
+/// allows 2^31 - 1) asked for 65,536 and wgpu refused the dispatch.
+fn wavefront_shape(padded: u32, fit: u64, groups_max: u64, samples_max: u64) -> (u32, u32) {
+    let fit = (fit.min(64 * groups_max) / 64 * 64).max(64);
+    let samples = (fit / padded as u64).min(samples_max).max(1) as u32;
+    let tile = if samples > 1 {
+        samples * padded
+    } else {
+        (padded as u64).min(fit) as u32
+    };
+    (samples, tile)
 }
 
 /// Whether `materials` hold a random-walk medium's record.
@@ -2193,13 +2222,21 @@ impl GpuFrame {
     }
 
     /// Paths per tile of the wavefront at most (rounded down to a
-    /// multiple of 64, at least 64; by default 2^22, or fewer where the
-    /// adapter binds less): a film of more padded pixels runs
-    /// in several tiles, one after another. The same image whatever the
-    /// tile. For tests (a film in several tiles without a huge film).
+    /// multiple of 64, at least 64, at most 2^25; by default 2^22; fewer
+    /// where the adapter binds or dispatches less): a film of more padded
+    /// pixels runs in several tiles, one after another. The same image
+    /// whatever the tile. For tests (a film in several tiles without a
+    /// huge film) and comparisons (`isolux bench gpu --runs`: more
+    /// samples a run at 1080p than the default tile holds).
     pub fn set_wavefront_tile(&mut self, paths: u64) {
-        self.tile_max = paths.clamp(64, WF_TILE_MAX);
+        self.tile_max = paths.clamp(64, WF_TILE_LIMIT);
         self.wf = None;
+    }
+
+    /// The wavefront's samples a run and tiles a run, as the last run
+    /// made them; `None` before the wavefront ran.
+    pub fn wavefront_runs(&self) -> Option<(u32, u32)> {
+        self.wf.as_ref().map(|wf| (wf.samples, wf.tiles))
     }
 
     /// Samples the wavefront runs together at most (1 to 16, the
@@ -2282,21 +2319,13 @@ impl GpuFrame {
         if self.wf.as_ref().is_some_and(|wf| wf.sorted != sorted) {
             self.wf = None;
         }
+        let groups_max = gpu.device.limits().max_compute_workgroups_per_dimension as u64;
         self.wf.get_or_insert_with(|| {
             let (w, h) = (params.film[0], params.film[1]);
             let padded = w.div_ceil(TILE) * h.div_ceil(TILE) * TILE * TILE;
-            let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(tile_max) / 64 * 64;
-            // Several samples per run where the film fits the tile that
-            // many times (and their layers the binding).
-            let samples = (fit / padded as u64)
-                .min(samples_max)
-                .min(layers_fit)
-                .max(1) as u32;
-            let tile = if samples > 1 {
-                samples * padded
-            } else {
-                (padded as u64).min(fit.max(64)) as u32
-            };
+            let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(tile_max);
+            let (samples, tile) =
+                wavefront_shape(padded, fit, groups_max, samples_max.min(layers_fit));
             let tiles = padded.div_ceil(tile);
             let steps = if medium {
                 WF_MEDIUM_STEPS
@@ -2773,6 +2802,48 @@ impl GpuFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each step of the wavefront dispatches a workgroup per 64 paths of
+    /// its tile in x: never more than the device allows, on any film,
+    /// binding and sample count; a tile holds whole samples where it holds
+    /// more than one, and a film in tiles runs one sample a run.
+    #[test]
+    fn wavefront_tiles_fit_the_dispatch_limit() {
+        let films = [
+            (160, 90),
+            (1920, 1080),
+            (2048, 2048),
+            (2560, 1640),
+            (3840, 2160),
+            (8192, 8192),
+        ];
+        for (w, h) in films {
+            let padded = (w as u32).div_ceil(TILE) * (h as u32).div_ceil(TILE) * TILE * TILE;
+            for binding in [128u64 << 20, 1 << 30, (4u64 << 30) - 1, 1 << 40] {
+                for groups_max in [65_535u64, (1 << 31) - 1] {
+                    for samples_max in [1, 2, 16] {
+                        let fit = (binding / WF_PATH_BYTES).min(WF_TILE_MAX);
+                        let (samples, tile) = wavefront_shape(padded, fit, groups_max, samples_max);
+                        let case = format!("{w}x{h}, binding {binding}, {groups_max} groups, {samples_max} samples: {samples} x {tile}");
+                        assert!((tile as u64).div_ceil(64) <= groups_max, "{case}");
+                        assert!(tile as u64 <= fit.max(64), "{case}");
+                        assert!(samples >= 1 && samples as u64 <= samples_max, "{case}");
+                        if samples > 1 {
+                            assert_eq!(tile, samples * padded, "{case}");
+                        } else {
+                            assert!(tile <= padded && tile % 64 == 0, "{case}");
+                        }
+                    }
+                }
+            }
+        }
+        // 1080p, two samples a run in the default tile, on every device.
+        let padded = 240 * 135 * 64;
+        assert_eq!(
+            wavefront_shape(padded, WF_TILE_MAX, 65_535, 16),
+            (2, 2 * padded)
+        );
+    }
 
     #[test]
     fn env_tables_are_normalized_cdfs_and_densities() {

@@ -105,6 +105,15 @@ pub struct BenchArgs {
     /// (`GpuFrame::profile`; best of `--repeat` by the frame's span).
     #[arg(long)]
     pub kernels: bool,
+    /// `gpu`: also time the path-traced and direct-light frames with 1,
+    /// 2, 4, 8 and 16 samples' paths a run of the sorted wavefront (the
+    /// plain one for scenes with the subsurface integrator), in a third
+    /// table: the default tile of 2^22 paths holds two at 1920 x 1080;
+    /// larger tiles (up to 2^25 paths, 5.8 GB of buffers at 1080p for 16)
+    /// as far as the device binds and dispatches them. The same image
+    /// whatever the count; fewer, fuller steps against more memory.
+    #[arg(long)]
+    pub runs: bool,
 }
 
 /// Primary rays of [`cast_rows`] over the whole image, bands of
@@ -556,6 +565,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
     }
     // `--kernels`' table, printed after the first.
     let mut kernel_table: Vec<String> = Vec::new();
+    // `--runs`' table, printed last.
+    let mut runs_table: Vec<String> = Vec::new();
     println!("| scene | mode | spp | kernel features | GPU (ms/frame) | GPU kernels (ms) |{extra} CPU (ms/frame) | CPU / GPU | first frame (ms) |");
     println!("|---|---|---:|---|---:|---:|{rule}---:|---:|---:|");
     for path in &scenes {
@@ -728,6 +739,37 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 frame.set_sorted(false);
                 frame.set_wavefront(false);
             }
+            if a.runs && path_modes {
+                // Tiles of n samples' padded pixels (8 x 8 tiles).
+                let padded = a.width.div_ceil(8) as u64 * a.height.div_ceil(8) as u64 * 64;
+                frame.set_wavefront(true);
+                frame.set_sorted(true);
+                let kernel = if frame.sorted() {
+                    "sorted wavefront"
+                } else {
+                    "wavefront"
+                };
+                let mut default = None;
+                for n in [None, Some(1u32), Some(2), Some(4), Some(8), Some(16)] {
+                    let tile = n.map_or(isolux_gpu::WF_TILE_MAX, |n| n as u64 * padded);
+                    frame.set_wavefront_tile(tile);
+                    frame.set_wavefront_samples(n.unwrap_or(16));
+                    let t = time(&gpu, &mut frame)?.0;
+                    let (samples, tiles) = frame.wavefront_runs().unwrap_or((1, 1));
+                    let d = *default.get_or_insert(t);
+                    let asked = n.map_or("default".to_string(), |n| n.to_string());
+                    runs_table.push(format!(
+                        "| {name} | {mode} | {kernel} | {asked} | {samples} | {tiles} | {} | {:.2} | {:.2} |",
+                        16u32.div_ceil(samples),
+                        t * 1e3,
+                        t / d
+                    ));
+                }
+                frame.set_wavefront_tile(isolux_gpu::WF_TILE_MAX);
+                frame.set_wavefront_samples(16);
+                frame.set_sorted(false);
+                frame.set_wavefront(false);
+            }
             if a.per_sample && first_hit {
                 // Already one dispatch per sample.
                 cols += " - | - |";
@@ -795,6 +837,15 @@ fn gpu(a: &BenchArgs) -> Result<()> {
             for row in kernel_table {
                 println!("{row}");
             }
+        }
+    }
+    if a.runs {
+        println!();
+        println!("Samples a run of the wavefront (`--runs`; ratios to each mode's default row, a tile of WF_TILE_MAX paths):");
+        println!("| scene | mode | path kernel | samples asked | samples a run | tiles a run | runs of 16 spp | GPU (ms/frame) | / default |");
+        println!("|---|---|---|---:|---:|---:|---:|---:|---:|");
+        for row in runs_table {
+            println!("{row}");
         }
     }
     Ok(())
