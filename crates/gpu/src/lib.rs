@@ -46,7 +46,7 @@ pub use wgpu;
 
 use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuParams, GpuQuery, GpuRay, GpuScene};
 use std::collections::HashMap;
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
 /// Threads per workgroup of the compute kernels.
@@ -705,6 +705,10 @@ pub enum GpuError {
     /// Invalid camera or film.
     #[error("{0}")]
     Setup(String),
+    /// The GPU reported an error while running queued work (wgpu's
+    /// validation, memory running out; [`Gpu::check`]).
+    #[error("the GPU reported an error: {0}")]
+    Failed(String),
     /// An object of the scene lies farther from the GPU's origin than its
     /// f32 coordinates resolve for its size ([`f32_shortfall`]).
     #[error("{0}")]
@@ -841,6 +845,10 @@ pub struct Gpu {
     /// tile lists ([`Features::tiles`]) and path trace surfaces with the
     /// megakernel ([`PathKernel::Auto`]).
     cpu: bool,
+    /// The first error wgpu reported outside a call that returns one
+    /// (validation, out of memory), kept for [`Gpu::check`] instead of
+    /// wgpu's default, a panic.
+    failure: Arc<Mutex<Option<String>>>,
     /// Adapter name and back end, for reports.
     pub adapter: String,
     /// The driver's name and version as it reports them (for example
@@ -907,8 +915,22 @@ impl Gpu {
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
+        let failure: Arc<Mutex<Option<String>>> = Arc::default();
+        let sink = failure.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let what = match &e {
+                wgpu::Error::OutOfMemory { .. } => {
+                    format!("out of GPU memory ({e}): try a smaller film (--width, --height)")
+                }
+                _ => e.to_string(),
+            };
+            if let Ok(mut first) = sink.lock() {
+                first.get_or_insert(what);
+            }
+        }));
         let timestamps = timestamps_supported.then(|| Timestamps::new(&device, &queue));
         Ok(Self {
+            failure,
             timestamps,
             device,
             queue,
@@ -1438,6 +1460,18 @@ impl Gpu {
         Ok(v)
     }
 
+    /// The first error the GPU reported since the device was opened
+    /// outside a call that returns one (a command's validation, memory
+    /// running out), as [`GpuError::Failed`]; `Ok` if none. [`Gpu::wait`]
+    /// and every read-back check it; a caller that only queues work (the
+    /// viewer's frames) checks it itself.
+    pub fn check(&self) -> Result<(), GpuError> {
+        match self.failure.lock().ok().and_then(|f| f.clone()) {
+            Some(what) => Err(GpuError::Failed(what)),
+            None => Ok(()),
+        }
+    }
+
     /// Waits until the queue is idle.
     pub fn wait(&self) -> Result<(), GpuError> {
         // Waits of 60 s each: a long pass on a CPU driver (lavapipe on a
@@ -1447,7 +1481,7 @@ impl Gpu {
                 submission_index: None,
                 timeout: Some(std::time::Duration::from_secs(60)),
             }) {
-                Ok(_) => return Ok(()),
+                Ok(_) => return self.check(),
                 Err(wgpu::PollError::Timeout) => continue,
                 Err(e) => return Err(GpuError::Readback(e.to_string())),
             }

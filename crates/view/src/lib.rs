@@ -827,6 +827,10 @@ impl Running {
             }
             self.showing_realtime = realtime;
         }
+        // An error the GPU reported while running what was queued (out
+        // of memory, say) ends the viewer with it, instead of frames that
+        // never change.
+        self.gpu.check()?;
 
         // Draw.
         let texture = match self.surface.get_current_texture() {
