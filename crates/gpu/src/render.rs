@@ -356,9 +356,10 @@ impl Wavefront {
 /// step is a dispatch of a workgroup of 64 threads per path of the tile,
 /// in x alone (`wf_begin` reads `gid.x`), so a tile holds at most 64
 /// times `groups_max`, the device's workgroups per dimension: 65,535 on
-/// lavapipe, Intel, DX12 and wgpu's Metal, where a tile of 2^22 paths
-/// (a film larger than 2048 x 2048 in tiles of `WF_TILE_MAX`; NVIDIA
-/// allows 2^31 - 1) asked for 65,536 and wgpu refused the dispatch.
+/// lavapipe and under DX12 (the least Vulkan and WebGPU promise), where a
+/// tile of 2^22 paths (a film larger than 2048 x 2048 in tiles of
+/// `WF_TILE_MAX`, on a device binding 470 MB or more; NVIDIA allows
+/// 2^31 - 1) asked for 65,536 and wgpu refused the dispatch.
 fn wavefront_shape(padded: u32, fit: u64, groups_max: u64, samples_max: u64) -> (u32, u32) {
     let fit = (fit.min(64 * groups_max) / 64 * 64).max(64);
     let samples = (fit / padded as u64).min(samples_max).max(1) as u32;
@@ -2821,8 +2822,13 @@ mod tests {
             let padded = (w as u32).div_ceil(TILE) * (h as u32).div_ceil(TILE) * TILE * TILE;
             for binding in [128u64 << 20, 1 << 30, (4u64 << 30) - 1, 1 << 40] {
                 for groups_max in [65_535u64, (1 << 31) - 1] {
-                    for samples_max in [1, 2, 16] {
-                        let fit = (binding / WF_PATH_BYTES).min(WF_TILE_MAX);
+                    for (samples_max, tile_max) in [
+                        (1, WF_TILE_MAX),
+                        (2, WF_TILE_MAX),
+                        (16, WF_TILE_MAX),
+                        (16, WF_TILE_LIMIT),
+                    ] {
+                        let fit = (binding / WF_PATH_BYTES).min(tile_max);
                         let (samples, tile) = wavefront_shape(padded, fit, groups_max, samples_max);
                         let case = format!("{w}x{h}, binding {binding}, {groups_max} groups, {samples_max} samples: {samples} x {tile}");
                         assert!((tile as u64).div_ceil(64) <= groups_max, "{case}");
@@ -2842,6 +2848,11 @@ mod tests {
         assert_eq!(
             wavefront_shape(padded, WF_TILE_MAX, 65_535, 16),
             (2, 2 * padded)
+        );
+        // All 16 in the largest tile where the device dispatches them.
+        assert_eq!(
+            wavefront_shape(padded, WF_TILE_LIMIT, (1 << 31) - 1, 16),
+            (16, 16 * padded)
         );
     }
 
