@@ -528,8 +528,15 @@ fn gpu(a: &BenchArgs) -> Result<()> {
         a.scenes.clone()
     };
     let threads = rayon::current_num_threads();
+    // The driver's version beside the adapter: lavapipe names the same
+    // adapter under Mesa 22.3 and Mesa 25 (`scripts/mesa25.sh`).
+    let driver = if gpu.driver.is_empty() {
+        String::new()
+    } else {
+        format!(" (driver: {})", gpu.driver)
+    };
     println!(
-        "adapter: {}; CPU: {threads} threads; {}x{}; best of {}",
+        "adapter: {}{driver}; CPU: {threads} threads; {}x{}; best of {}",
         gpu.adapter, a.width, a.height, a.repeat
     );
     // Optional columns between the GPU kernels and the CPU.
