@@ -732,8 +732,8 @@ pub enum GpuError {
 /// [`RENDER_BINDINGS`] + [`WAVEFRONT_BINDINGS`] storage buffers in two
 /// groups, one with a dynamic offset, and run workgroups of 64 threads
 /// (64 in x, or 8 x 8) sharing 256 bytes. WebGPU's default limits (8
-/// storage buffers a stage) and downlevel devices fall short; desktop
-/// Vulkan, Metal and DX12 devices do not. Checked when the device is
+/// storage buffers a stage) and downlevel devices fall short; lavapipe,
+/// NVIDIA's and most current desktop GPUs do not. Checked when the device is
 /// opened, so that such an adapter is a clear error instead of wgpu's
 /// validation panic at the first pipeline.
 fn missing_limits(limits: &wgpu::Limits) -> Option<String> {
