@@ -43,7 +43,7 @@ const WF_MEDIUM_STEPS: u32 = 128;
 
 /// Paths per wavefront tile at most (a 2048 x 2048 film in one tile where
 /// the device dispatches 65,536 workgroups in x, in two where it
-/// dispatches 65,535: [`wavefront_shape`]).
+/// dispatches 65,535: `wavefront_shape` in render.rs).
 pub const WF_TILE_MAX: u64 = 1 << 22;
 
 /// Paths per wavefront tile at most where a caller asks for more than
