@@ -357,7 +357,7 @@ impl Wavefront {
 /// in x alone (`wf_begin` reads `gid.x`), so a tile holds at most 64
 /// times `groups_max`, the device's workgroups per dimension: 65,535 on
 /// lavapipe and under DX12 (the least Vulkan and WebGPU promise), where a
-/// tile of 2^22 paths (a film larger than 2048 x 2048 in tiles of
+/// tile of 2^22 paths (a film of 2048 x 2048 pixels or more in tiles of
 /// `WF_TILE_MAX`, on a device binding 470 MB or more; NVIDIA allows
 /// 2^31 - 1) asked for 65,536 and wgpu refused the dispatch.
 fn wavefront_shape(padded: u32, fit: u64, groups_max: u64, samples_max: u64) -> (u32, u32) {
