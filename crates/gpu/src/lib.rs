@@ -611,11 +611,22 @@ pub fn render_source_variant(precision: Precision, features: Features) -> String
         + include_str!("shaders/realtime.wgsl")
 }
 
-/// The path tracer's WGSL files (in `src/shaders/`), in the order
-/// [`render_source_variant`] concatenates them. WGSL declarations may come
-/// in any order; the files split one module by concern, mirroring the CPU
-/// integrator's modules (`crates/render/src`), and share its names.
-pub const RENDER_FILES: [&str; 10] = [
+/// [`RENDER_FILES`] and [`RENDER_WGSL`] from one list of the files.
+macro_rules! render_files {
+    ($($file:literal),* $(,)?) => {
+        /// The path tracer's WGSL files (in `src/shaders/`), in the order
+        /// [`render_source_variant`] concatenates them. WGSL declarations
+        /// may come in any order; the files split one module by concern,
+        /// mirroring the CPU integrator's modules (`crates/render/src`),
+        /// and share its names.
+        pub const RENDER_FILES: &[&str] = &[$($file),*];
+
+        /// The files of [`RENDER_FILES`], concatenated.
+        const RENDER_WGSL: &str = concat!($(include_str!(concat!("shaders/", $file))),*);
+    };
+}
+
+render_files!(
     "render.wgsl",
     "environment.wgsl",
     "direct.wgsl",
@@ -626,20 +637,6 @@ pub const RENDER_FILES: [&str; 10] = [
     "camera.wgsl",
     "wavefront.wgsl",
     "aov.wgsl",
-];
-
-/// The files of [`RENDER_FILES`], concatenated.
-const RENDER_WGSL: &str = concat!(
-    include_str!("shaders/render.wgsl"),
-    include_str!("shaders/environment.wgsl"),
-    include_str!("shaders/direct.wgsl"),
-    include_str!("shaders/subsurface.wgsl"),
-    include_str!("shaders/manifold.wgsl"),
-    include_str!("shaders/media.wgsl"),
-    include_str!("shaders/integrator.wgsl"),
-    include_str!("shaders/camera.wgsl"),
-    include_str!("shaders/wavefront.wgsl"),
-    include_str!("shaders/aov.wgsl"),
 );
 
 /// Which of the two path tracers of `render.wgsl` a frame runs. Both trace
@@ -1601,7 +1598,7 @@ mod tests {
         assert_eq!(
             joined,
             super::RENDER_WGSL,
-            "RENDER_WGSL lists other files than RENDER_FILES"
+            "RENDER_WGSL is not the files of RENDER_FILES as they are on disk"
         );
         let others = [
             "geometry.wgsl",
