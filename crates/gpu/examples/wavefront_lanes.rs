@@ -153,7 +153,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         scene.film.width = a.width;
         scene.film.height = a.height;
         // The scene's sorted wavefront in one tile of the whole film.
-        let padded = (a.width.div_ceil(8) * a.height.div_ceil(8) * 64) as usize;
+        let padded = isolux_gpu::padded_pixels(a.width, a.height) as usize;
         let sorted_frame = |scene: &isolux_render::Scene| {
             gpu.prepare(scene).map(|mut f| {
                 f.set_wavefront(true);

@@ -349,6 +349,13 @@ impl Wavefront {
     }
 }
 
+/// The pixels of a `width x height` film in whole 8 x 8 tiles (`TILE`):
+/// the wavefront's paths of one sample (its slots), what a tile of `n`
+/// samples' paths holds `n` times.
+pub fn padded_pixels(width: u32, height: u32) -> u32 {
+    width.div_ceil(TILE) * height.div_ceil(TILE) * TILE * TILE
+}
+
 /// The wavefront's samples a run and paths a tile for a film of `padded`
 /// pixels (whole 8 x 8 tiles): up to `samples_max` samples' paths in one
 /// tile where the film fits the tile that many times, else one sample's
@@ -2323,7 +2330,7 @@ impl GpuFrame {
         let groups_max = gpu.device.limits().max_compute_workgroups_per_dimension as u64;
         self.wf.get_or_insert_with(|| {
             let (w, h) = (params.film[0], params.film[1]);
-            let padded = w.div_ceil(TILE) * h.div_ceil(TILE) * TILE * TILE;
+            let padded = padded_pixels(w, h);
             let fit = (gpu.binding_limit() / WF_PATH_BYTES).min(tile_max);
             let (samples, tile) =
                 wavefront_shape(padded, fit, groups_max, samples_max.min(layers_fit));
@@ -2819,7 +2826,7 @@ mod tests {
             (8192, 8192),
         ];
         for (w, h) in films {
-            let padded = (w as u32).div_ceil(TILE) * (h as u32).div_ceil(TILE) * TILE * TILE;
+            let padded = padded_pixels(w, h);
             for binding in [128u64 << 20, 1 << 30, (4u64 << 30) - 1, 1 << 40] {
                 for groups_max in [65_535u64, (1 << 31) - 1] {
                     for (samples_max, tile_max) in [

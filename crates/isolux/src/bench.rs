@@ -747,8 +747,8 @@ fn gpu(a: &BenchArgs) -> Result<()> {
                 frame.set_wavefront(false);
             }
             if a.runs && path_modes {
-                // Tiles of n samples' padded pixels (8 x 8 tiles).
-                let padded = a.width.div_ceil(8) as u64 * a.height.div_ceil(8) as u64 * 64;
+                // Tiles of n samples' padded pixels.
+                let padded = isolux_gpu::padded_pixels(a.width, a.height) as u64;
                 frame.set_wavefront(true);
                 frame.set_sorted(true);
                 let kernel = if frame.sorted() {
