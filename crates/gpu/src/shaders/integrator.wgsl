@@ -147,17 +147,7 @@ fn placed(m: Material, p: vec3<f32>, t: f32) -> Material {
 // shadow rays were traced ahead (`shadows_ahead`), and the intersection
 // is not in the caller's kernel.
 fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u32, traced: bool) -> bool {
-    let flags = material_flags(m);
-    var ns = ng;
-    if (dot(wo, ng) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u) {
-        ns = -ng;
-    }
-    var fr: Frame;
-    if (m.tag.z == 1u) {
-        fr = frame_from_normal_tangent(ns, m.d.xyz);
-    } else {
-        fr = frame_from_normal(ns);
-    }
+    let fr = bsdf_frame(m, ng, wo);
     let wo_l = to_local(fr, wo);
     if (wo_l.z == 0.0) {
         return false;
@@ -181,9 +171,9 @@ fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u
     var mirror = vec4<f32>(0.0);
     var mirror_env = false;
     if (is_medium) {
-        let cos_o = dot(wo, ns);
+        let cos_o = dot(wo, fr.n);
         if (cos_o > 0.0) {
-            mirror = vec4<f32>(2.0 * cos_o * ns - wo, fresnel_dielectric(cos_o, m.a.x));
+            mirror = vec4<f32>(2.0 * cos_o * fr.n - wo, fresnel_dielectric(cos_o, m.a.x));
             mirror_env = true;
         }
     }

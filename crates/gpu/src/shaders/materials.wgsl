@@ -77,6 +77,25 @@ fn frame_from_normal_tangent(n: vec3<f32>, tangent: vec3<f32>) -> Frame {
     return Frame(sn, cross(n, sn), n);
 }
 
+// The shading normal at a point of normal n seen from wo, for a material
+// of lobes `flags`: turned toward wo where it transmits nothing (opaque
+// models are two-sided), outward where it does (which side is inside
+// decides the relative index), as `Bsdf::facing` (bxdf.rs).
+fn facing(n: vec3<f32>, wo: vec3<f32>, flags: u32) -> vec3<f32> {
+    return select(n, -n, dot(wo, n) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u);
+}
+
+// Material m's shading frame at a point of normal n seen from wo: the
+// facing normal, with m's tangent where it has one (tag.z 1, in d), as
+// `Bsdf::new` and `Bsdf::with_tangent`.
+fn bsdf_frame(m: Material, n: vec3<f32>, wo: vec3<f32>) -> Frame {
+    let ns = facing(n, wo, material_flags(m));
+    if (m.tag.z == 1u) {
+        return frame_from_normal_tangent(ns, m.d.xyz);
+    }
+    return frame_from_normal(ns);
+}
+
 fn to_local(f: Frame, v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(v, f.s), dot(v, f.t), dot(v, f.n));
 }

@@ -96,17 +96,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
         m = sss_local_brdf(m);
     }
     let wo = -d;
-    let flags = material_flags(m);
-    var ns = ng;
-    if (dot(wo, ng) < 0.0 && (flags & FLAG_TRANSMISSION) == 0u) {
-        ns = -ng;
-    }
-    var fr: Frame;
-    if (m.tag.z == 1u) {
-        fr = frame_from_normal_tangent(ns, m.d.xyz);
-    } else {
-        fr = frame_from_normal(ns);
-    }
+    let fr = bsdf_frame(m, ng, wo);
     let wo_l = to_local(fr, wo);
     if (wo_l.z == 0.0) {
         return vec3<f32>(0.0);

@@ -301,7 +301,7 @@ fn shadows_ahead(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material) {
         return;
     }
     let transmits = (flags & FLAG_TRANSMISSION) != 0u;
-    let ns = select(ng, -ng, dot(wo, ng) < 0.0 && !transmits);
+    let ns = facing(ng, wo, flags);
     if (has_wave(m)) {
         _ = rand();
     }
