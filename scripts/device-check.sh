@@ -18,8 +18,8 @@
 #   2. the conformance suite (its f64 assertion failed on the H100 at
 #      b93c7db), the material, real-time and AOV tests;
 #   3. the whole-image tests, the ignored ones included (the underwater
-#      scene's variants with their table right after the warm-up:
-#      docs/gpu.md, "NVIDIA: open defects");
+#      scene's variants with their table, and the bounds probe, right
+#      after the warm-up: docs/gpu.md, "NVIDIA: open defects");
 #   4. the kernels' registers and spills (kernel_stats), where the driver
 #      reports them;
 # and, after the warm-up, where device-prepare.sh built one, the baseline
@@ -54,6 +54,11 @@ step 45 "$bin/isolux" bench gpu --skip-cpu "${size[@]}" "${repeat[@]}"
 # not it passes.
 if [ "${QUICK:-0}" != 1 ]; then
     step 150 "$bin/images" --ignored --exact underwater_variants_match_the_cpu --nocapture
+    # Whether any render kernel reads out of bounds on NVIDIA: the same
+    # images with every index out of bounds clamped and read as zero
+    # (docs/gpu.md, "Probing for indices out of bounds"; bit for bit on
+    # lavapipe, underwater.toml included).
+    step 60 "$bin/bounds" --include-ignored --nocapture
 fi
 # Not in the QUICK dry run: on lavapipe the baseline's kernels take minutes
 # to compile (benchmarks.md: 70 s each at b93c7db), seconds on NVIDIA.

@@ -205,9 +205,9 @@ enum Checks {
 }
 
 impl Checks {
-    fn policies(self) -> naga::proc::BoundsCheckPolicies {
-        use naga::proc::BoundsCheckPolicy::{Restrict, Unchecked};
-        naga::proc::BoundsCheckPolicies {
+    fn policies(self) -> isolux_gpu::naga::proc::BoundsCheckPolicies {
+        use isolux_gpu::naga::proc::BoundsCheckPolicy::{Restrict, Unchecked};
+        isolux_gpu::naga::proc::BoundsCheckPolicies {
             index: if self == Checks::Wgpu {
                 Restrict
             } else {
@@ -331,28 +331,8 @@ impl Compiler {
         entry: &str,
         checks: Checks,
     ) -> Result<Vec<(String, String)>, Box<dyn std::error::Error>> {
-        let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
-        let info = naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        )
-        .validate(&module)
-        .map_err(|e| e.emit_to_string(src))?;
-        let spv = naga::back::spv::write_vec(
-            &module,
-            &info,
-            &naga::back::spv::Options {
-                lang_version: (1, 3),
-                flags: naga::back::spv::WriterFlags::empty(),
-                bounds_check_policies: checks.policies(),
-                force_loop_bounding: checks == Checks::Wgpu,
-                ..Default::default()
-            },
-            Some(&naga::back::spv::PipelineOptions {
-                shader_stage: naga::ShaderStage::Compute,
-                entry_point: entry.to_string(),
-            }),
-        )?;
+        let spv =
+            isolux_gpu::kernel_spirv(src, checks.policies(), checks == Checks::Wgpu, Some(entry))?;
         // SAFETY: as in `new`; the module and pipeline are destroyed before
         // returning, after their statistics are read.
         unsafe {

@@ -34,6 +34,8 @@
 pub mod layout;
 mod render;
 
+/// The wgpu this crate is built on (the viewer draws with the same).
+pub use naga;
 pub use render::{
     f32_ill_conditioned, f32_shortfall, medium_bits, mix_of_waves, nested_too_deep, padded_pixels,
     rebase_point, refracted_media, replace_unsupported, scene_features, thin_object_warning,
@@ -41,7 +43,6 @@ pub use render::{
     DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT, F32_VALUE_LIMIT,
     MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
 };
-/// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
 
 use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuParams, GpuQuery, GpuRay, GpuScene};
@@ -679,6 +680,77 @@ pub enum PathKernel {
     Sorted,
 }
 
+/// What a probed kernel does with an index out of bounds
+/// ([`Gpu::set_bounds_probe`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutOfBounds {
+    /// Reads and writes the array's last element (naga's `Restrict`).
+    Clamp,
+    /// Reads zero and skips the write: naga's `ReadZeroSkipWrite` for local
+    /// arrays and textures; for buffers the driver's robust access, which
+    /// wgpu asks for (`robustBufferAccess2`: zero read, write dropped) on
+    /// every device that offers it, NVIDIA's and lavapipe among them
+    /// (naga cannot write `ReadZeroSkipWrite` for the atomics on the
+    /// wavefront's counters).
+    Zero,
+}
+
+/// `source` as SPIR-V 1.3 with every index into an array, a buffer or a
+/// texture checked as `policy` says, and every loop bounded
+/// ([`Gpu::set_bounds_probe`]).
+pub fn probe_spirv(source: &str, policy: OutOfBounds) -> Result<Vec<u32>, String> {
+    use naga::proc::BoundsCheckPolicy as P;
+    let (p, buffer) = match policy {
+        OutOfBounds::Clamp => (P::Restrict, P::Restrict),
+        OutOfBounds::Zero => (P::ReadZeroSkipWrite, P::Unchecked),
+    };
+    let policies = naga::proc::BoundsCheckPolicies {
+        index: p,
+        buffer,
+        image_load: p,
+        binding_array: p,
+    };
+    kernel_spirv(source, policies, true, None)
+}
+
+/// `source` as SPIR-V 1.3 written by naga after it validates the module
+/// (every capability allowed): indices checked by `policies`, loops
+/// bounded by iteration counters where `bound_loops` (wgpu's
+/// `force_loop_bounding`), the one entry point `entry` or all of them.
+/// An error is naga's, as text that points into the source. For the
+/// bounds probe and `examples/kernel_stats.rs`.
+pub fn kernel_spirv(
+    source: &str,
+    policies: naga::proc::BoundsCheckPolicies,
+    bound_loops: bool,
+    entry: Option<&str>,
+) -> Result<Vec<u32>, String> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .map_err(|e| e.emit_to_string(source))?;
+    let pipeline = entry.map(|entry| naga::back::spv::PipelineOptions {
+        shader_stage: naga::ShaderStage::Compute,
+        entry_point: entry.to_string(),
+    });
+    naga::back::spv::write_vec(
+        &module,
+        &info,
+        &naga::back::spv::Options {
+            lang_version: (1, 3),
+            flags: naga::back::spv::WriterFlags::empty(),
+            bounds_check_policies: policies,
+            force_loop_bounding: bound_loops,
+            ..Default::default()
+        },
+        pipeline.as_ref(),
+    )
+    .map_err(|e| e.to_string())
+}
+
 /// Errors of the GPU back end.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
@@ -835,6 +907,11 @@ pub struct Gpu {
     /// Whether modules are compiled with wgpu's run-time checks
     /// ([`Gpu::set_runtime_checks`]; off by default).
     runtime_checks: bool,
+    /// The device takes pass-through SPIR-V ([`Gpu::for_bounds_probes`]).
+    passthrough: bool,
+    /// How the render kernels treat an index out of bounds, where they are
+    /// compiled to probe for one ([`Gpu::set_bounds_probe`]).
+    bounds_probe: Option<OutOfBounds>,
     /// How frames prepared from now on path trace ([`Gpu::set_path_kernel`]).
     path_kernel: PathKernel,
     f64_supported: bool,
@@ -858,6 +935,19 @@ impl Gpu {
     /// Opens the first adapter (high performance preferred) and compiles the
     /// kernels.
     pub fn new() -> Result<Self, GpuError> {
+        Self::open_first(false)
+    }
+
+    /// Opens the first adapter as [`Gpu::new`] does, on a device that also
+    /// takes SPIR-V this crate writes itself, for [`Gpu::set_bounds_probe`]
+    /// (Vulkan adapters only). For tests and diagnosis: the device is
+    /// opened with wgpu's experimental pass-through shaders, which
+    /// [`Gpu::new`] leaves off.
+    pub fn for_bounds_probes() -> Result<Self, GpuError> {
+        Self::open_first(true)
+    }
+
+    fn open_first(probes: bool) -> Result<Self, GpuError> {
         let instance = Self::instance();
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
@@ -865,7 +955,7 @@ impl Gpu {
             compatible_surface: None,
         }))
         .map_err(|_| GpuError::NoAdapter)?;
-        Self::with_adapter(&adapter)
+        Self::open(&adapter, probes)
     }
 
     /// The instance [`Gpu::new`] opens its adapter from: Vulkan, Metal and
@@ -880,6 +970,10 @@ impl Gpu {
     /// Opens a device on `adapter` (for example one compatible with a
     /// window's surface).
     pub fn with_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
+        Self::open(adapter, false)
+    }
+
+    fn open(adapter: &wgpu::Adapter, probes: bool) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         if let Some(short) = missing_limits(&adapter.limits()) {
             return Err(GpuError::Device(format!(
@@ -900,6 +994,21 @@ impl Gpu {
         if timestamps_supported {
             required_features |= wgpu::Features::TIMESTAMP_QUERY;
         }
+        // Pass-through SPIR-V, for the bounds probe only.
+        let passthrough = probes
+            && info.backend == wgpu::Backend::Vulkan
+            && adapter
+                .features()
+                .contains(wgpu::Features::EXPERIMENTAL_PASSTHROUGH_SHADERS);
+        if probes && !passthrough {
+            return Err(GpuError::Device(format!(
+                "the adapter {} ({:?}) takes no SPIR-V of its caller, which the bounds probe needs (a Vulkan adapter does)",
+                info.name, info.backend
+            )));
+        }
+        if passthrough {
+            required_features |= wgpu::Features::EXPERIMENTAL_PASSTHROUGH_SHADERS;
+        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("isolux"),
             required_features,
@@ -909,7 +1018,15 @@ impl Gpu {
             required_limits: adapter.limits(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            experimental_features: if passthrough {
+                // SAFETY: the one experimental feature requested is
+                // pass-through shaders, used only by the bounds probe,
+                // whose SPIR-V naga writes from this crate's own WGSL,
+                // validated (`Gpu::probe_module`).
+                unsafe { wgpu::ExperimentalFeatures::enabled() }
+            } else {
+                wgpu::ExperimentalFeatures::disabled()
+            },
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
         let failure: Arc<Mutex<Option<String>>> = Arc::default();
@@ -939,6 +1056,8 @@ impl Gpu {
             render_modules: Default::default(),
             precision: Precision::F32,
             runtime_checks: false,
+            passthrough,
+            bounds_probe: None,
             path_kernel: PathKernel::Auto,
             f64_supported,
             cpu: info.device_type == wgpu::DeviceType::Cpu,
@@ -1035,6 +1154,78 @@ impl Gpu {
     /// Whether the kernels are compiled with wgpu's run-time checks.
     pub fn runtime_checks(&self) -> bool {
         self.runtime_checks
+    }
+
+    /// Compiles the render kernels of frames prepared from now on so that
+    /// every index out of bounds, into a local array, a buffer or a
+    /// texture, does what `policy` says (`None`: as
+    /// [`Gpu::set_runtime_checks`] says, the default). Rendering a scene
+    /// with [`OutOfBounds::Clamp`] and with [`OutOfBounds::Zero`] gives
+    /// the same image bit for bit where no kernel reads out of bounds,
+    /// and a different one, almost surely, where one does: an index
+    /// out of bounds is found without knowing where to look (docs/gpu.md,
+    /// "Probing for indices out of bounds"). Only the render kernels
+    /// (path tracer, real time, AOVs) are probed. Needs a device opened
+    /// by [`Gpu::for_bounds_probes`].
+    pub fn set_bounds_probe(&mut self, policy: Option<OutOfBounds>) -> Result<(), GpuError> {
+        if policy.is_some() && !self.passthrough {
+            return Err(GpuError::Device(format!(
+                "the bounds probe needs a device opened by Gpu::for_bounds_probes, not {}",
+                self.adapter
+            )));
+        }
+        if policy != self.bounds_probe {
+            self.bounds_probe = policy;
+            self.kernels = Default::default();
+            self.render_modules = Default::default();
+        }
+        Ok(())
+    }
+
+    /// The render kernels' bounds probe ([`Gpu::set_bounds_probe`]).
+    pub fn bounds_probe(&self) -> Option<OutOfBounds> {
+        self.bounds_probe
+    }
+
+    /// A render module of this crate's WGSL: probed for indices out of
+    /// bounds where [`Gpu::set_bounds_probe`] asks, otherwise as
+    /// [`Gpu::module`] compiles it.
+    fn render_module(&self, source: String) -> wgpu::ShaderModule {
+        match self.bounds_probe {
+            Some(policy) => self.probe_module("render", &source, policy),
+            None => self.module("render", source),
+        }
+    }
+
+    /// `source` written as SPIR-V by naga with every index checked by
+    /// `policy` (and every loop bounded, as wgpu's checked modules are),
+    /// passed through to the driver. An error (none is expected: the
+    /// sources are validated by the unit tests) is kept for
+    /// [`Gpu::check`], and the module is then compiled without the probe,
+    /// so that the next wait reports it.
+    fn probe_module(&self, label: &str, source: &str, policy: OutOfBounds) -> wgpu::ShaderModule {
+        match probe_spirv(source, policy) {
+            Ok(words) => {
+                // SAFETY: the SPIR-V is naga's, written from this crate's
+                // WGSL after naga validated it, for a Vulkan device
+                // (`for_bounds_probes` opens no other).
+                unsafe {
+                    self.device.create_shader_module_passthrough(
+                        wgpu::ShaderModuleDescriptorPassthrough {
+                            label: Some(label),
+                            spirv: Some(words.into()),
+                            ..Default::default()
+                        },
+                    )
+                }
+            }
+            Err(e) => {
+                if let Ok(mut first) = self.failure.lock() {
+                    first.get_or_insert(format!("the bounds probe's SPIR-V: {e}"));
+                }
+                self.module(label, source.to_string())
+            }
+        }
     }
 
     /// A module of this crate's WGSL, with or without wgpu's run-time
@@ -1296,7 +1487,7 @@ impl Gpu {
                     .lock()
                     .unwrap_or_else(|e| e.into_inner());
                 let module = modules.entry(features).or_insert_with(|| {
-                    self.module("render", render_source_variant(self.precision, features))
+                    self.render_module(render_source_variant(self.precision, features))
                 });
                 self.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

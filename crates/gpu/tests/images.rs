@@ -1790,8 +1790,7 @@ fn sample_layers_sum_as_one_dispatch_per_sample_would() {
     scene.film.width = 61;
     scene.film.height = 35;
     scene.film.spp = 7;
-    let bits =
-        |img: &Image| -> Vec<u32> { img.rgb.iter().flatten().map(|c| c.to_bits()).collect() };
+    let bits = common::bits;
     for realtime in [false, true] {
         let run = |layers: u32| {
             let mut frame = if realtime {
@@ -2214,8 +2213,7 @@ fn tile_lists_give_the_walks_hits() {
     }
     crowd.geometry = Aggregate::new(objects);
     scenes.push(("a crowd past the lists' 16 entries", crowd));
-    let bits =
-        |img: &Image| -> Vec<u32> { img.rgb.iter().flatten().map(|c| c.to_bits()).collect() };
+    let bits = common::bits;
     for (name, mut scene) in scenes {
         scene.film.width = 61;
         scene.film.height = 35;
@@ -2242,7 +2240,7 @@ fn tile_lists_give_the_walks_hits() {
                     bits(&img)
                 }
             };
-            all_equal(&run(false), &run(true), &format!("{name}, {mode}"));
+            common::all_equal(&run(false), &run(true), &format!("{name}, {mode}"));
         }
     }
     // A camera moved after the frame was prepared (the viewer's orbit)
@@ -2264,18 +2262,7 @@ fn tile_lists_give_the_walks_hits() {
         bits(&moved.image(&gpu).unwrap().0)
     };
     let walk = image(false);
-    all_equal(&walk, &image(true), "a moved camera");
-}
-
-/// Asserts that two renders' values agree bit for bit, saying how many do.
-fn all_equal(a: &[u32], b: &[u32], what: &str) {
-    let same = a.iter().zip(b).filter(|(x, y)| x == y).count();
-    assert_eq!(
-        same,
-        a.len(),
-        "{what}: {:.2}% of the values agree",
-        100.0 * same as f64 / a.len() as f64
-    );
+    common::all_equal(&walk, &image(true), "a moved camera");
 }
 
 /// The kernels are compiled without wgpu's run-time checks by default
@@ -2293,36 +2280,21 @@ fn runtime_checks_change_nothing() {
         return;
     };
     assert!(!gpu.runtime_checks(), "off by default");
-    let bits =
-        |img: &Image| -> Vec<u32> { img.rgb.iter().flatten().map(|c| c.to_bits()).collect() };
     for (file, modes) in [
         (
             "gallery.toml",
-            &["path traced", "wavefront", "real time"][..],
+            &["megakernel", "wavefront", "real time"][..],
         ),
-        ("translucent.toml", &["path traced"][..]),
-        ("wave-grating.toml", &["path traced"][..]),
+        ("translucent.toml", &["megakernel"][..]),
+        ("wave-grating.toml", &["megakernel"][..]),
     ] {
-        let mut scene = common::example(file);
-        scene.film.width = 40;
-        scene.film.height = 24;
-        scene.film.spp = 4;
+        let scene = common::small_example(file);
         for mode in modes {
-            let mut run = |checks: bool| {
-                gpu.set_runtime_checks(checks);
-                let mut frame = match *mode {
-                    "real time" => gpu.prepare_realtime(&scene).unwrap(),
-                    _ => gpu.prepare(&scene).unwrap(),
-                };
-                frame.set_wavefront(*mode == "wavefront");
-                frame.run(&gpu, 4);
-                let (img, _) = frame.image(&gpu).unwrap();
-                assert!(img.rgb.iter().flatten().any(|&c| c > 0.0), "{file}");
-                bits(&img)
-            };
-            let unchecked = run(false);
-            let checked = run(true);
-            all_equal(&unchecked, &checked, &format!("{file}, {mode}"));
+            gpu.set_runtime_checks(false);
+            let unchecked = common::render_bits(&gpu, &scene, mode);
+            gpu.set_runtime_checks(true);
+            let checked = common::render_bits(&gpu, &scene, mode);
+            common::all_equal(&unchecked, &checked, &format!("{file}, {mode}"));
         }
     }
     gpu.set_runtime_checks(false);

@@ -5,8 +5,15 @@ use isolux_gpu::{Gpu, GpuError};
 /// The adapter, or `None` (with a message naming `what` was skipped) when
 /// there is none outside CI. Under CI (`CI` set) `.ci/run` installs
 /// lavapipe, and a missing adapter is a failure.
+#[allow(dead_code)]
 pub fn open(what: &str) -> Option<Gpu> {
-    match Gpu::new() {
+    open_with(what, Gpu::new)
+}
+
+/// [`open`] by `how` (for example [`Gpu::for_bounds_probes`]).
+#[allow(dead_code)]
+pub fn open_with(what: &str, how: fn() -> Result<Gpu, GpuError>) -> Option<Gpu> {
+    match how() {
         Ok(g) => {
             eprintln!("adapter: {}", g.adapter);
             Some(g)
@@ -97,4 +104,54 @@ pub fn compare_with_cpu(
     );
     assert!(mc > 0.0 && noise > 0.0, "{label}: a blank image");
     (diff, noise, mg, mc)
+}
+
+/// The bits of `img`'s values, for comparisons bit for bit.
+#[allow(dead_code)]
+pub fn bits(img: &isolux_core::Image) -> Vec<u32> {
+    img.rgb.iter().flatten().map(|c| c.to_bits()).collect()
+}
+
+/// Asserts that two renders' values agree bit for bit, saying how many do.
+#[allow(dead_code)]
+pub fn all_equal(a: &[u32], b: &[u32], what: &str) {
+    let same = a.iter().zip(b).filter(|(x, y)| x == y).count();
+    eprintln!(
+        "{what}: {:.2}% of the values agree",
+        100.0 * same as f64 / a.len() as f64
+    );
+    assert_eq!(same, a.len(), "{what}");
+}
+
+/// The example scene `file` at 40 x 24 pixels, 4 spp: the size of the
+/// tests that render a scene with two compilations of the kernels.
+#[allow(dead_code)]
+pub fn small_example(file: &str) -> isolux_render::Scene {
+    let mut scene = example(file);
+    scene.film.width = 40;
+    scene.film.height = 24;
+    scene.film.spp = 4;
+    scene
+}
+
+/// The bits of `scene` rendered by `mode`: `megakernel`, `wavefront`,
+/// `sorted` (the three path tracers) or `real time`. Asserts that the
+/// image is not black.
+#[allow(dead_code)]
+pub fn render_bits(gpu: &Gpu, scene: &isolux_render::Scene, mode: &str) -> Vec<u32> {
+    let mut frame = match mode {
+        "real time" => gpu.prepare_realtime(scene).unwrap(),
+        _ => gpu.prepare(scene).unwrap(),
+    };
+    match mode {
+        "megakernel" => frame.set_wavefront(false),
+        "wavefront" => frame.set_wavefront(true),
+        "sorted" => frame.set_sorted(true),
+        "real time" => {}
+        _ => panic!("no mode {mode}"),
+    }
+    frame.run(gpu, scene.film.spp);
+    let (img, _) = frame.image(gpu).unwrap();
+    assert!(img.rgb.iter().flatten().any(|&c| c > 0.0), "{mode}: black");
+    bits(&img)
 }
