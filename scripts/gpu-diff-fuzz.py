@@ -17,11 +17,18 @@ of fireflies), and lights and materials whose values overflow f32 (docs/gpu.md,
 "Precision").
 
 usage: scripts/gpu-diff-fuzz.py [--seed N] [--rounds N] [--objects-only]
-           [--realtime] [--spp N] [--keep DIR] [--isolux PATH]
+           [--realtime] [--spp N] [--keep DIR] [--isolux PATH] [--bounds]
            [--cpu-only [--structure]] [--timeout S] [--gpu-flag FLAG ...]
 
 `--gpu-flag=--sorted` (or `--megakernel`, `--f64`) passes a flag to the
 GPU's renders only: the CPU against that kernel.
+
+`--bounds` renders each variant on the GPU twice instead, with the render
+kernels' indices out of bounds clamped and read as zero (`isolux render
+--bounds-probe`, .exr files), and flags a variant whose two images are not
+the same byte for byte: a kernel read out of bounds there (docs/gpu.md,
+"Probing for indices out of bounds"). Awkward values are what send an
+index out of its array.
 
 `--cpu-only --structure` mutates the file's lines instead (deleted,
 duplicated, swapped, an array emptied, a number made a string): the
@@ -68,12 +75,14 @@ def mean(path):
     return sum(sum(im.getpixel((x, y))) for y in range(h) for x in range(w)) / (3 * w * h)
 
 
-def render(isolux, scene, out, gpu, args):
+def render(isolux, scene, out, gpu, args, probe=None):
     cmd = [isolux, "render", scene, "-o", out, "--quiet", "--width", "32",
            "--height", "24", "--spp", str(args.spp)]
     if gpu:
         cmd.append("--gpu")
         cmd.extend(args.gpu_flag)
+    if probe:
+        cmd.extend(["--bounds-probe", probe])
     if args.realtime:
         cmd.append("--realtime")
     try:
@@ -124,11 +133,16 @@ def main():
     p.add_argument("--structure", action="store_true",
                    help="with --cpu-only: delete, duplicate or swap lines instead of numbers")
     p.add_argument("--timeout", type=float, default=300.0, help="seconds per render")
+    p.add_argument("--bounds", action="store_true",
+                   help="render on the GPU with indices out of bounds clamped and read as "
+                        "zero; flag images that differ (a read out of bounds)")
     args = p.parse_args()
+    if args.bounds and args.cpu_only:
+        sys.exit("gpu-diff-fuzz: --bounds renders on the GPU only, --cpu-only on the CPU only")
     if args.structure and not args.cpu_only:
         sys.exit("gpu-diff-fuzz: --structure goes with --cpu-only (most variants are not scenes)")
     values = VALUES + WILD if args.cpu_only else VALUES
-    if Image is None and not args.cpu_only:
+    if Image is None and not args.cpu_only and not args.bounds:
         sys.exit("gpu-diff-fuzz: needs Pillow (apt-get install python3-pil, or pip install pillow)")
     if args.realtime:
         args.spp = min(max(args.spp, 4), 25)
@@ -141,6 +155,9 @@ def main():
                     if not os.path.basename(s).startswith("_"))
     variant = os.path.join(SCENES, "_fuzz.toml")
     cpu_png, gpu_png = os.path.join(args.keep, "cpu.png"), os.path.join(args.keep, "gpu.png")
+    if args.bounds:
+        # The two probes' images, in place of the CPU's and the GPU's.
+        cpu_png, gpu_png = os.path.join(args.keep, "clamp.exr"), os.path.join(args.keep, "zero.exr")
     flagged = compared = rendered = 0
     try:
         for k in range(args.rounds):
@@ -162,8 +179,12 @@ def main():
                     src = src[:m.start()] + v + src[m.end():]
             open(variant, "w").write(src)
             name = f"{os.path.basename(scene)} ({'; '.join(what)})"
-            rc, ec = render(args.isolux, variant, cpu_png, False, args)
-            rg, eg = (0, "") if args.cpu_only else render(args.isolux, variant, gpu_png, True, args)
+            if args.bounds:
+                rc, ec = render(args.isolux, variant, cpu_png, True, args, "clamp")
+                rg, eg = render(args.isolux, variant, gpu_png, True, args, "zero")
+            else:
+                rc, ec = render(args.isolux, variant, cpu_png, False, args)
+                rg, eg = (0, "") if args.cpu_only else render(args.isolux, variant, gpu_png, True, args)
             problem = None
             rendered += rc == 0
             if rc is None or rg is None:
@@ -172,6 +193,14 @@ def main():
                 problem = f"crash (CPU {rc}, GPU {rg}): {(ec + eg)[:300]}"
             elif "non-finite" in ec + eg and rc == 0 and rg == 0:
                 problem = f"non-finite samples: {(ec + eg)[:300]}"
+            elif args.bounds and rc != rg:
+                problem = f"clamped exit {rc}, zero exit {rg}: {(ec + eg)[:300]}"
+            elif args.bounds and rc == 0:
+                compared += 1
+                if open(cpu_png, "rb").read() != open(gpu_png, "rb").read():
+                    problem = "the clamped and zero kernels' images differ: a read out of bounds"
+            elif args.bounds:
+                pass  # refused by both, alike
             elif rc == 0 and rg == 1 and "render without --gpu" not in eg \
                     and "does not run on the GPU" not in eg:
                 problem = f"the GPU refuses without a reason: {eg[:300]}"

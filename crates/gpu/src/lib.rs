@@ -771,7 +771,7 @@ pub enum GpuError {
         /// Its `type`.
         type_name: String,
     },
-    /// Invalid camera or film.
+    /// Invalid camera or film, or a setting the device cannot take.
     #[error("{0}")]
     Setup(String),
     /// The GPU reported an error while running queued work (wgpu's
@@ -1169,7 +1169,7 @@ impl Gpu {
     /// by [`Gpu::for_bounds_probes`].
     pub fn set_bounds_probe(&mut self, policy: Option<OutOfBounds>) -> Result<(), GpuError> {
         if policy.is_some() && !self.passthrough {
-            return Err(GpuError::Device(format!(
+            return Err(GpuError::Setup(format!(
                 "the bounds probe needs a device opened by Gpu::for_bounds_probes, not {}",
                 self.adapter
             )));

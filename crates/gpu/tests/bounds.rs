@@ -115,6 +115,19 @@ fn main() {
     assert_eq!(zero, [7.0, 0.0, 0.0, 5.0], "zero (buffers: robust access)");
 }
 
+/// A device opened by `Gpu::new` (no pass-through shaders) refuses the
+/// probe, by name, and stays as it was.
+#[test]
+fn the_probe_needs_its_device() {
+    let Some(mut gpu) = common::open("the bounds probe") else {
+        return;
+    };
+    let err = gpu.set_bounds_probe(Some(OutOfBounds::Zero)).unwrap_err();
+    assert!(err.to_string().contains("Gpu::for_bounds_probes"), "{err}");
+    assert_eq!(gpu.bounds_probe(), None);
+    gpu.set_bounds_probe(None).unwrap();
+}
+
 /// No render kernel reads or writes out of bounds on the gallery, path
 /// traced by the megakernel and in real time: with every index into a
 /// local array, a buffer or a texture clamped to the last element, and

@@ -117,6 +117,25 @@ pub struct RenderArgs {
     /// f32 cannot resolve (docs/gpu.md, "Precision").
     #[arg(long, requires = "gpu")]
     pub f64: bool,
+    /// With `--gpu`, for diagnosis: compile the render kernels with every
+    /// index out of bounds (into a local array, a buffer or a texture)
+    /// clamped to the last element, or read as zero and its write
+    /// skipped. Where no kernel reads out of bounds, both give the same
+    /// image bit for bit (write .exr files and compare them); where one
+    /// does, they differ (docs/gpu.md, "Probing for indices out of
+    /// bounds"; `scripts/gpu-diff-fuzz.py --bounds`). Vulkan adapters
+    /// only.
+    #[arg(long, requires = "gpu", value_enum)]
+    pub bounds_probe: Option<BoundsProbeArg>,
+}
+
+/// What `--bounds-probe` makes of an index out of bounds.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum BoundsProbeArg {
+    /// The array's last element.
+    Clamp,
+    /// Zero read, write skipped.
+    Zero,
 }
 
 /// Runs `isolux render`.
@@ -226,7 +245,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mut device = format!("{threads} threads");
     let start;
     let (image, stats) = if a.gpu {
-        let mut gpu = isolux_gpu::Gpu::new().context("--gpu")?;
+        let mut gpu = match a.bounds_probe {
+            None => isolux_gpu::Gpu::new().context("--gpu")?,
+            Some(probe) => {
+                let mut gpu = isolux_gpu::Gpu::for_bounds_probes().context("--bounds-probe")?;
+                gpu.set_bounds_probe(Some(match probe {
+                    BoundsProbeArg::Clamp => isolux_gpu::OutOfBounds::Clamp,
+                    BoundsProbeArg::Zero => isolux_gpu::OutOfBounds::Zero,
+                }))
+                .context("--bounds-probe")?;
+                gpu
+            }
+        };
         gpu.set_path_kernel(if a.wavefront {
             isolux_gpu::PathKernel::Wavefront
         } else if a.sorted {

@@ -134,6 +134,44 @@ fn wavefront_needs_the_gpu_path_tracer() {
     }
 }
 
+/// `--bounds-probe clamp` and `zero` (the kernels with every index out of
+/// bounds clamped or read as zero) render the furnace to the same EXR
+/// file byte for byte, 1 in every pixel; without `--gpu` the flag is
+/// refused before any work.
+#[test]
+fn bounds_probes_render_the_same_furnace() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for probe in ["clamp", "zero"] {
+        let out = dir.path().join(format!("{probe}.exr"));
+        if render_small(FURNACE, &["--bounds-probe", probe], &out).is_none() {
+            return;
+        }
+        let img = isolux_io::read_rgb_image(&out).unwrap();
+        assert!(
+            img.pixels.iter().all(|p| (p[1] - 1.0).abs() < 0.05),
+            "{probe}"
+        );
+        files.push(std::fs::read(&out).unwrap());
+    }
+    assert!(files[0] == files[1], "the clamped and zero kernels differ");
+    let o = run(&[
+        "render",
+        FURNACE,
+        "--bounds-probe",
+        "zero",
+        "-o",
+        "never.png",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--gpu") && err.contains("--bounds-probe"),
+        "{err}"
+    );
+    assert!(!std::path::Path::new("never.png").exists());
+}
+
 #[test]
 fn render_gpu_writes_aov_layers() {
     let dir = tempfile::tempdir().unwrap();
