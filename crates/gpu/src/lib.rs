@@ -34,7 +34,8 @@
 pub mod layout;
 mod render;
 
-/// The wgpu this crate is built on (the viewer draws with the same).
+/// The naga that writes the bounds probe's SPIR-V ([`kernel_spirv`]): the
+/// one wgpu builds on.
 pub use naga;
 pub use render::{
     f32_ill_conditioned, f32_shortfall, medium_bits, mix_of_waves, nested_too_deep, padded_pixels,
@@ -43,6 +44,7 @@ pub use render::{
     DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT, F32_VALUE_LIMIT,
     MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
 };
+/// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
 
 use layout::{GpuAnswer, GpuHit, GpuMaterials, GpuParams, GpuQuery, GpuRay, GpuScene};
