@@ -2300,6 +2300,29 @@ fn runtime_checks_change_nothing() {
     gpu.set_runtime_checks(false);
 }
 
+/// The wavefront renders the same image every run: three renders of
+/// `translucent-random-walk.toml` (a lamp refracted into random-walk
+/// media through curved boundaries) by the wavefront, bit for bit. Known
+/// defect (docs/gpu.md, "Known defect: the wavefront is not deterministic
+/// with lamps refracted into random-walk media"): on Mesa 22.3's lavapipe
+/// a few pixels differ from run to run, so the test is ignored until the
+/// cause is found; the megakernel passes it.
+#[test]
+#[ignore = "known defect: the wavefront with lamps refracted into random-walk media differs from run to run on Mesa 22.3's lavapipe (docs/gpu.md)"]
+fn wavefront_renders_are_deterministic() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let scene = common::small_example("translucent-random-walk.toml");
+    for mode in ["megakernel", "wavefront"] {
+        let first = common::render_bits(&gpu, &scene, mode);
+        for run in 1..3 {
+            let again = common::render_bits(&gpu, &scene, mode);
+            common::all_equal(&first, &again, &format!("{mode}, run {run} against run 0"));
+        }
+    }
+}
+
 /// Caustics (`integrator.caustics = "manifold"`): a lamp lights a floor
 /// through a glass slab (`examples/tests/lamp-above-glass.toml`; the
 /// CPU's closed form in `crates/isolux/tests/analytic.rs`, 0.40040), in
