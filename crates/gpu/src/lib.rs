@@ -1124,8 +1124,7 @@ impl Gpu {
         if precision != self.precision {
             self.precision = precision;
             self.intersect = OnceLock::new();
-            self.kernels = Default::default();
-            self.render_modules = Default::default();
+            self.forget_render_kernels();
         }
         Ok(())
     }
@@ -1148,8 +1147,7 @@ impl Gpu {
             self.runtime_checks = on;
             self.intersect = OnceLock::new();
             self.material_eval = OnceLock::new();
-            self.kernels = Default::default();
-            self.render_modules = Default::default();
+            self.forget_render_kernels();
         }
     }
 
@@ -1178,10 +1176,18 @@ impl Gpu {
         }
         if policy != self.bounds_probe {
             self.bounds_probe = policy;
-            self.kernels = Default::default();
-            self.render_modules = Default::default();
+            self.forget_render_kernels();
         }
         Ok(())
+    }
+
+    /// Drops the compiled render kernels and modules, so that frames
+    /// prepared from now on compile them again with the current settings.
+    /// Each setter drops its own other caches (the intersection and
+    /// material-evaluation kernels) beside these.
+    fn forget_render_kernels(&mut self) {
+        self.kernels = Default::default();
+        self.render_modules = Default::default();
     }
 
     /// The render kernels' bounds probe ([`Gpu::set_bounds_probe`]).
