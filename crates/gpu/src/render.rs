@@ -918,6 +918,16 @@ pub fn mix_of_waves(scene: &Scene) -> Option<(String, usize)> {
     })
 }
 
+/// Whether `scene` has a random-walk `subsurface` medium, whose paths run
+/// long loops of scattering events inside a bounce: on Mesa 22's
+/// lavapipe ([`crate::Gpu::miscompiles_loops`]) the wavefront renders
+/// them differently from run to run and the megakernel about 1% dark
+/// (docs/gpu.md, "The wavefront is deterministic: Mesa 22.3's lanes are
+/// not"). False where a material does not run on the GPU.
+pub fn has_random_walk(scene: &Scene) -> bool {
+    GpuMaterials::new(&scene.materials).is_ok_and(|m| random_walk(&m))
+}
+
 /// The number of distinct `wave` materials the objects of `scene` use
 /// (a mix's leaves counted one by one): above one, neighbouring pixels
 /// run the wave code with different loop bounds, which Mesa 22's lavapipe

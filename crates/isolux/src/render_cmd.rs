@@ -300,6 +300,24 @@ pub fn run(a: RenderArgs) -> Result<()> {
             .then(|| gpu.path_kernel_for(&scene))
             .transpose()
             .with_context(|| format!("--gpu: {}", a.scene.display()))?;
+        if let Some(kernel) = kernel {
+            if gpu.miscompiles_loops() && isolux_gpu::has_random_walk(&scene) {
+                let what = if kernel == isolux_gpu::PathKernel::Megakernel {
+                    "by the megakernel the image comes out dark (1% on translucent-random-walk.toml)"
+                } else {
+                    "by the wavefront (the default here) a few pixels differ from run to run \
+                     (--megakernel: the same every run, but dark)"
+                };
+                eprintln!(
+                    "isolux: warning: --gpu: {}: this driver ({}) miscompiles the long loops of \
+                     random walks in media: {what} (docs/gpu.md, \"The wavefront is \
+                     deterministic: Mesa 22.3's lanes are not\"); render without --gpu, or on \
+                     another driver (Mesa 25 or later, or a GPU's)",
+                    a.scene.display(),
+                    gpu.driver
+                );
+            }
+        }
         if a.sorted && kernel == Some(isolux_gpu::PathKernel::Wavefront) {
             eprintln!(
                 "isolux: note: --sorted: {}: the sorted wavefront leaves out the subsurface \

@@ -106,6 +106,36 @@ fn sorted_says_when_it_renders_as_the_wavefront() {
     assert!(out.exists());
 }
 
+/// On a driver that miscompiles long loops (Mesa 22's lavapipe, the CI's;
+/// `Gpu::miscompiles_loops`), `render --gpu` warns of a scene with a
+/// random-walk medium, saying what each path tracer gets wrong there; on
+/// other drivers, and for a scene without one, it does not.
+#[test]
+fn render_gpu_warns_of_random_walks_where_loops_are_miscompiled() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.png");
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes/");
+    let walk = format!("{scenes}translucent-random-walk.toml");
+    let dipoles = format!("{scenes}translucent.toml");
+    let Some(err) = render_small(&dipoles, &[], &out) else {
+        return;
+    };
+    assert!(!err.contains("random walks"), "{err}");
+    let miscompiles = isolux_gpu::Gpu::new().unwrap().miscompiles_loops();
+    for (extra, what) in [
+        (&[][..], "a few pixels differ from run to run"),
+        (
+            &["--megakernel"][..],
+            "by the megakernel the image comes out",
+        ),
+    ] {
+        let err = render_small(&walk, extra, &out).unwrap();
+        let warned = err.contains("miscompiles the long loops of random walks in media: ");
+        assert_eq!(warned, miscompiles, "{extra:?}: {err}");
+        assert_eq!(err.contains(what), miscompiles, "{extra:?}: {err}");
+    }
+}
+
 /// `--wavefront`, `--sorted` and `--megakernel` choose the GPU's path
 /// tracer: refused without `--gpu`, with `--realtime` and together,
 /// before any work; `--f64` (the GPU's intersection in f64) without

@@ -145,8 +145,10 @@ pub fn render_bits(gpu: &Gpu, scene: &isolux_render::Scene, mode: &str) -> Vec<u
     };
     match mode {
         "megakernel" => frame.set_wavefront(false),
-        "wavefront" => frame.set_wavefront(true),
-        "sorted" => frame.set_sorted(true),
+        "wavefront" | "sorted" => {
+            frame.set_wavefront(true);
+            frame.set_sorted(mode == "sorted");
+        }
         "real time" => {}
         _ => panic!("no mode {mode}"),
     }
