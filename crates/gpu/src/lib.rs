@@ -1626,11 +1626,11 @@ impl Gpu {
         self.read_back(out)
     }
 
-    /// Copies a storage buffer back to the host (waits for the queue).
-    pub(crate) fn read_back<T: bytemuck::Pod>(
-        &self,
-        out: &wgpu::Buffer,
-    ) -> Result<Vec<T>, GpuError> {
+    /// Copies a storage buffer of this device (made with
+    /// `BufferUsages::COPY_SRC`) back to the host as `T`s, after the work
+    /// submitted so far (waits for the queue): for kernels of one's own on
+    /// [`Gpu::device`], as the bounds probe's test runs one.
+    pub fn read_back<T: bytemuck::Pod>(&self, out: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
         let d = &self.device;
         let size = out.size();
         let staging = d.create_buffer(&wgpu::BufferDescriptor {

@@ -77,12 +77,6 @@ fn main() {
             .get_mapped_range_mut()
             .copy_from_slice(bytemuck::cast_slice(&init));
         data.unmap();
-        let staging = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("read back"),
-            size: 16,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout: &bgl,
@@ -98,15 +92,8 @@ fn main() {
             pass.set_bind_group(0, &group, &[]);
             pass.dispatch_workgroups(1, 1, 1);
         }
-        enc.copy_buffer_to_buffer(&data, 0, &staging, 0, 16);
         gpu.queue().submit(Some(enc.finish()));
-        staging
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, |r| r.unwrap());
-        gpu.wait().unwrap();
-        let out = bytemuck::cast_slice(&staging.slice(..).get_mapped_range()).to_vec();
-        staging.unmap();
-        out
+        gpu.read_back::<f32>(&data).unwrap()
     };
     let clamped = run(OutOfBounds::Clamp);
     let zero = run(OutOfBounds::Zero);
