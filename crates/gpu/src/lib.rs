@@ -38,11 +38,12 @@ mod render;
 /// one wgpu builds on.
 pub use naga;
 pub use render::{
-    f32_ill_conditioned, f32_shortfall, has_random_walk, medium_bits, mix_of_waves,
-    nested_too_deep, padded_pixels, rebase_point, refracted_media, replace_unsupported,
-    scene_features, thin_object_warning, unsupported_material, wave_count, worst_bump_condition,
-    worst_scale_ratio, BumpCondition, DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps,
-    F32_CONDITION_LIMIT, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
+    f32_ill_conditioned, f32_plane_at_box_face, f32_shortfall, has_random_walk, medium_bits,
+    mix_of_waves, nested_too_deep, padded_pixels, rebase_point, refracted_media,
+    replace_unsupported, scene_features, thin_object_warning, unsupported_material, wave_count,
+    worst_bump_condition, worst_scale_ratio, BumpCondition, DispatchTime, GpuFrame, Profile,
+    ScaleRatio, SortedSteps, F32_CONDITION_LIMIT, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS,
+    WF_TILE_MAX,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
@@ -1088,17 +1089,32 @@ impl Gpu {
     }
 
     /// Chooses the intersection's precision for `scene`: f32, unless an
-    /// object is too ill-conditioned for it ([`f32_ill_conditioned`]),
-    /// then f64. `Ok(Some(note))` says why f64 was chosen; an adapter
-    /// without `SHADER_F64` is then an error naming the object and the
-    /// adapter (rendering such a scene in f32 loses its surfaces).
+    /// object is too ill-conditioned for it ([`f32_ill_conditioned`]) or
+    /// a plane misses its box by less than f32 tells apart
+    /// ([`f32_plane_at_box_face`]), then f64. `Ok(Some(note))` says why
+    /// f64 was chosen. Without `SHADER_F64` on the adapter, an
+    /// ill-conditioned object is an error naming it and the adapter
+    /// (rendering it in f32 loses its surfaces), and a plane at its box's
+    /// face a note that f32 draws it.
     pub fn precision_for(
         &mut self,
         scene: &isolux_render::Scene,
     ) -> Result<Option<String>, GpuError> {
         let Some(why) = f32_ill_conditioned(scene) else {
-            self.set_precision(Precision::F32)?;
-            return Ok(None);
+            let Some(why) = f32_plane_at_box_face(scene) else {
+                self.set_precision(Precision::F32)?;
+                return Ok(None);
+            };
+            if !self.f64_supported {
+                self.set_precision(Precision::F32)?;
+                return Ok(Some(format!(
+                    "{why}, and the adapter {} does not offer f64 in shaders (SHADER_F64): \
+                     intersecting in f32, which draws the plane",
+                    self.adapter
+                )));
+            }
+            self.set_precision(Precision::F64)?;
+            return Ok(Some(format!("{why}: intersecting in f64")));
         };
         if !self.f64_supported {
             return Err(GpuError::Setup(format!(

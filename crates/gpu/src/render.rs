@@ -788,6 +788,64 @@ pub fn f32_ill_conditioned(scene: &Scene) -> Option<String> {
     })
 }
 
+/// How close to its box, in units in the last place of f32 at the box's
+/// distance from the GPU's origin or from its object's, a plane that
+/// misses the box must be for [`f32_plane_at_box_face`] to name it.
+pub const F32_PLANE_GAP_ULPS: f64 = 64.0;
+
+/// The first object of `scene` whose base is a plane that misses the
+/// object's box (`bounds`) by less than [`F32_PLANE_GAP_ULPS`] units in
+/// the last place of f32: a message naming it and the gap. The CPU, in
+/// f64, clips such a plane away; in f32 the box's face and the plane are
+/// the same to the rounding, and the GPU drew some or all of it. Such a
+/// scene intersects as the CPU's in f64, which
+/// [`crate::Gpu::precision_for`] switches to where the adapter offers it
+/// (and only notes otherwise: a plane that touches its box and one just
+/// beyond it render alike in f32). (Found by `scripts/gpu-diff-fuzz.py`:
+/// the gallery's floor moved to 1e-6 above its box's top face at 0, gone
+/// on the CPU, drawn on the GPU; drawn in part at 1e-5, right at 1e-4.)
+pub fn f32_plane_at_box_face(scene: &Scene) -> Option<String> {
+    let at = rebase_point(scene);
+    for (object, o) in scene.geometry.objects().iter().enumerate() {
+        let q = o.base();
+        let b = o.bbox();
+        if q.m != glam::DMat3::ZERO || q.b == glam::DVec3::ZERO || !b.is_finite() || b.is_empty() {
+            continue;
+        }
+        // The plane's signed distance at the box's corners (the quadric
+        // is written about the object's origin).
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..8 {
+            let pick = |bit: usize, min: f64, max: f64| if k >> bit & 1 == 0 { min } else { max };
+            let corner = glam::DVec3::new(
+                pick(0, b.min.x, b.max.x),
+                pick(1, b.min.y, b.max.y),
+                pick(2, b.min.z, b.max.z),
+            );
+            let d = q.eval(corner - o.origin()) / (2.0 * q.b.length());
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+        let gap = if lo > 0.0 {
+            lo
+        } else if hi < 0.0 {
+            -hi
+        } else {
+            continue;
+        };
+        let reach = box_reach(&b, at).max(box_reach(&b, o.origin()));
+        let limit = F32_PLANE_GAP_ULPS * reach * f64::from(f32::EPSILON);
+        if gap < limit {
+            return Some(format!(
+                "object[{object}]: its plane misses its box (bounds) by {gap:.2e} units, under \
+                 the {limit:.2e} that f32 tells apart there: the CPU clips the plane away, and \
+                 f32 cannot (docs/gpu.md, \"Precision\")"
+            ));
+        }
+    }
+    None
+}
+
 /// The bump of a scene that is hardest for the f32 intersection
 /// ([`worst_bump_condition`]).
 #[derive(Clone, Copy, Debug, PartialEq)]

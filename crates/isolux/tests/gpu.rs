@@ -671,6 +671,73 @@ fn render_gpu_intersects_ill_conditioned_bumps_in_f64() {
     );
 }
 
+/// A floor (diffuse, 0.5) under a white sky, its plane `gap` units above
+/// the top face of its box, seen from above: on the CPU (f64) the box
+/// clips a plane above it away and the sky shows (1 everywhere); the
+/// GPU's f32 cannot tell a plane 1e-6 units beyond its box's face from
+/// one on it (a fuzzed gallery drew its floor on the GPU alone), so
+/// `--gpu` notes the plane and intersects in f64 there (lavapipe has
+/// it), and the image agrees with the CPU's; at 1e-2 it stays in f32 and
+/// says nothing, and agrees too; with the plane on the face both draw the
+/// floor (0.5). `Gpu::precision_for`, `f32_plane_at_box_face`.
+#[test]
+fn render_gpu_clips_a_plane_just_beyond_its_box_as_the_cpu() {
+    let dir = tempfile::tempdir().unwrap();
+    for (gap, note, want) in [
+        ("1e-6", true, 1.0),
+        ("1e-2", false, 1.0),
+        ("0.0", false, 0.5),
+    ] {
+        let scene = dir.path().join(format!("floor-{gap}.toml"));
+        std::fs::write(
+            &scene,
+            format!(
+                "[camera]\nposition = [0.0, 6.0, 0.5]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 30.0\n\n\
+                 [environment]\ntype = \"constant\"\nradiance = [1.0, 1.0, 1.0]\n\n\
+                 [[material]]\nname = \"floor\"\ntype = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]\n\n\
+                 [[object]]\nmaterial = \"floor\"\n\
+                 base = {{ type = \"plane\", point = [0.0, {gap}, 0.0], normal = [0.0, 1.0, 0.0] }}\n\
+                 bounds = {{ min = [-30.0, -2.0, -30.0], max = [30.0, 0.0, 30.0] }}\n"
+            ),
+        )
+        .unwrap();
+        let s = scene.to_str().unwrap();
+        let mut means = Vec::new();
+        for gpu in [true, false] {
+            let out = dir.path().join(format!("floor-{gap}-{gpu}.exr"));
+            let o = out.to_str().unwrap();
+            let mut args = vec![
+                "render", s, "-o", o, "--width", "16", "--height", "12", "--spp", "4",
+            ];
+            if gpu {
+                args.push("--gpu");
+            }
+            let r = run(&args);
+            let err = String::from_utf8_lossy(&r.stderr);
+            if gpu && no_adapter(&err) {
+                return;
+            }
+            assert!(r.status.success(), "{gap}: {err}");
+            if gpu {
+                let noted = err.contains("its plane misses its box (bounds) by 1.00e-6 units")
+                    && err.contains("intersecting in f64");
+                assert_eq!(noted, note, "{gap}: {err}");
+                assert_eq!(err.contains("note"), note, "{gap}: {err}");
+            }
+            let img = isolux_io::read_rgb_image(&out).unwrap();
+            let n = img.pixels.len() as f64;
+            means.push(img.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / n);
+        }
+        eprintln!(
+            "plane {gap} above the box: GPU {}, CPU {}",
+            means[0], means[1]
+        );
+        for m in means {
+            assert!((m - want).abs() < 0.02, "{gap}: {m} against {want}");
+        }
+    }
+}
+
 /// The same bump at radius 50 (`f Q^3` 6.2e9 times the base's `|F|`):
 /// the power basis' f32 walk missed or misplaced 200 of 400 rays at such
 /// a shell, so it went to f64 until 2026-12-05; the Bernstein basis, its
