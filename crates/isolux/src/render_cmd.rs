@@ -303,16 +303,17 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(kernel) = kernel {
             if gpu.miscompiles_loops() && isolux_gpu::has_random_walk(&scene) {
                 let what = if kernel == isolux_gpu::PathKernel::Megakernel {
-                    "by the megakernel the image comes out dark (1% on translucent-random-walk.toml)"
+                    "and by the megakernel shorter walks too (1% dark on \
+                     translucent-random-walk.toml)"
                 } else {
-                    "by the wavefront (the default here) a few pixels differ from run to run \
-                     (--megakernel: the same every run, but dark)"
+                    "and by the wavefront (the default here) a few pixels differ from run to run"
                 };
                 eprintln!(
                     "isolux: warning: --gpu: {}: this driver ({}) miscompiles the long loops of \
-                     random walks in media: {what} (docs/gpu.md, \"The wavefront is \
-                     deterministic: Mesa 22.3's lanes are not\"); render without --gpu, or on \
-                     another driver (Mesa 25 or later, or a GPU's)",
+                     random walks in media: walks of thousands of scattering events end early (a \
+                     thick medium comes out dark, up to black), {what} (docs/gpu.md, \"The \
+                     wavefront is deterministic: Mesa 22.3's lanes are not\"); render without \
+                     --gpu, or on another driver (Mesa 25 or later, or a GPU's)",
                     a.scene.display(),
                     gpu.driver
                 );
