@@ -1100,12 +1100,18 @@ impl Gpu {
         &mut self,
         scene: &isolux_render::Scene,
     ) -> Result<Option<String>, GpuError> {
-        let Some(why) = f32_ill_conditioned(scene) else {
-            let Some(why) = f32_plane_at_box_face(scene) else {
-                self.set_precision(Precision::F32)?;
-                return Ok(None);
-            };
-            if !self.f64_supported {
+        // Whether f32 loses surfaces (an error without f64) or only draws
+        // a plane the CPU clips away (a note).
+        let (why, loses) = if let Some(why) = f32_ill_conditioned(scene) {
+            (why, true)
+        } else if let Some(why) = f32_plane_at_box_face(scene) {
+            (why, false)
+        } else {
+            self.set_precision(Precision::F32)?;
+            return Ok(None);
+        };
+        if !self.f64_supported {
+            if !loses {
                 self.set_precision(Precision::F32)?;
                 return Ok(Some(format!(
                     "{why}, and the adapter {} does not offer f64 in shaders (SHADER_F64): \
@@ -1113,10 +1119,6 @@ impl Gpu {
                     self.adapter
                 )));
             }
-            self.set_precision(Precision::F64)?;
-            return Ok(Some(format!("{why}: intersecting in f64")));
-        };
-        if !self.f64_supported {
             return Err(GpuError::Setup(format!(
                 "{why}, and the adapter {} does not offer f64 in shaders (SHADER_F64): render \
                  without --gpu (the CPU works in f64)",

@@ -816,13 +816,7 @@ pub fn f32_plane_at_box_face(scene: &Scene) -> Option<String> {
         // is written about the object's origin).
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for k in 0..8 {
-            let pick = |bit: usize, min: f64, max: f64| if k >> bit & 1 == 0 { min } else { max };
-            let corner = glam::DVec3::new(
-                pick(0, b.min.x, b.max.x),
-                pick(1, b.min.y, b.max.y),
-                pick(2, b.min.z, b.max.z),
-            );
-            let d = q.eval(corner - o.origin()) / (2.0 * q.b.length());
+            let d = q.eval(b.corner(k) - o.origin()) / (2.0 * q.b.length());
             lo = lo.min(d);
             hi = hi.max(d);
         }
@@ -978,10 +972,11 @@ pub fn mix_of_waves(scene: &Scene) -> Option<(String, usize)> {
 
 /// Whether `scene` has a random-walk `subsurface` medium, whose paths run
 /// long loops of scattering events inside a bounce: on Mesa 22's
-/// lavapipe ([`crate::Gpu::miscompiles_loops`]) the wavefront renders
-/// them differently from run to run and the megakernel about 1% dark
-/// (docs/gpu.md, "The wavefront is deterministic: Mesa 22.3's lanes are
-/// not"). False where a material does not run on the GPU.
+/// lavapipe ([`crate::Gpu::miscompiles_loops`]) walks of thousands of
+/// events end early, the wavefront renders the rest differently from run
+/// to run and the megakernel about 1% dark (docs/gpu.md, "The wavefront
+/// is deterministic: Mesa 22.3's lanes are not"). False where a material
+/// does not run on the GPU.
 pub fn has_random_walk(scene: &Scene) -> bool {
     GpuMaterials::new(&scene.materials).is_ok_and(|m| random_walk(&m))
 }
