@@ -2865,6 +2865,7 @@ impl GpuFrame {
             RenderStats {
                 samples: width as u64 * height as u64 * self.samples as u64,
                 rejected_samples: rejected,
+                capped_paths: 0,
             },
         ))
     }

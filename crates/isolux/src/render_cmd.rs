@@ -381,6 +381,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
             stats.rejected_samples
         );
     }
+    if stats.capped_paths > 0 {
+        eprintln!(
+            "isolux: warning: {}: {} of {} paths reached {} scattering and boundary events \
+             inside random-walk media and were ended there: a medium that thick (optically) \
+             is beyond the walk, and the image is darker there than its light; model it as \
+             `mode = \"dipole\"`, or thin it (docs/subsurface.md, \"Media too thick for the \
+             walk\")",
+            a.scene.display(),
+            stats.capped_paths,
+            stats.samples,
+            isolux_render::integrator::MAX_MEDIUM_EVENTS
+        );
+    }
     if !a.quiet {
         eprintln!(
             "isolux: rendered {}x{} at {} spp{} in {:.2} s ({:.2} M samples/s, {}) -> {}",

@@ -649,3 +649,61 @@ fn a_light_outside_the_cameras_medium_is_warned_about() {
         );
     }
 }
+
+/// A camera deep inside a random-walk medium whose mean free path is a
+/// ten-thousandth of its size: a walk would need some 10^8 events to
+/// leave, so every path ends at `MAX_MEDIUM_EVENTS` (100,000), and the
+/// render says so, with the count, instead of handing back a dark image
+/// in silence (found by `gpu-diff-fuzz.py --cpu-only --seed 23`: fog's
+/// `sigma_s` at 1e30 ran past the fuzzer's 300 s). The same sphere a
+/// hundred times thinner (a walk of some 10^4 events) renders without the
+/// warning, as does the first sphere's medium with the camera outside it.
+#[test]
+fn paths_ended_in_a_medium_too_thick_for_the_walk_are_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |sigma: f64, camera_z: f64| {
+        format!(
+            r#"
+[camera]
+position = [0.0, 0.0, {camera_z}]
+look_at = [0.0, 0.0, -10.0]
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "thick"
+type = "subsurface"
+sigma_s = [{sigma}, {sigma}, {sigma}]
+sigma_a = [0.0, 0.0, 0.0]
+ior = 1.0
+mode = "random_walk"
+[[object]]
+material = "thick"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
+"#
+        )
+    };
+    for (sigma, camera_z, warned) in [(1e4, 0.0, true), (1e2, 0.0, false), (1e4, 5.0, false)] {
+        let path = write_scene(dir.path(), &scene(sigma, camera_z));
+        let out = dir.path().join("out.png");
+        let o = isolux()
+            .args([
+                "render", "--spp", "1", "--width", "2", "--height", "2", "-o",
+            ])
+            .arg(&out)
+            .arg(&path)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(out.exists());
+        assert_eq!(
+            err.contains("warning") && err.contains("4 of 4 paths reached 100000"),
+            warned,
+            "sigma_s {sigma}, camera at z = {camera_z}: {err}"
+        );
+        if !warned {
+            assert!(!err.contains("paths reached"), "{err}");
+        }
+    }
+}

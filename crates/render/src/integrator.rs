@@ -64,8 +64,15 @@ use isolux_geometry::{Culled, Hit};
 use isolux_materials::subsurface::phase::sample_hg_cos;
 use isolux_materials::subsurface_material::SubsurfaceMode;
 use isolux_materials::{Bsdf, BxdfFlags, BxdfModel, Material, Subsurface};
+use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Maximum scattering and boundary events of one path inside media.
+/// Maximum scattering and boundary events of one path inside media. A
+/// path that reaches it ends there, its light so far kept and the rest
+/// lost, and is counted in [`Media::capped`]: it bounds a sample's cost
+/// in a medium too thick for a walk (a camera deep inside one whose mean
+/// free path is a ten-thousandth of its size needs some 10^8 events to
+/// leave it), and [`crate::RenderStats::capped_paths`] says that the
+/// image is darker there than the medium's light.
 pub const MAX_MEDIUM_EVENTS: u32 = 100_000;
 
 fn channel(c: Rgb, i: usize) -> f64 {
@@ -957,7 +964,7 @@ fn russian_roulette(beta: Rgb, eta_scale: f64, rng: &mut Pcg32) -> Option<Rgb> {
 /// gather only those lights, `medium_light`: the others lie behind the
 /// medium's boundary), the materials seen from inside each, and whether
 /// null boundaries may occur.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub struct Media<'a> {
     /// The object indices and media the camera is in, outermost first
     /// ([`Scene::media_at`]).
@@ -992,6 +999,26 @@ pub struct Media<'a> {
     /// Whether point lights' shadow rays blocked by a glass object look
     /// for the path through it (`caustic`, [`Scene::casts_caustics`]).
     pub caustics: bool,
+    /// Paths ended at [`MAX_MEDIUM_EVENTS`] so far (of every thread's
+    /// samples: the sum, the same whatever the thread count).
+    pub capped: AtomicU64,
+}
+
+impl Clone for Media<'_> {
+    /// A copy whose count of capped paths starts at this one's.
+    fn clone(&self) -> Self {
+        Media {
+            camera: self.camera.clone(),
+            lights: self.lights.clone(),
+            relative: self.relative.clone(),
+            null_boundaries: self.null_boundaries,
+            flat: self.flat.clone(),
+            gathers: self.gathers,
+            refracts: self.refracts,
+            caustics: self.caustics,
+            capped: AtomicU64::new(self.capped.load(Ordering::Relaxed)),
+        }
+    }
 }
 
 impl<'a> Media<'a> {
@@ -1029,6 +1056,7 @@ impl<'a> Media<'a> {
                 .collect(),
             null_boundaries,
             flat,
+            capped: AtomicU64::new(0),
         }
     }
 
@@ -1229,6 +1257,7 @@ pub fn radiance_culled(
                 // Scattering event inside the medium.
                 medium_events += 1;
                 if medium_events > MAX_MEDIUM_EVENTS {
+                    media.capped.fetch_add(1, Ordering::Relaxed);
                     break;
                 }
                 let tr = f.transmittance(t_max);
@@ -1404,6 +1433,7 @@ pub fn radiance_culled(
         {
             medium_events += 1;
             if medium_events > MAX_MEDIUM_EVENTS {
+                media.capped.fetch_add(1, Ordering::Relaxed);
                 break;
             }
         } else {

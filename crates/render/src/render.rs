@@ -44,6 +44,13 @@ pub struct RenderStats {
     pub samples: u64,
     /// Samples dropped because their value was not finite.
     pub rejected_samples: u64,
+    /// Paths ended at [`crate::integrator::MAX_MEDIUM_EVENTS`] events
+    /// inside random-walk media, their light beyond lost: non-zero where
+    /// a medium is too thick (optically) for the walk, whose part of the
+    /// image is then darker than it should be. Counted by the CPU
+    /// renderer; the GPU's kernels end such paths alike but do not count
+    /// them (0).
+    pub capped_paths: u64,
 }
 
 /// Errors that prevent rendering.
@@ -189,6 +196,7 @@ pub fn render(
     let mut stats = RenderStats {
         samples: npix as u64 * spp as u64,
         rejected_samples: 0,
+        capped_paths: media.capped.load(Ordering::Relaxed),
     };
     for t in tiles {
         stats.rejected_samples += t.rejected;
