@@ -38,12 +38,12 @@ mod render;
 /// one wgpu builds on.
 pub use naga;
 pub use render::{
-    f32_ill_conditioned, f32_plane_at_box_face, f32_shortfall, has_random_walk, medium_bits,
-    mix_of_waves, nested_too_deep, padded_pixels, rebase_point, refracted_media,
-    replace_unsupported, scene_features, thin_object_warning, unsupported_material, wave_count,
-    worst_bump_condition, worst_scale_ratio, BumpCondition, DispatchTime, GpuFrame, Profile,
-    ScaleRatio, SortedSteps, F32_CONDITION_LIMIT, F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT,
-    MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
+    f32_ill_conditioned, f32_plane_at_box_face, f32_shortfall, fine_medium_warning,
+    has_random_walk, medium_bits, mix_of_waves, nested_too_deep, padded_pixels, rebase_point,
+    refracted_media, replace_unsupported, scene_features, thin_object_warning,
+    unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio, BumpCondition,
+    DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT,
+    F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;

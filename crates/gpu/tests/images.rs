@@ -1978,6 +1978,52 @@ fn thin_objects_are_warned_about() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A random-walk medium whose mean free path spans fewer than ten ray
+/// offsets off its surface is warned about, on each back end by its own
+/// offset (`fine_medium_warning` for the GPU, `Scene::finest_medium` with
+/// `Scene::cpu_spawn_offset` for the CPU; docs/subsurface.md, "Media too
+/// thick for the walk"): `lamplit-milk.toml`'s milk with its `scale`
+/// raised from 10 (a mean free path of 5.2e-3 units) to 1e4 (5.2e-5,
+/// where the GPU's image came out 2% dark) is named by the GPU's check
+/// alone, at 1e7 (5.2e-8, 2% dark on the CPU) by both. The example scenes
+/// are warned about by neither.
+#[test]
+fn media_finer_than_the_ray_offset_are_warned_about() {
+    let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes");
+    let cpu = |scene: &isolux_render::Scene| {
+        scene
+            .finest_medium(|o| scene.cpu_spawn_offset(o))
+            .map(|f| f.describe(scene, "the CPU"))
+    };
+    for entry in std::fs::read_dir(examples).unwrap() {
+        let path = entry.unwrap().path();
+        let scene = isolux_scene::load(&path).unwrap();
+        let name = path.display();
+        assert_eq!(isolux_gpu::fine_medium_warning(&scene), None, "{name}");
+        assert_eq!(cpu(&scene), None, "{name}");
+    }
+    let source = std::fs::read_to_string(format!("{examples}/lamplit-milk.toml")).unwrap();
+    let line = "scale = 10.0          # 1 scene unit = 10 mm";
+    assert!(source.contains(line));
+    let at = |scale: &str| {
+        let text = source.replacen(line, &format!("scale = {scale}"), 1);
+        isolux_scene::parse_str(&text, Path::new("milk.toml"), Path::new(examples)).unwrap()
+    };
+    let milk = "the random-walk medium of object[0] (material \"milk\") has a mean free path of";
+    let scene = at("1e4");
+    let why = isolux_gpu::fine_medium_warning(&scene).expect("a warning");
+    assert!(why.starts_with(&format!("{milk} 5.22e-5 units")), "{why}");
+    assert!(why.contains("the GPU starts rays"), "{why}");
+    assert_eq!(cpu(&scene), None);
+    let scene = at("1e7");
+    assert!(isolux_gpu::fine_medium_warning(&scene).is_some());
+    let why = cpu(&scene).expect("a warning");
+    assert!(why.starts_with(&format!("{milk} 5.22e-8 units")), "{why}");
+    assert!(why.contains("the CPU starts rays"), "{why}");
+    let scene = at("10.0");
+    assert_eq!(isolux_gpu::fine_medium_warning(&scene), None);
+}
+
 /// The GPU takes the camera as its origin (`isolux_gpu::rebase_point`)
 /// and intersects each object in its own frame (docs/gpu.md,
 /// "Precision"), so a scene moved far from the world origin, camera

@@ -281,6 +281,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(why) = isolux_gpu::thin_object_warning(&scene) {
             eprintln!("isolux: warning: --gpu: {}: {why}", a.scene.display());
         }
+        if let Some(why) = isolux_gpu::fine_medium_warning(&scene).filter(|_| !a.realtime) {
+            eprintln!(
+                "isolux: warning: --gpu: {}: {why}; render without --gpu, or model it as \
+                 `mode = \"dipole\"`",
+                a.scene.display()
+            );
+        }
         // (A mix of two is refused there, by `Gpu::render`.)
         if gpu.miscompiles_loops()
             && isolux_gpu::wave_count(&scene) > 1
@@ -361,6 +368,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 .with_context(|| format!("--gpu: {}", a.scene.display()))?
         }
     } else {
+        if let Some(fine) = scene
+            .finest_medium(|o| scene.cpu_spawn_offset(o))
+            .filter(|_| !a.realtime)
+        {
+            eprintln!(
+                "isolux: warning: {}: {}; model it as `mode = \"dipole\"`",
+                a.scene.display(),
+                fine.describe(&scene, "the CPU")
+            );
+        }
         start = Instant::now();
         let options = RenderOptions {
             aov: a.aov,

@@ -707,3 +707,57 @@ base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
         }
     }
 }
+
+/// `isolux render` names a random-walk medium whose mean free path spans
+/// fewer than ten of the CPU's ray offsets (`lamplit-milk.toml`'s milk
+/// at `scale = 1e7`, 2% dark: docs/subsurface.md, "Media too thick for
+/// the walk"), and not at the example's own scale, nor in the real-time
+/// mode, which walks no medium.
+#[test]
+fn a_medium_finer_than_the_ray_offset_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/lamplit-milk.toml"
+    );
+    let src = std::fs::read_to_string(example).unwrap();
+    let line = "scale = 10.0          # 1 scene unit = 10 mm";
+    assert!(src.contains(line));
+    let thick = src.replacen(line, "scale = 1e7", 1);
+    for (src, realtime, warned) in [
+        (&thick, false, true),
+        (&src, false, false),
+        (&thick, true, false),
+    ] {
+        let scene = write_scene(dir.path(), src);
+        let out = dir.path().join("out.png");
+        let mut cmd = isolux();
+        cmd.args([
+            "render", "--spp", "4", "--width", "4", "--height", "3", "-o",
+        ])
+        .arg(&out)
+        .arg(&scene);
+        if realtime {
+            cmd.arg("--realtime");
+        }
+        let o = cmd.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(out.exists());
+        let named = format!(
+            "warning: {}: the random-walk medium of object[0] (material \"milk\") has a mean \
+             free path of 5.22e-8 units",
+            scene.display()
+        );
+        assert_eq!(
+            err.contains(&named)
+                && err.contains("at which the CPU starts rays off its surface")
+                && err.contains("model it as `mode = \"dipole\"`"),
+            warned,
+            "realtime {realtime}: {err}"
+        );
+        if !warned {
+            assert!(!err.contains("mean free path"), "{err}");
+        }
+    }
+}

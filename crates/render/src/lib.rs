@@ -24,6 +24,6 @@ pub use environment::{EnvMap, Environment};
 pub use light::PointLight;
 pub use render::{render, RenderError, RenderOptions, RenderStats};
 pub use scene::{
-    Caustics, FilmProblem, FilmSettings, FlatBoundary, IntegratorSettings, MediumLightSampling,
-    RefractedLights, Scene,
+    Caustics, FilmProblem, FilmSettings, FineMedium, FlatBoundary, IntegratorSettings,
+    MediumLightSampling, RefractedLights, Scene, FINE_MEDIUM_OFFSETS,
 };
