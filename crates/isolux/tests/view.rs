@@ -162,6 +162,46 @@ fn viewer_without_a_display_says_so() {
     );
 }
 
+/// `isolux view` warns, as `isolux render --gpu` does, of a random-walk
+/// medium finer than the GPU's ray offset (`lamplit-milk.toml`'s milk at
+/// `scale = 1e4`: docs/subsurface.md, "Media too thick for the walk"),
+/// before it looks for a display; not of the example as it is.
+#[test]
+fn viewer_warns_of_a_medium_finer_than_the_ray_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/lamplit-milk.toml"
+    );
+    let src = std::fs::read_to_string(example).unwrap();
+    let line = "scale = 10.0          # 1 scene unit = 10 mm";
+    assert!(src.contains(line));
+    for (text, warned) in [
+        (src.replacen(line, "scale = 1e4", 1), true),
+        (src.clone(), false),
+    ] {
+        let scene = dir.path().join("milk.toml");
+        std::fs::write(&scene, text).unwrap();
+        let o = isolux()
+            .arg("view")
+            .arg(&scene)
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains("no display"), "{err}");
+        assert_eq!(
+            err.contains("warning")
+                && err.contains("the random-walk medium of object[0] (material \"milk\")")
+                && err.contains("at which the GPU starts rays"),
+            warned,
+            "{err}"
+        );
+    }
+}
+
 #[test]
 fn viewer_refuses_bad_flags() {
     let dir = tempfile::tempdir().unwrap();

@@ -138,6 +138,17 @@ pub fn run(opts: Options) -> anyhow::Result<()> {
     if let Some(why) = isolux_gpu::f32_shortfall(&state.scene) {
         bail!("{file}: {why}");
     }
+    // What `isolux render --gpu` warns of, before the window opens: an
+    // object thinner than a few of the GPU's ray offsets, and a
+    // random-walk medium whose mean free path spans fewer than ten of
+    // them (docs/subsurface.md, "Media too thick for the walk").
+    let scene = &state.scene;
+    for why in isolux_gpu::thin_object_warning(scene)
+        .into_iter()
+        .chain(isolux_gpu::fine_medium_warning(scene))
+    {
+        eprintln!("isolux: warning: {file}: {why}");
+    }
     check_display()?;
     #[allow(unused_mut)]
     let mut builder = EventLoop::builder();
