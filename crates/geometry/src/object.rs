@@ -86,6 +86,14 @@ pub struct Hit {
 }
 
 impl Hit {
+    /// [`Hit::offset`] for a hit at `local` in its object's frame and at
+    /// `world` in world coordinates (also a bound for a region: its
+    /// largest coordinates in each).
+    #[inline]
+    pub fn offset_at(local: DVec3, world: DVec3) -> f64 {
+        1e-7 * (1.0 + local.abs().max_element()) + 1e-14 * world.abs().max_element()
+    }
+
     /// The origin of a ray leaving the hit along `w`: `p` moved
     /// [`Hit::offset`] along the normal, to the side of `w`.
     #[inline]
@@ -932,7 +940,7 @@ impl Object {
         let p = hit.p + self.origin;
         Hit {
             p,
-            offset: 1e-7 * (1.0 + hit.p.abs().max_element()) + 1e-14 * p.abs().max_element(),
+            offset: Hit::offset_at(hit.p, p),
             ..hit
         }
     }

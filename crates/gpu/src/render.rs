@@ -599,7 +599,7 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
             continue;
         }
         let reach = box_reach(&b, at);
-        let offset = crate::SPAWN_OFFSET as f64 + crate::SPAWN_OFFSET_WORLD as f64 * reach;
+        let offset = gpu_spawn_offset(reach);
         let thickness = (b.max - b.min).min_element();
         if thickness < THIN_FACTOR * offset && worst.is_none_or(|(_, t, _)| thickness < t) {
             worst = Some((i, thickness, offset));
@@ -613,6 +613,13 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
              \"Precision\"); render without --gpu where they matter"
         )
     })
+}
+
+/// The GPU's ray offset off a surface at `reach` from its origin
+/// (`spawn_offset` in render.wgsl): [`crate::SPAWN_OFFSET`] +
+/// [`crate::SPAWN_OFFSET_WORLD`] `reach`.
+fn gpu_spawn_offset(reach: f64) -> f64 {
+    crate::SPAWN_OFFSET as f64 + crate::SPAWN_OFFSET_WORLD as f64 * reach
 }
 
 /// The random-walk medium of `scene` whose shortest mean free path spans
@@ -636,7 +643,7 @@ pub fn fine_medium_warning(scene: &Scene) -> Option<String> {
             } else {
                 (scene.camera.position - at).abs().max_element()
             };
-            crate::SPAWN_OFFSET as f64 + crate::SPAWN_OFFSET_WORLD as f64 * reach
+            gpu_spawn_offset(reach)
         })
         .map(|f| f.describe(scene, "the GPU"))
 }

@@ -3,7 +3,7 @@
 
 use crate::{Camera, Environment, PointLight};
 use isolux_core::{Aabb, DMat3, DVec3};
-use isolux_geometry::{Aggregate, Object};
+use isolux_geometry::{Aggregate, Hit, Object};
 use isolux_materials::subsurface_material::SubsurfaceMode;
 use isolux_materials::{Material, Subsurface};
 
@@ -462,24 +462,23 @@ impl Scene {
             .min_by(|a, b| (a.mean_free_path / a.offset).total_cmp(&(b.mean_free_path / b.offset)))
     }
 
-    /// The CPU's ray offset off the surface of `o` ([`isolux_geometry::Hit`]'s
-    /// `offset`: `1e-7 (1 + |p - origin|_inf) + 1e-14 |p|_inf`) at the
+    /// The CPU's ray offset off the surface of `o` ([`Hit::offset_at`]:
+    /// `1e-7 (1 + |p - origin|_inf) + 1e-14 |p|_inf`) at the
     /// corner of its box farthest from its frame's origin, or, for an
     /// unbounded object, at the camera: the largest a bounded object's
     /// hits take.
     pub fn cpu_spawn_offset(&self, o: &Object) -> f64 {
         let b = o.bbox();
-        let (local, world) = if b.is_finite() {
+        if b.is_finite() {
             let at = o.origin();
-            (
+            Hit::offset_at(
                 (b.min - at).abs().max((b.max - at).abs()),
                 b.min.abs().max(b.max.abs()),
             )
         } else {
             let p = self.camera.position;
-            ((p - o.origin()).abs(), p.abs())
-        };
-        1e-7 * (1.0 + local.max_element()) + 1e-14 * world.max_element()
+            Hit::offset_at(p - o.origin(), p)
+        }
     }
 
     /// The objects whose material is a random-walk medium (`subsurface`
