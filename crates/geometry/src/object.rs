@@ -85,6 +85,39 @@ pub struct Hit {
     pub offset: f64,
 }
 
+/// The part of the world point `at` along the directions in which a
+/// translation leaves the quadric `q` unchanged: the plane's own
+/// directions for a plane (`m` zero), the axis for a cylinder (`m` of
+/// rank two whose null direction `a` has `b . a` zero); zero for any
+/// other quadric. Moving the frame's zero from `at` by minus this part
+/// brings it to the point nearest the world origin among those where `q`
+/// reads the same ([`Object::in_frame`]).
+fn invariant_part(q: &Quadric, at: DVec3) -> DVec3 {
+    let m = q.m;
+    if m == DMat3::ZERO {
+        if q.b == DVec3::ZERO {
+            return DVec3::ZERO;
+        }
+        let n = q.b.normalize();
+        return at - n * n.dot(at);
+    }
+    let s = m.abs().to_cols_array().into_iter().fold(0.0, f64::max);
+    let (r0, r1, r2) = (m.x_axis, m.y_axis, m.z_axis);
+    let a = [r0.cross(r1), r1.cross(r2), r2.cross(r0)]
+        .into_iter()
+        .max_by(|x, y| x.length_squared().total_cmp(&y.length_squared()))
+        .unwrap_or(DVec3::ZERO);
+    if !(a.length() > 1e-9 * s * s) {
+        return DVec3::ZERO;
+    }
+    let a = a.normalize();
+    let tol = 1e-12 * s * (1.0 + q.b.length() / s);
+    if (m * a).abs().max_element() > tol || q.b.dot(a).abs() > tol {
+        return DVec3::ZERO;
+    }
+    a * a.dot(at)
+}
+
 impl Hit {
     /// [`Hit::offset`] for a hit at `local` in its object's frame and at
     /// `world` in world coordinates (also a bound for a region: its
@@ -771,16 +804,37 @@ impl Object {
             return Err(GeometryError::NonFinite("the object's origin".into()));
         }
         let obj = Self::build(origin, base, perturbations, bounds)?;
-        if !obj.bbox.is_finite() {
-            return Ok(obj);
-        }
-        // Moved only when the box lies farther from the frame's zero than
-        // its own size: an object near its frame's zero keeps it (and the
-        // same numbers to the last bit).
-        let c = obj.bbox.center();
-        if c.abs().max_element() <= (obj.bbox.max - obj.bbox.min).max_element() {
-            return Ok(obj);
-        }
+        // The move of the frame's zero, and whether the base reads the
+        // same after it (a move along its unchanging directions).
+        let (c, same_base) = if obj.bbox.is_finite() {
+            // Moved only when the box lies farther from the frame's zero
+            // than its own size: an object near its frame's zero keeps it
+            // (and the same numbers to the last bit).
+            let c = obj.bbox.center();
+            if c.abs().max_element() <= (obj.bbox.max - obj.bbox.min).max_element() {
+                return Ok(obj);
+            }
+            (c, false)
+        } else {
+            // An unbounded base (a plane, a cylinder) is the same surface
+            // about any point of its own along the directions that leave
+            // it unchanged, so the point it was written about says nothing
+            // of where it is seen: a plane through `[1e7, 0, 0]` is the
+            // plane through the world origin. Its frame moves along those
+            // directions to the point nearest the world origin, where the
+            // scene's camera and objects are, so that hits near them keep
+            // a small spawn offset ([`Hit::offset`]); a move under a unit
+            // keeps the frame (and the same numbers to the last bit). The
+            // base keeps its coefficients: translating them would add the
+            // rounding of its unchanging directions times the move squared
+            // (a cylinder's axis off by 1e-16 moves its surface by 1e-2
+            // over 1e7 units).
+            let v = invariant_part(&obj.base, origin);
+            if v.abs().max_element() <= 1.0 {
+                return Ok(obj);
+            }
+            (-v, true)
+        };
         let Object {
             base,
             perturbations,
@@ -795,7 +849,8 @@ impl Object {
             })
             .collect();
         let bounds = bounds.map(|b| b.translated(-c));
-        Self::build(origin + c, moved(&base), perturbations, bounds)
+        let base = if same_base { base } else { moved(&base) };
+        Self::build(origin + c, base, perturbations, bounds)
     }
 
     /// [`Object::in_frame`] without the move to the box's centre.
@@ -2212,6 +2267,72 @@ mod tests {
                         assert!(h.n.z > 0.99, "r {r}, rho {rho}: normal {}", h.n);
                     }
                 }
+            }
+        }
+    }
+
+    /// An unbounded base written about a far point of its own (a plane, a
+    /// cylinder up its axis, tilted) moves its frame to the point nearest
+    /// the world origin along the directions that leave it unchanged, so
+    /// its hits near the origin keep the offset they have written about a
+    /// near point; a paraboloid, a cone and a plane's point off the origin
+    /// along its normal keep theirs (a move would change the surface).
+    #[test]
+    fn unbounded_bases_move_their_frame_near_the_world_origin() {
+        let tilt = DVec3::new(0.3, 1.0, -0.2).normalize();
+        let side = tilt.cross(DVec3::X).normalize();
+        let cases = [
+            (Quadric::plane(DVec3::ZERO, tilt), 1e7 * side, DVec3::ZERO),
+            (
+                Quadric::plane(DVec3::ZERO, tilt),
+                3.0 * tilt + 1e7 * side,
+                3.0 * tilt,
+            ),
+            (
+                Quadric::cylinder(DVec3::ZERO, tilt, 0.5),
+                1e7 * tilt,
+                DVec3::ZERO,
+            ),
+            (
+                Quadric::cylinder(DVec3::ZERO, tilt, 0.5),
+                side + 1e6 * tilt,
+                side,
+            ),
+        ];
+        for (q, at, want) in cases {
+            let o = Object::in_frame(at, q, vec![], None).unwrap();
+            assert!(
+                (o.origin() - want).length() < 1e-6,
+                "{q:?} about {at}: frame at {}, want {want}",
+                o.origin()
+            );
+            // The same surface: `q` reads the same about `at` and about
+            // `want`, a move along its unchanging directions away (written
+            // about `want`, since about `at` rounding alone would differ).
+            for k in 0..20 {
+                let p = want + DVec3::new(k as f64 * 0.37 - 3.0, (k as f64 * 1.3).sin(), 0.5);
+                let exact = q.eval(p - want);
+                let near = o.base().eval(p - o.origin());
+                assert!(
+                    (exact - near).abs() < 1e-6 * (1.0 + exact.abs()),
+                    "{exact} against {near}"
+                );
+            }
+            let from = want + 3.0 * side + 0.5 * tilt;
+            let ray = Ray::new(from, (want - from).normalize());
+            let h = o.intersect(&ray, 0.0, 1e30).expect("hit");
+            assert!(h.offset < 1e-5, "offset {}", h.offset);
+        }
+        let kept = [
+            Quadric::paraboloid(DVec3::ZERO, tilt, 0.25),
+            Quadric::cone(DVec3::ZERO, tilt, 0.3),
+            Quadric::sphere(DVec3::ZERO, 1.0),
+        ];
+        for q in kept {
+            let at = 2.0 * side + 1e3 * tilt;
+            let o = Object::in_frame(at, q, vec![], None).unwrap();
+            if !o.bbox().is_finite() {
+                assert_eq!(o.origin(), at, "{q:?}");
             }
         }
     }

@@ -1574,6 +1574,77 @@ fn a_scene_far_from_the_origin_renders_as_at_the_origin() {
     }
 }
 
+/// An unbounded base (a plane, a cylinder) is the same surface written
+/// about any of its points along the directions that leave it unchanged,
+/// so it renders the same, bit for bit: `shallows.toml`'s water plane
+/// through `[1e7, 0, 0]` instead of the origin, and a pillar (an infinite
+/// cylinder) about a point `1e7` up its axis. Until 2026-12-06 the object's
+/// frame stayed at the written point, where the CPU's ray offset is a
+/// whole unit, so walks into the water started too deep (the water
+/// rendered 0.55 of its brightness, `gpu-diff-fuzz.py --seed 31`).
+#[test]
+fn unbounded_objects_written_about_far_points_render_as_about_near_ones() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/scenes/");
+    let shallows = std::fs::read_to_string(format!("{dir}shallows.toml"))
+        .unwrap()
+        .replace("width = 480", "width = 32")
+        .replace("height = 270", "height = 24")
+        .replace("spp = 64", "spp = 4");
+    let water = r#"base = { type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }"#;
+    assert!(shallows.contains(water));
+    let pillar = |y: f64| {
+        format!(
+            r#"
+[camera]
+position = [0.0, 0.5, 4.0]
+look_at = [0.0, 0.0, 0.0]
+[film]
+width = 32
+height = 24
+spp = 4
+[[material]]
+name = "m"
+type = "diffuse"
+reflectance = [0.7, 0.6, 0.5]
+[[object]]
+material = "m"
+base = {{ type = "cylinder", center = [0.3, {y}, 0.0], axis = [0.0, 1.0, 0.0], radius = 0.5 }}
+[[object]]
+material = "m"
+base = {{ type = "plane", point = [0.0, -1.0, 0.0], normal = [0.0, 1.0, 0.0] }}
+[environment]
+type = "constant"
+radiance = [0.2, 0.3, 0.4]
+[[light]]
+type = "point"
+position = [2.0, 3.0, 3.0]
+intensity = [20.0, 20.0, 20.0]
+"#
+        )
+    };
+    let cases = [
+        (
+            "water plane",
+            shallows.clone(),
+            shallows.replace(water, &water.replace("[0.0, 0.0, 0.0]", "[1e7, 0.0, 0.0]")),
+        ),
+        ("pillar", pillar(0.0), pillar(1e7)),
+    ];
+    for (what, near, far) in cases {
+        let near = render_with(&scene(&near), 2);
+        let far = render_with(&scene(&far), 2);
+        let mean = |img: &Image| img.rgb.iter().flatten().map(|&v| v as f64).sum::<f64>();
+        eprintln!("{what}: sums {} and {}", mean(&near), mean(&far));
+        assert!(mean(&near) > 0.0, "{what}");
+        assert!(
+            near.rgb == far.rgb,
+            "{what}: {} against {}",
+            mean(&near),
+            mean(&far)
+        );
+    }
+}
+
 /// `examples/tests/lamp-above-drop.toml`: a point light of intensity 20 at
 /// `[0, 5, 0]` above a sphere of absorbing water (radius 2 about the
 /// origin, index 1.33, `sigma_a` 0.1) holding a diffuse floor (0.8) at
