@@ -2457,7 +2457,10 @@ impl GpuFrame {
                     contents: bytemuck::cast_slice(&init),
                     usage: wgpu::BufferUsages::COPY_SRC,
                 });
-            let ctl = gpu.output("wavefront counters", init.len() as u64 * 16);
+            // Then the frame's count of paths ended at the cap of their
+            // medium events (wavefront.wgsl `wf_end`): not in `ctl_init`,
+            // so a tile's first step keeps it; cleared by `reset`.
+            let ctl = gpu.output("wavefront counters", (init.len() as u64 + 1) * 16);
             // A step's dispatch, then the sorted wavefront's lists'.
             let indirect = gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("wavefront dispatch"),
@@ -2548,7 +2551,7 @@ impl GpuFrame {
                 enc.clear_buffer(&self.layers, 0, Some(n as u64 * self.layer_bytes()));
             }
             if k == 0 {
-                enc.copy_buffer_to_buffer(&wf.ctl_init, 0, &wf.ctl, 0, wf.ctl.size());
+                enc.copy_buffer_to_buffer(&wf.ctl_init, 0, &wf.ctl, 0, wf.ctl_init.size());
             } else {
                 enc.copy_buffer_to_buffer(&wf.ctl, k as u64 * 16, &wf.indirect, 0, 16);
             }
@@ -2867,6 +2870,9 @@ impl GpuFrame {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         enc.clear_buffer(&self.accum, 0, None);
+        if let Some(wf) = self.wf.as_ref() {
+            enc.clear_buffer(&wf.ctl, wf.ctl_init.size(), None);
+        }
         if let (true, Some(aov)) = (self.first_hits, self.aov.as_ref()) {
             enc.clear_buffer(aov, 0, None);
         }
@@ -2874,7 +2880,11 @@ impl GpuFrame {
         self.samples = 0;
     }
 
-    /// The mean of the samples so far (waits for queued passes).
+    /// The mean of the samples so far (waits for queued passes), and its
+    /// counts: the samples dropped as not finite, and the paths ended at
+    /// `MAX_MEDIUM_EVENTS` where the wavefront traced them (its counter,
+    /// cleared by [`GpuFrame::reset`], goes with the wavefront's buffers,
+    /// which a change of its tile, samples a run or sorting rebuilds).
     pub fn image(&self, gpu: &Gpu) -> Result<(Image, RenderStats), GpuError> {
         let acc: Vec<[f32; 4]> = gpu.read_back(&self.accum)?;
         let inv = 1.0 / self.samples.max(1) as f32;
@@ -2888,6 +2898,15 @@ impl GpuFrame {
             })
             .collect();
         let (width, height) = (self.params.film[0], self.params.film[1]);
+        // Counted by the wavefront (`wf_end`), the default for scenes with
+        // media; the megakernel ends such paths alike uncounted.
+        let capped_paths = match self.wf.as_ref() {
+            Some(wf) => {
+                let ctl: Vec<u32> = gpu.read_back(&wf.ctl)?;
+                ctl[ctl.len() - 4] as u64
+            }
+            None => 0,
+        };
         Ok((
             Image {
                 width,
@@ -2898,7 +2917,7 @@ impl GpuFrame {
             RenderStats {
                 samples: width as u64 * height as u64 * self.samples as u64,
                 rejected_samples: rejected,
-                capped_paths: 0,
+                capped_paths,
             },
         ))
     }

@@ -1978,6 +1978,62 @@ fn thin_objects_are_warned_about() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Paths ended at `MAX_MEDIUM_EVENTS` are counted by the wavefront
+/// (`RenderStats::capped_paths`, `wf_end`), as by the CPU: a camera inside
+/// a white sphere of medium whose mean free path is 1e-4 of its radius
+/// (some 1e8 events to leave it) ends every path at the cap, 4 of 4 at 2 x
+/// 2 pixels and 1 spp; at 1e-2 (some 1e4) none. Not on Mesa 22.3's
+/// lavapipe, which ends such walks early (docs/gpu.md, "Known defect"),
+/// and takes a minute a walk of 1e5 events there.
+#[test]
+fn paths_ended_at_the_cap_of_medium_events_are_counted() {
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    if gpu.miscompiles_loops() {
+        eprintln!("skipped: {} ends long walks early", gpu.driver);
+        return;
+    }
+    let scene = |sigma: f64| {
+        let src = format!(
+            r#"
+[camera]
+position = [0.0, 0.0, 0.0]
+look_at = [0.0, 0.0, -10.0]
+[film]
+width = 2
+height = 2
+spp = 1
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[material]]
+name = "thick"
+type = "subsurface"
+sigma_s = [{sigma}, {sigma}, {sigma}]
+sigma_a = [0.0, 0.0, 0.0]
+ior = 1.0
+mode = "random_walk"
+[[object]]
+material = "thick"
+base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
+"#
+        );
+        isolux_scene::parse_str(&src, Path::new("thick.toml"), Path::new(".")).unwrap()
+    };
+    for (sigma, capped) in [(1e4, 4), (1e2, 0)] {
+        let s = scene(sigma);
+        let (_, cpu) = render(&s, &RenderOptions::default(), &|_, _| {}).unwrap();
+        let (_, stats) = gpu.render(&s, &|_, _| {}).unwrap();
+        eprintln!(
+            "sigma_s {sigma}: capped CPU {}, GPU {}",
+            cpu.capped_paths, stats.capped_paths
+        );
+        assert_eq!(cpu.capped_paths, capped, "sigma_s {sigma}");
+        assert_eq!(stats.capped_paths, capped, "sigma_s {sigma}");
+    }
+}
+
 /// A random-walk medium whose mean free path spans fewer than ten ray
 /// offsets off its surface is warned about, on each back end by its own
 /// offset (`fine_medium_warning` for the GPU, `Scene::finest_medium` with

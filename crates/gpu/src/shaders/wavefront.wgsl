@@ -25,6 +25,8 @@ struct WfPath {
 @group(1) @binding(1) var<storage, read_write> wf_queue: array<u32>;
 // Per step k: the workgroups of its indirect dispatch, 1, 1, and the
 // number of queued paths (filled by step k - 1, cleared by the host).
+// Its last four words, which the host clears with the frame's sums only,
+// count the paths ended at MAX_MEDIUM_EVENTS (`wf_capped`) in the first.
 @group(1) @binding(2) var<storage, read_write> wf_ctl: array<atomic<u32>>;
 
 fn wf_store(slot: u32, pixel: u32) {
@@ -146,6 +148,13 @@ fn wf_end(slot: u32, pixel: u32, alive: bool) {
         return;
     }
     add_sample(pixel, path.l);
+    // A path ended at the cap of its medium events (`bounce`,
+    // `medium_scatter`: its light beyond lost) is counted, as the CPU's
+    // `Media::capped` (render.rs `GpuFrame::image`). Only media raise
+    // `events`, and the sorted wavefront runs no scene with media.
+    if (SUBSURFACE && path.events > MAX_MEDIUM_EVENTS) {
+        atomicAdd(&wf_ctl[arrayLength(&wf_ctl) - 4u], 1u);
+    }
 }
 
 // Step `params.wave.x` of the wavefront for the path in slot `gid.x` (of
