@@ -1361,3 +1361,65 @@ fn small_bases_in_large_boxes_are_hit_from_afar() {
         );
     }
 }
+
+/// A surface made by a bump far from its object's base (a support of
+/// radius 50 or 20 around the rays' start, on a sphere of radius 0.6 or
+/// 600 moved 300 to 3000 units away, within `bounds` of 120 units): the
+/// base's `F` is a large near-constant there, which the bump's `f Q^3`
+/// cancels at the surface, and f32 misplaced most hits by up to 2.4e-4 of
+/// the box from 3000 units (`gpu-diff-fuzz.py --seed 34`: the perturbed
+/// sphere moved 3000 units off with its bump grown around the camera,
+/// twice as bright on the GPU). Beyond `F32_FAR_BASE_LIMIT` such a scene
+/// is named (`f32_ill_conditioned`) and f64 places every hit within 5e-5
+/// of the box; below it f32 places them within 1e-5.
+#[test]
+fn far_bases_are_named_and_hit_in_f64() {
+    let Some(mut gpu) = common::open("far bases") else {
+        return;
+    };
+    let bounds = isolux_core::Aabb {
+        min: DVec3::splat(-60.0),
+        max: DVec3::splat(60.0),
+    };
+    let has_f64 = gpu.supports_f64();
+    for (z, r, f, rad, named) in [
+        (300.0, 0.6, 300.0, 50.0, false),
+        (1000.0, 0.6, 300.0, 50.0, true),
+        (3000.0, 0.6, 300.0, 50.0, true),
+        (3000.0, 0.6, 3.0, 50.0, true),
+        (3000.0, 600.0, 300.0, 50.0, true),
+        (-3000.0, 0.6, 300.0, 50.0, true),
+    ] {
+        let object = Object::new(
+            Quadric::sphere(DVec3::new(0.0, 0.0, z), r),
+            vec![Perturbation {
+                quadric: Quadric::sphere(DVec3::new(0.0, 0.6, 0.0), rad),
+                factor: f,
+            }],
+            Some(bounds),
+        )
+        .unwrap();
+        let mut scene = bump_scene().0;
+        condition_of(&mut scene, &object);
+        let why = isolux_gpu::f32_ill_conditioned(&scene);
+        let what = format!("base at z {z}, radius {r}; bump {f} of radius {rad}");
+        assert_eq!(why.is_some(), named, "{what}: {why:?}");
+        let precision = if named && has_f64 {
+            isolux_gpu::Precision::F64
+        } else {
+            isolux_gpu::Precision::F32
+        };
+        gpu.set_precision(precision).unwrap();
+        let e = bump_errors(&gpu, &object, DVec3::new(0.0, 0.9, 3.6));
+        let worst = e.iter().copied().fold(0.0, f64::max);
+        println!("{what}: {precision:?}, worst {worst:.1e}");
+        // f64 still reads the quadrics' f32 coefficients from the buffers
+        // and answers an f32 `t`: 3.3e-5 of the box at most here (f32 up
+        // to 2.4e-4), the images then the CPU's.
+        let limit = if named { 5e-5 } else { 1e-5 };
+        if !named || has_f64 {
+            assert!(worst < limit, "{what}: {precision:?} off by {worst:e}");
+        }
+    }
+    gpu.set_precision(isolux_gpu::Precision::F32).unwrap();
+}
