@@ -836,7 +836,9 @@ pub fn f32_ill_conditioned(scene: &Scene) -> Option<String> {
     })
 }
 
-/// Above this [`far_base_ratio`] the f32 intersection is not trusted: an
+/// Above this ratio (`far_base_ratio`: the base quadric's largest `|F|` where
+/// a perturbation acts over its largest `|grad F|` there times that
+/// region's size) the f32 intersection is not trusted: an
 /// object whose surface its perturbations make far from its base (a bump
 /// of radius 50 around the camera on a sphere of radius 0.6 moved 3000
 /// units away, `gpu-diff-fuzz.py --seed 34`), where `F` is a large
@@ -844,9 +846,10 @@ pub fn f32_ill_conditioned(scene: &Scene) -> Option<String> {
 /// on lavapipe against the CPU (the conformance test
 /// `far_bases_are_named_and_hit_in_f64`: a support of radius 50 or 20
 /// within `bounds` of 120 units, 400 rays), the share of rays off by over
-/// 1e-5 of the box and the worst, by the base's distance: ratio 1.0
-/// (300 units) none, 1.6e-6; 3.5 (1000) 8%, 1.5e-5; 10.4 (3000) 90%,
-/// 2.4e-4, whatever the bump's factor (3 to 3e5). A bump on its base's
+/// 1e-5 of the box and the worst, by the base's distance (the ratio, for
+/// the support of radius 50): 300 units (1.8) none, 1.6e-6; 1000 (5.3)
+/// 8%, 1.5e-5; 3000 (15.3) 90%, 2.4e-4, whatever the bump's factor (3 to
+/// 3e5). A bump on its base's
 /// surface reads under 0.87 (a sphere's), a large support around a small
 /// base about 0.4, and no example scene reaches 1.
 pub const F32_FAR_BASE_LIMIT: f64 = 2.0;
