@@ -868,7 +868,6 @@ fn far_base_ratio(o: &isolux_geometry::Object) -> f64 {
     }
     let local = b.translated(-o.origin());
     let q = o.base();
-    let f = |p: glam::DVec3| q.eval(p);
     o.perturbations()
         .iter()
         .map(|p| {
@@ -879,7 +878,7 @@ fn far_base_ratio(o: &isolux_geometry::Object) -> f64 {
             if !region.is_finite() || region.is_empty() {
                 return 0.0;
             }
-            let value = max_over_box(f, &region, 9).max(max_over_box(|x| -f(x), &region, 9));
+            let value = largest_abs(q, &region);
             // |grad F| = 2 |m p + b| is convex in p: largest at a corner.
             let grad = (0..8)
                 .map(|k| 2.0 * (q.m * region.corner(k) + q.b).length())
@@ -970,8 +969,7 @@ pub fn worst_bump_condition(scene: &Scene) -> Option<BumpCondition> {
         }
         // The base's largest |F| on the box, in the object's frame.
         let local = b.translated(-o.origin());
-        let f = |p: glam::DVec3| o.base().eval(p);
-        let base = max_over_box(f, &local, 9).max(max_over_box(|p| -f(p), &local, 9));
+        let base = largest_abs(o.base(), &local);
         for (k, q) in o.perturbations().iter().enumerate() {
             let peak = bump_peak(o, q);
             let ratio = peak / base.max(f64::MIN_POSITIVE);
@@ -987,6 +985,12 @@ pub fn worst_bump_condition(scene: &Scene) -> Option<BumpCondition> {
         }
     }
     worst
+}
+
+/// About the largest `|F|` of the quadric `q` on the box `b` (in `q`'s
+/// frame), by [`max_over_box`] of `F` and of `-F`.
+fn largest_abs(q: &isolux_geometry::Quadric, b: &isolux_core::Aabb) -> f64 {
+    max_over_box(|p| q.eval(p), b, 9).max(max_over_box(|p| -q.eval(p), b, 9))
 }
 
 /// About the largest `|f| Q^3` that perturbation `q` adds inside object
@@ -2968,8 +2972,10 @@ impl GpuFrame {
             .collect();
         let (width, height) = (self.params.film[0], self.params.film[1]);
         // Counted by the wavefront (`wf_end`), the default for scenes with
-        // media; the megakernel ends such paths alike uncounted.
-        let capped_paths = match self.wf.as_ref() {
+        // media, in kernels with the subsurface integrator (no other can
+        // count one: nothing is read back for them); the megakernel ends
+        // such paths alike uncounted.
+        let capped_paths = match self.wf.as_ref().filter(|_| self.features.subsurface()) {
             Some(wf) => {
                 let ctl: Vec<u32> = gpu.read_back(&wf.ctl)?;
                 ctl[ctl.len() - 4] as u64

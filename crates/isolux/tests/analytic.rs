@@ -1633,14 +1633,14 @@ intensity = [20.0, 20.0, 20.0]
     for (what, near, far) in cases {
         let near = render_with(&scene(&near), 2);
         let far = render_with(&scene(&far), 2);
-        let mean = |img: &Image| img.rgb.iter().flatten().map(|&v| v as f64).sum::<f64>();
-        eprintln!("{what}: sums {} and {}", mean(&near), mean(&far));
-        assert!(mean(&near) > 0.0, "{what}");
+        let sum = |img: &Image| img.rgb.iter().flatten().map(|&v| v as f64).sum::<f64>();
+        eprintln!("{what}: sums {} and {}", sum(&near), sum(&far));
+        assert!(sum(&near) > 0.0, "{what}");
         assert!(
             near.rgb == far.rgb,
             "{what}: {} against {}",
-            mean(&near),
-            mean(&far)
+            sum(&near),
+            sum(&far)
         );
     }
 }

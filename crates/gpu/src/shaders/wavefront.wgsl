@@ -26,7 +26,7 @@ struct WfPath {
 // Per step k: the workgroups of its indirect dispatch, 1, 1, and the
 // number of queued paths (filled by step k - 1, cleared by the host).
 // Its last four words, which the host clears with the frame's sums only,
-// count the paths ended at MAX_MEDIUM_EVENTS (`wf_capped`) in the first.
+// count the paths ended at MAX_MEDIUM_EVENTS (`wf_end`) in the first.
 @group(1) @binding(2) var<storage, read_write> wf_ctl: array<atomic<u32>>;
 
 fn wf_store(slot: u32, pixel: u32) {
