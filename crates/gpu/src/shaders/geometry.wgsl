@@ -721,6 +721,19 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     let live = select(cand_count, countOneBits(mask), masked);
     var a = -tv;
     var guard = 0u;
+    // The support whose root ended the last segment (NO_NODE: none). Its
+    // roots are recomputed about the new start `oa`, where that root lies
+    // within rounding of `a` on either side: the rounding of `Q(oa)`, a
+    // difference of terms as large as `oa`'s distance from the support's
+    // centre squared, over the slope. At 50-180 units from the frame's
+    // zero that is a few 1e-5 and outgrew the `eps` below: the root came
+    // back just beyond it, every segment a few ulps long and inactive,
+    // until the guard ended the walk with no hit (lavapipe: 1-8 of 400
+    // rays from outside missed a bump's blob whose base lay 40-100 units
+    // off, 3 of 2000 a bumpy plane 400 units wide; conformance.rs
+    // `walks_step_past_the_support_they_enter`).
+    // That root of that support is the one nearer `a`, and is skipped.
+    var last = NO_NODE;
     // The sign of F' at the end of the last segment (0 before the first):
     // a segment that starts on the other side of zero had a crossing at
     // its breakpoint that rounding hid from both (a support ending where
@@ -752,6 +765,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         if (0.0 > a + eps && 0.0 < b) {
             b = 0.0;
         }
+        var b_pi = NO_NODE;
         var walk = vec2<u32>(cand_mask, 0u);
         loop {
             let pi = next_candidate(&walk);
@@ -759,11 +773,15 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
                 break;
             }
             let r = a + roots(q_along(perturbations[pi].q, oa, d));
-            if (r.x > a + eps && r.x < b) {
+            let near_x = pi == last && abs(r.x - a) <= abs(r.y - a);
+            let near_y = pi == last && !near_x;
+            if (!near_x && r.x > a + eps && r.x < b) {
                 b = r.x;
+                b_pi = pi;
             }
-            if (r.y > a + eps && r.y < b) {
+            if (!near_y && r.y > a + eps && r.y < b) {
                 b = r.y;
+                b_pi = pi;
             }
         }
         let l = b - a;
@@ -836,6 +854,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         before = sign(p[6]);
         oa += l * d;
         a = b;
+        last = b_pi;
     }
     // The ray's point at `u = 0` (so that `a` is not kept with `oa`).
     let ov = oa - a * d;
