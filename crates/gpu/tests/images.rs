@@ -1994,30 +1994,14 @@ fn paths_ended_at_the_cap_of_medium_events_are_counted() {
         eprintln!("skipped: {} ends long walks early", gpu.driver);
         return;
     }
+    // Shared with the CLI's test of the warning (cli.rs), `sigma_s`
+    // replaced.
+    let text = common::test_scene_text("medium-too-thick.toml");
+    assert!(text.contains("sigma_s = [1e4, 1e4, 1e4]"));
     let scene = |sigma: f64| {
-        let src = format!(
-            r#"
-[camera]
-position = [0.0, 0.0, 0.0]
-look_at = [0.0, 0.0, -10.0]
-[film]
-width = 2
-height = 2
-spp = 1
-[environment]
-type = "constant"
-radiance = [1.0, 1.0, 1.0]
-[[material]]
-name = "thick"
-type = "subsurface"
-sigma_s = [{sigma}, {sigma}, {sigma}]
-sigma_a = [0.0, 0.0, 0.0]
-ior = 1.0
-mode = "random_walk"
-[[object]]
-material = "thick"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
-"#
+        let src = text.replace(
+            "sigma_s = [1e4, 1e4, 1e4]",
+            &format!("sigma_s = [{sigma:e}, {sigma:e}, {sigma:e}]"),
         );
         isolux_scene::parse_str(&src, Path::new("thick.toml"), Path::new(".")).unwrap()
     };

@@ -661,27 +661,28 @@ fn a_light_outside_the_cameras_medium_is_warned_about() {
 #[test]
 fn paths_ended_in_a_medium_too_thick_for_the_walk_are_warned_about() {
     let dir = tempfile::tempdir().unwrap();
+    // examples/tests/medium-too-thick.toml (shared with the GPU's
+    // `paths_ended_at_the_cap_of_medium_events_are_counted`), its
+    // `sigma_s` and the camera's z replaced.
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/tests/medium-too-thick.toml"
+    ))
+    .unwrap();
+    assert!(
+        text.contains("sigma_s = [1e4, 1e4, 1e4]") && text.contains("position = [0.0, 0.0, 0.0]")
+    );
     let scene = |sigma: f64, camera_z: f64| {
-        format!(
-            r#"
-[camera]
-position = [0.0, 0.0, {camera_z}]
-look_at = [0.0, 0.0, -10.0]
-[environment]
-type = "constant"
-radiance = [1.0, 1.0, 1.0]
-[[material]]
-name = "thick"
-type = "subsurface"
-sigma_s = [{sigma}, {sigma}, {sigma}]
-sigma_a = [0.0, 0.0, 0.0]
-ior = 1.0
-mode = "random_walk"
-[[object]]
-material = "thick"
-base = {{ type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }}
-"#
-        )
+        let src = text
+            .replace(
+                "sigma_s = [1e4, 1e4, 1e4]",
+                &format!("sigma_s = [{sigma:e}, {sigma:e}, {sigma:e}]"),
+            )
+            .replace(
+                "position = [0.0, 0.0, 0.0]",
+                &format!("position = [0.0, 0.0, {camera_z:?}]"),
+            );
+        src
     };
     for (sigma, camera_z, warned) in [(1e4, 0.0, true), (1e2, 0.0, false), (1e4, 5.0, false)] {
         let path = write_scene(dir.path(), &scene(sigma, camera_z));
