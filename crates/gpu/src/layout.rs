@@ -30,14 +30,26 @@ impl GpuQuadric {
     }
 }
 
-/// One perturbation `factor * Q^3 [Q >= 0]`.
-/// WGSL: `struct Perturbation { q: Quadric, factor: vec4<f32> }` (`factor.x`).
+/// One perturbation `factor * Q^3 [Q >= 0]`, its quadric written about
+/// its anchor: a point of its object's frame where it acts, the centre of
+/// its support's box within the object's (f32-exact; the frame's zero
+/// when the support misses the box). The kernels evaluate `Q` at `x -
+/// anchor` for a point `x` of the object's frame (`pert_local`), so that
+/// its terms are as small as the support, wherever the object's frame
+/// lies. About the object's frame, a support of radius 1 on a base
+/// sphere of radius 100 (a planet's bumps, the frame at its centre)
+/// carried a constant term near 1e4: its f32 rounding in the buffer, and
+/// that of every evaluation, moved the bumps' surfaces by 1e-4 to 1e-2,
+/// beyond the rays' spawn offset (`conformance.rs`,
+/// `small_bumps_far_from_their_frame_are_hit_precisely`).
+/// WGSL: `struct Perturbation { q: Quadric, factor: vec4<f32> }`
+/// (`factor.x`; the anchor `factor.yzw`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuPerturbation {
-    /// Its quadric.
+    /// Its quadric, about the anchor.
     pub q: GpuQuadric,
-    /// `[factor, 0, 0, 0]`.
+    /// `[factor, anchor.x, anchor.y, anchor.z]`.
     pub factor: [f32; 4],
 }
 
@@ -69,6 +81,11 @@ pub struct GpuObject {
     /// The object's frame: its origin in the GPU's coordinates (`w`
     /// unused).
     pub origin: [f32; 4],
+    /// The base quadric's anchor in the object's frame (`w` unused): the
+    /// base is written about it, and evaluated at `x - anchor` for a point
+    /// `x` of the frame (`base_local`), as each perturbation about its own
+    /// ([`GpuPerturbation`]).
+    pub anchor: [f32; 4],
 }
 
 /// `GpuObject.range.w` of an object without perturbations.
@@ -166,35 +183,50 @@ fn round_up(v: f64) -> f32 {
 }
 
 /// The origin of an object's frame (`GpuObject::origin`), from the GPU's
-/// origin `at`: the point the CPU object's quadrics are written about
-/// (`Object::origin`: its base's centre or point, or its box's centre when
-/// that lies farther away than its size), rounded to f32 (the kernels
-/// subtract that f32 value, so the quadrics are moved by exactly the
-/// rounding), or the GPU's origin itself for an unbounded object. Not the
-/// box's centre: a box stretched by a bump's support far from the base
-/// (a support 1e4 units away, which creates no surface there, still
-/// widens the box) would put the base's quadric about a point 5000 units
-/// away, where f32 loses a sphere of radius 0.55 to rounding
-/// (`conformance.rs`, `a_far_support_keeps_the_base_precise`).
+/// origin `at` (the camera, for a frame): the point of the object's box
+/// nearest it, rounded to f32 (the kernels subtract that f32 value, so the
+/// quadrics are moved by exactly the rounding), or the GPU's origin itself
+/// for an unbounded object. The kernels walk each ray in this frame, so
+/// that its points near where rays from the camera meet the object are
+/// held to f32's precision at the object's distance from the camera; each
+/// quadric is written about its own anchor ([`anchor_in`]), near where it
+/// acts, so that the frame does not need to lie near it.
 ///
-/// Where the base is an ellipsoid, its own centre instead (in f64, from
-/// the CPU's coefficients, which hold it to f64's precision): the CPU
-/// keeps an object's frame at the point it was given when its box lies
-/// within the box's size of that point (`Object::in_frame`), which for a
-/// thin object is not close enough for f32. A disc 2e-4 thick at 0.3 from
-/// its frame's zero has a constant term of 9e6 in its quadric, whose f32
-/// rounding (0.5) is half the term that makes the disc (`conformance.rs`,
-/// `thin_discs_are_bounded_and_hit`: 64% of rays hit it, 14% within a
-/// tenth of its thickness; about its centre, all of them).
+/// Before 2026-12-06 the frame was the point the CPU object's quadrics
+/// are written about (`Object::origin`), or an ellipsoid base's centre,
+/// and every quadric was written about it. A perturbation far from that
+/// point carried a constant term of its distance squared, whose f32
+/// rounding (in the buffer, and in every evaluation) moved its surface by
+/// the distance squared times 2^-24 over its slope: small bumps on a
+/// sphere of radius 100 (a planet, its frame at its centre) were hit 1e-4
+/// to 1e-2 units off, beyond the rays' spawn offset; a bump's blob around
+/// the camera on a base 3000 units away, 0.03 units off, and rendered
+/// twice as bright (`conformance.rs`, `bumps_far_from_their_frame_are_hit_precisely`,
+/// `far_bases_are_hit_in_f32`). With each quadric about its anchor, a
+/// base sphere of radius 1000 still lost 6e-5 units to its points' rounding
+/// about its centre; about the point nearest the camera, 2e-7.
 fn object_origin(o: &Object, at: DVec3) -> DVec3 {
-    if !o.bbox().is_finite() {
+    let b = o.bbox().translated(-at);
+    if !b.is_finite() {
         return DVec3::ZERO;
     }
-    let anchor = match o.base().positive_bounds() {
-        Some(b) if !b.is_empty() && b.is_finite() => o.origin() + b.center(),
-        _ => o.origin(),
-    };
-    f32_exact(anchor - at)
+    f32_exact(DVec3::ZERO.clamp(b.min, b.max))
+}
+
+/// The anchor of a quadric acting on the box `b` of its object's frame
+/// (the base's positive region, or a perturbation's support, clipped to
+/// the object's box): the point of `b` nearest the frame's zero, rounded
+/// to f32; the zero itself for an empty or unbounded box. About it the
+/// quadric's terms are as small as its region where it acts: a thin disc's
+/// (`thin_discs_are_bounded_and_hit`: a disc 2e-4 thick written about a
+/// point 0.3 off it has a constant term of 9e6, whose f32 rounding is half
+/// the term that makes the disc), a small sphere's far from the frame
+/// (`a_far_support_keeps_the_base_precise`), a bump's on a large base.
+fn anchor_in(b: &Aabb) -> DVec3 {
+    if b.is_empty() || !b.is_finite() {
+        return DVec3::ZERO;
+    }
+    f32_exact(DVec3::ZERO.clamp(b.min, b.max))
 }
 
 /// `v` rounded to f32, back in f64: a point the kernels hold exactly.
@@ -297,11 +329,17 @@ impl GpuScene {
                     quadric: local(&p.quadric),
                     factor: p.factor,
                 };
-                s.perturbations.push(GpuPerturbation {
-                    q: GpuQuadric::new(&p.quadric),
-                    factor: [p.factor as f32, 0.0, 0.0, 0.0],
-                });
                 let b = support_box(&p, &bbox);
+                let anchor = anchor_in(&b);
+                s.perturbations.push(GpuPerturbation {
+                    q: GpuQuadric::new(&p.quadric.translated(-anchor)),
+                    factor: [
+                        p.factor as f32,
+                        anchor.x as f32,
+                        anchor.y as f32,
+                        anchor.z as f32,
+                    ],
+                });
                 if !b.is_empty() {
                     live.push(first + i as u32);
                     pboxes.push(uploaded_box(&b));
@@ -313,12 +351,18 @@ impl GpuScene {
                 push_bvh(&mut s.nodes, &pboxes, |k| live[k as usize])
             };
             let (bmin, bmax) = clamp_box(&bbox);
+            let base = local(o.base());
+            let base_box = base
+                .positive_bounds()
+                .map_or(bbox, |pb| pb.intersection(&bbox));
+            let anchor = anchor_in(&base_box);
             s.objects.push(GpuObject {
-                base: GpuQuadric::new(&local(o.base())),
+                base: GpuQuadric::new(&base.translated(-anchor)),
                 bmin,
                 bmax,
                 range: [first, o.perturbations().len() as u32, mi as u32, root],
                 origin: [origin.x as f32, origin.y as f32, origin.z as f32, 0.0],
+                anchor: [anchor.x as f32, anchor.y as f32, anchor.z as f32, 0.0],
             });
         }
         s
@@ -1496,7 +1540,7 @@ mod tests {
         // Object: Quadric + 4 vec4 = 112; Ray: 2 vec4 = 32; hit: vec4 = 16.
         assert_eq!(std::mem::size_of::<GpuQuadric>(), 48);
         assert_eq!(std::mem::size_of::<GpuPerturbation>(), 64);
-        assert_eq!(std::mem::size_of::<GpuObject>(), 112);
+        assert_eq!(std::mem::size_of::<GpuObject>(), 128);
         assert_eq!(std::mem::size_of::<GpuBvhNode>(), 48);
         assert_eq!(std::mem::size_of::<GpuRay>(), 32);
         assert_eq!(std::mem::size_of::<GpuHit>(), 16);

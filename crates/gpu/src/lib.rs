@@ -43,8 +43,7 @@ pub use render::{
     refracted_media, replace_unsupported, scene_features, thin_object_warning,
     unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio, BumpCondition,
     DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT,
-    F32_FAR_BASE_LIMIT, F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS,
-    WF_TILE_MAX,
+    F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;

@@ -811,82 +811,14 @@ pub fn f32_ill_conditioned(scene: &Scene) -> Option<String> {
         peak,
         base,
     } = worst_bump_condition(scene)?;
-    if ratio > F32_CONDITION_LIMIT {
-        return Some(format!(
+    (ratio > F32_CONDITION_LIMIT).then(|| {
+        format!(
             "object[{object}]: perturbation {perturbation} adds f Q^3 up to {peak:.3e} inside \
              the object, {ratio:.2e} times its base quadric's largest |F| there ({base:.3e}); \
              the f32 intersection loses such surfaces beyond {F32_CONDITION_LIMIT:e} times \
              (docs/gpu.md, \"Precision\")"
-        ));
-    }
-    let (object, far) = scene
-        .geometry
-        .objects()
-        .iter()
-        .map(far_base_ratio)
-        .enumerate()
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
-    (far > F32_FAR_BASE_LIMIT).then(|| {
-        format!(
-            "object[{object}]: its base quadric's largest |F| where a perturbation acts is \
-             {far:.1} times its largest gradient there times the region's size (a base far \
-             from the surface its perturbations make); the f32 intersection misplaces such \
-             surfaces beyond {F32_FAR_BASE_LIMIT} times (docs/gpu.md, \"Precision\")"
         )
     })
-}
-
-/// Above this ratio (`far_base_ratio`: the base quadric's largest `|F|` where
-/// a perturbation acts over its largest `|grad F|` there times that
-/// region's size) the f32 intersection is not trusted: an
-/// object whose surface its perturbations make far from its base (a bump
-/// of radius 50 around the camera on a sphere of radius 0.6 moved 3000
-/// units away, `gpu-diff-fuzz.py --seed 34`), where `F` is a large
-/// near-constant that the bump's `f Q^3` cancels at the surface. Measured
-/// on lavapipe against the CPU (the conformance test
-/// `far_bases_are_named_and_hit_in_f64`: a support of radius 50 or 20
-/// within `bounds` of 120 units, 400 rays), the share of rays off by over
-/// 1e-5 of the box and the worst, by the base's distance (the ratio, for
-/// the support of radius 50): 300 units (1.8) none, 1.6e-6; 1000 (5.3)
-/// 8%, 1.5e-5; 3000 (15.3) 90%, 2.4e-4, whatever the bump's factor (3 to
-/// 3e5). A bump on its base's
-/// surface reads under 0.87 (a sphere's), a large support around a small
-/// base about 0.4, and no example scene reaches 1.
-pub const F32_FAR_BASE_LIMIT: f64 = 2.0;
-
-/// The largest, over an object's perturbations, of its base quadric's
-/// largest `|F|` where the perturbation acts (its support's box within the
-/// object's) over its largest `|grad F|` there times that region's longest
-/// side: under 1 where the base's surface passes near the bump, and
-/// growing with the base's distance from it where the surface is the
-/// bump's (`F` a large near-constant there); 0 for an object without
-/// perturbations or with an unbounded box.
-fn far_base_ratio(o: &isolux_geometry::Object) -> f64 {
-    let b = o.bbox();
-    if !b.is_finite() || b.is_empty() {
-        return 0.0;
-    }
-    let local = b.translated(-o.origin());
-    let q = o.base();
-    o.perturbations()
-        .iter()
-        .map(|p| {
-            let region = match p.quadric.positive_bounds() {
-                Some(s) => local.intersection(&s),
-                None => local,
-            };
-            if !region.is_finite() || region.is_empty() {
-                return 0.0;
-            }
-            let value = largest_abs(q, &region);
-            // |grad F| = 2 |m p + b| is convex in p: largest at a corner.
-            let grad = (0..8)
-                .map(|k| 2.0 * (q.m * region.corner(k) + q.b).length())
-                .fold(0.0, f64::max);
-            let size = (region.max - region.min).max_element();
-            value / (grad * size).max(f64::MIN_POSITIVE)
-        })
-        .fold(0.0, f64::max)
 }
 
 /// How close to its box, in units in the last place of f32 at the box's

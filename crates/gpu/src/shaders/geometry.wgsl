@@ -29,10 +29,15 @@
 // bindings.
 
 struct Quadric { c: array<vec4<f32>, 3> }
+// A perturbation's quadric is written about its anchor `factor.yzw`, a
+// point of its object's frame where it acts (layout.rs `GpuPerturbation`):
+// evaluate it at `pert_local(p, x)` for a point `x` of that frame.
 struct Perturbation { q: Quadric, factor: vec4<f32> }
 // An object's quadrics and box are in its own frame: world coordinates
 // less `origin` (layout.rs `GpuObject`).
-struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>, range: vec4<u32>, origin: vec4<f32> }
+// The base quadric is written about `anchor.xyz` (layout.rs `GpuObject`):
+// evaluate it at `base_local(obj, x)`.
+struct Object { base: Quadric, bmin: vec4<f32>, bmax: vec4<f32>, range: vec4<u32>, origin: vec4<f32>, anchor: vec4<f32> }
 struct Ray { o: vec4<f32>, d: vec4<f32> }
 // Depth-first BVH node (layout.rs `GpuBvhNode`): interior `link = (second
 // child, 0, _, _)`, the first child follows; leaf `link = (_, count,
@@ -106,6 +111,19 @@ fn next_candidate(c: ptr<function, vec2<u32>>) -> u32 {
         return cand_first + j;
     }
     return candidates[j];
+}
+
+// The point `x` of its object's frame in perturbation `p`'s own, about its
+// anchor: exact where `x` lies within a factor of two of the anchor
+// (Sterbenz), so the quadric's terms stay as small as its support.
+fn pert_local(p: Perturbation, x: vec3<real>) -> vec3<real> {
+    return x - vec3<real>(p.factor.yzw);
+}
+
+// The point `x` of an object's frame in its base quadric's own, about its
+// anchor.
+fn base_local(obj: Object, x: vec3<real>) -> vec3<real> {
+    return x - vec3<real>(obj.anchor.xyz);
 }
 
 // Coefficients [a11, a22, a33, a12, a13, a23, a14, a24, a34, a44].
@@ -517,7 +535,8 @@ fn clip_box(o: vec3<real>, d: vec3<real>, bmin: vec3<real>, bmax: vec3<real>, t0
 // Whether perturbation `pi` may be active on the ray's span: a Q_i(t)
 // with a negative leading coefficient is active only between its roots.
 fn keeps_support(pi: u32, o: vec3<real>, d: vec3<real>, span: vec2<real>, slack: real) -> bool {
-    let qa = q_along(perturbations[pi].q, o, d);
+    let pert = perturbations[pi];
+    let qa = q_along(pert.q, pert_local(pert, o), d);
     if (qa.x < 0.0) {
         let r = roots(qa);
         if (r.y >= NO_ROOT || r.y < span.x - slack || r.x > span.y + slack) {
@@ -550,10 +569,11 @@ fn bumps_at(x: vec3<real>) -> vec4<real> {
             break;
         }
         let pert = perturbations[pi];
-        let qv = q_eval(pert.q, x);
+        let xp = pert_local(pert, x);
+        let qv = q_eval(pert.q, xp);
         if (qv > 0.0) {
             let f = real(pert.factor.x);
-            sum += vec4<real>(f * qv * qv * qv, 3.0 * f * qv * qv * q_grad(pert.q, x));
+            sum += vec4<real>(f * qv * qv * qv, 3.0 * f * qv * qv * q_grad(pert.q, xp));
         }
     }
     return sum;
@@ -645,7 +665,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     // used, the wavefront's `trace_extend` 103 -> 96 VGPRs before
     // scheduling against a version that kept `tv` and the entry point:
     // 10 waves instead of 8.)
-    let entry_q = q_along(obj.base, o, d);
+    let entry_q = q_along(obj.base, base_local(obj, o), d);
     let tv_guess = -entry_q.y / (2.0 * entry_q.x);
     let q_vertex = entry_q.z + 0.5 * tv_guess * entry_q.y;
     // (A ray along which the base is linear, `A = 0`, has none.)
@@ -654,7 +674,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     let tv = select(0.0, tv_guess, far);
     var base = entry_q;
     if (far) {
-        base = q_along(obj.base, o + tv * d, d);
+        base = q_along(obj.base, base_local(obj, o + tv * d), d);
     }
     let origin = shift + tv;
     let u_end = span.y - tv;
@@ -772,7 +792,8 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
             if (pi == NO_NODE) {
                 break;
             }
-            let r = a + roots(q_along(perturbations[pi].q, oa, d));
+            let pert = perturbations[pi];
+            let r = a + roots(q_along(pert.q, pert_local(pert, oa), d));
             let near_x = pi == last && abs(r.x - a) <= abs(r.y - a);
             let near_y = pi == last && !near_x;
             if (!near_x && r.x > a + eps && r.x < b) {
@@ -795,7 +816,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
                 break;
             }
             let pert = perturbations[pi];
-            let qa = q_along(pert.q, oa, d);
+            let qa = q_along(pert.q, pert_local(pert, oa), d);
             if (qa.z + half * (qa.y + half * qa.x) <= 0.0) {
                 continue;
             }
@@ -879,9 +900,10 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     // warp whose threads all hit a base skips it).
     let x0 = ov + t_hit * d;
     let b0 = bumps_at(x0);
-    let g = q_grad(obj.base, x0) + b0.yzw;
+    let xb = base_local(obj, x0);
+    let g = q_grad(obj.base, xb) + b0.yzw;
     if (searched) {
-        let step = (q_eval(obj.base, x0) + b0.x) / dot(g, d);
+        let step = (q_eval(obj.base, xb) + b0.x) / dot(g, d);
         if (abs(step) <= 1e-3 * u_end) {
             t_hit -= step;
         }

@@ -19,14 +19,16 @@
 fn object_field(oi: u32, x_gpu: vec3<f32>) -> vec4<f32> {
     let obj = objects[oi];
     let x = vec3<real>(x_gpu - obj.origin.xyz);
-    var v = vec4<real>(q_eval(obj.base, x), q_grad(obj.base, x));
+    let xb = base_local(obj, x);
+    var v = vec4<real>(q_eval(obj.base, xb), q_grad(obj.base, xb));
     let first = obj.range.x;
     for (var k = first; k < first + obj.range.y; k++) {
         let pert = perturbations[k];
-        let qv = q_eval(pert.q, x);
+        let xp = pert_local(pert, x);
+        let qv = q_eval(pert.q, xp);
         if (qv > 0.0) {
             let f = real(pert.factor.x);
-            v += vec4<real>(f * qv * qv * qv, 3.0 * f * qv * qv * q_grad(pert.q, x));
+            v += vec4<real>(f * qv * qv * qv, 3.0 * f * qv * qv * q_grad(pert.q, xp));
         }
     }
     return vec4<f32>(v);
@@ -81,16 +83,17 @@ fn object_curvature(oi: u32, x_gpu: vec3<f32>, s: vec3<f32>, t: vec3<f32>) -> Cu
     let x = vec3<real>(x_gpu - obj.origin.xyz);
     let sr = vec3<real>(s);
     let tr = vec3<real>(t);
-    var g = q_grad(obj.base, x);
+    var g = q_grad(obj.base, base_local(obj, x));
     var hs = 2.0 * q_m(obj.base, sr);
     var ht = 2.0 * q_m(obj.base, tr);
     let first = obj.range.x;
     for (var k = first; k < first + obj.range.y; k++) {
         let pert = perturbations[k];
-        let qv = q_eval(pert.q, x);
+        let xp = pert_local(pert, x);
+        let qv = q_eval(pert.q, xp);
         if (qv > 0.0) {
             let f = real(pert.factor.x);
-            let gq = q_grad(pert.q, x);
+            let gq = q_grad(pert.q, xp);
             g += 3.0 * f * qv * qv * gq;
             hs += 6.0 * f * qv * (dot(gq, sr) * gq + qv * q_m(pert.q, sr));
             ht += 6.0 * f * qv * (dot(gq, tr) * gq + qv * q_m(pert.q, tr));
@@ -150,7 +153,7 @@ fn exit_bound(ob: Object, p: vec3<f32>, dir: vec3<f32>, t_max: f32) -> f32 {
     let lo = vec3<real>(p - ob.origin.xyz);
     let d = vec3<real>(dir);
     // Along the ray (A, B, C): C is the value at p.
-    let base = q_along(ob.base, lo, d);
+    let base = q_along(ob.base, base_local(ob, lo), d);
     if (!(base.z > 0.0)) {
         return 0.0;
     }
@@ -158,7 +161,7 @@ fn exit_bound(ob: Object, p: vec3<f32>, dir: vec3<f32>, t_max: f32) -> f32 {
     for (var k = ob.range.x; k < ob.range.x + ob.range.y; k++) {
         let pert = perturbations[k];
         if (pert.factor.x < 0.0) {
-            let dent = q_along(pert.q, lo, d);
+            let dent = q_along(pert.q, pert_local(pert, lo), d);
             if (!(dent.z <= 0.0)) {
                 return 0.0;
             }

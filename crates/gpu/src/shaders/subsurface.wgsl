@@ -252,12 +252,12 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
         if (ob.range.y != 0u || any(q[0] != vec4<f32>(0.0)) || q[1].x != 0.0 || q[1].y != 0.0) {
             return manifold_refraction(oi, id, p, light.position.xyz, n1, n2);
         }
-        // F = 2 b . x + c > 0 inside (x from the object's origin): outward
-        // normal -b (scene.rs `flat_boundary`).
+        // F = 2 b . x + c > 0 inside (x from the base's anchor, in the
+        // object's frame): outward normal -b (scene.rs `flat_boundary`).
         let b = vec3<f32>(q[1].z, q[1].w, q[2].x);
         let lb = length(b);
         let nrm = -b / lb;
-        plane = vec4<f32>(nrm, dot(nrm, ob.origin.xyz) + q[2].y / (2.0 * lb));
+        plane = vec4<f32>(nrm, dot(nrm, ob.origin.xyz + ob.anchor.xyz) + q[2].y / (2.0 * lb));
         boxed = oi + 1u;
     }
     let n = plane.xyz;
