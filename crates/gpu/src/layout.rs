@@ -31,9 +31,10 @@ impl GpuQuadric {
 }
 
 /// One perturbation `factor * Q^3 [Q >= 0]`, its quadric written about
-/// its anchor: a point of its object's frame where it acts, the centre of
-/// its support's box within the object's (f32-exact; the frame's zero
-/// when the support misses the box). The kernels evaluate `Q` at `x -
+/// its anchor: a point of its object's frame where it acts, the point of
+/// its support's box within the object's nearest the frame's zero
+/// (`anchor_in`; the zero itself when the support misses the box or is
+/// unbounded there). The kernels evaluate `Q` at `x -
 /// anchor` for a point `x` of the object's frame (`pert_local`), so that
 /// its terms are as small as the support, wherever the object's frame
 /// lies. About the object's frame, a support of radius 1 on a base
@@ -41,7 +42,7 @@ impl GpuQuadric {
 /// carried a constant term near 1e4: its f32 rounding in the buffer, and
 /// that of every evaluation, moved the bumps' surfaces by 1e-4 to 1e-2,
 /// beyond the rays' spawn offset (`conformance.rs`,
-/// `small_bumps_far_from_their_frame_are_hit_precisely`).
+/// `bumps_far_from_their_frame_are_hit_precisely`).
 /// WGSL: `struct Perturbation { q: Quadric, factor: vec4<f32> }`
 /// (`factor.x`; the anchor `factor.yzw`).
 #[repr(C)]
@@ -206,11 +207,7 @@ fn round_up(v: f64) -> f32 {
 /// base sphere of radius 1000 still lost 6e-5 units to its points' rounding
 /// about its centre; about the point nearest the camera, 2e-7.
 fn object_origin(o: &Object, at: DVec3) -> DVec3 {
-    let b = o.bbox().translated(-at);
-    if !b.is_finite() {
-        return DVec3::ZERO;
-    }
-    f32_exact(DVec3::ZERO.clamp(b.min, b.max))
+    anchor_in(&o.bbox().translated(-at))
 }
 
 /// The anchor of a quadric acting on the box `b` of its object's frame
@@ -1537,7 +1534,7 @@ mod tests {
     #[test]
     fn sizes_match_the_wgsl_declarations() {
         // Quadric: 3 vec4 = 48 bytes; Perturbation: Quadric + vec4 = 64;
-        // Object: Quadric + 4 vec4 = 112; Ray: 2 vec4 = 32; hit: vec4 = 16.
+        // Object: Quadric + 5 vec4 = 128; Ray: 2 vec4 = 32; hit: vec4 = 16.
         assert_eq!(std::mem::size_of::<GpuQuadric>(), 48);
         assert_eq!(std::mem::size_of::<GpuPerturbation>(), 64);
         assert_eq!(std::mem::size_of::<GpuObject>(), 128);

@@ -1551,7 +1551,7 @@ fn bumps_far_from_their_frame_are_hit_precisely() {
 /// it, a few 1e-5 there. Before the walk skipped that root
 /// (`geometry.wgsl`, `object_hit`'s `last`), a root just beyond the
 /// breakpoints' `eps` made every segment a few ulps long, until the walk's
-/// guard ended it with no hit: 1-5 of 200 rays from outside missed a
+/// guard ended it with no hit: 1-8 of 400 rays from outside missed a
 /// bump's blob whose base lay 40-100 units off (the base of radius 0.6 at
 /// `z`, inside or outside a support of radius 30 or 50 about the origin),
 /// whatever the bump's factor; and rays missed a bumpy plane 400 units

@@ -673,16 +673,14 @@ fn paths_ended_in_a_medium_too_thick_for_the_walk_are_warned_about() {
         text.contains("sigma_s = [1e4, 1e4, 1e4]") && text.contains("position = [0.0, 0.0, 0.0]")
     );
     let scene = |sigma: f64, camera_z: f64| {
-        let src = text
-            .replace(
-                "sigma_s = [1e4, 1e4, 1e4]",
-                &format!("sigma_s = [{sigma:e}, {sigma:e}, {sigma:e}]"),
-            )
-            .replace(
-                "position = [0.0, 0.0, 0.0]",
-                &format!("position = [0.0, 0.0, {camera_z:?}]"),
-            );
-        src
+        text.replace(
+            "sigma_s = [1e4, 1e4, 1e4]",
+            &format!("sigma_s = [{sigma:e}, {sigma:e}, {sigma:e}]"),
+        )
+        .replace(
+            "position = [0.0, 0.0, 0.0]",
+            &format!("position = [0.0, 0.0, {camera_z:?}]"),
+        )
     };
     for (sigma, camera_z, warned) in [(1e4, 0.0, true), (1e2, 0.0, false), (1e4, 5.0, false)] {
         let path = write_scene(dir.path(), &scene(sigma, camera_z));
