@@ -3,16 +3,24 @@
 use crate::beam::Beam;
 use crate::bvh::Bvh;
 use crate::object::{Hit, Object};
-use isolux_core::Ray;
+use isolux_core::{Aabb, Ray};
 
 /// All objects of a scene; bounded ones in a BVH, unbounded ones (an
 /// infinite plane) tested one by one.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Aggregate {
     objects: Vec<Object>,
     bvh: Bvh,
     bounded: Vec<u32>,
     unbounded: Vec<u32>,
+    /// [`Aggregate::length`].
+    length: f64,
+}
+
+impl Default for Aggregate {
+    fn default() -> Self {
+        Self::new(Vec::new())
+    }
 }
 
 /// The objects and perturbations a beam of rays may meet, from
@@ -39,7 +47,22 @@ impl Culled {
 
 impl Aggregate {
     /// Builds the aggregate.
-    pub fn new(objects: Vec<Object>) -> Self {
+    pub fn new(mut objects: Vec<Object>) -> Self {
+        // Unbounded objects take the length of the bounded ones
+        // (`Object::length`), so that a scene modelled in small units
+        // offsets rays off its planes at its own scale.
+        let mut all = Aabb::EMPTY;
+        for o in &objects {
+            if o.bbox().is_finite() {
+                all = all.union(&o.bbox());
+            }
+        }
+        let length = crate::object::length_of(&all);
+        for o in objects.iter_mut() {
+            if !o.bbox().is_finite() {
+                o.set_length(length);
+            }
+        }
         let mut boxes = Vec::new();
         let mut bounded = Vec::new();
         let mut unbounded = Vec::new();
@@ -53,10 +76,19 @@ impl Aggregate {
         }
         Self {
             bvh: Bvh::build(&boxes),
+            length,
             objects,
             bounded,
             unbounded,
         }
+    }
+
+    /// The length of the scene's bounded objects: the largest side of the
+    /// box that holds them all, at most 1 (1 where none is bounded;
+    /// [`crate::object::length_of`]). Each unbounded object takes it as its
+    /// [`Object::length`]; the GPU scales its spawn offset by it.
+    pub fn length(&self) -> f64 {
+        self.length
     }
 
     /// The objects, in scene order.
@@ -154,5 +186,53 @@ impl Aggregate {
             !found
         });
         found
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Quadric;
+    use isolux_core::DVec3;
+
+    /// A bounded object's length is its box's largest side, at most 1; an
+    /// unbounded one's, in an aggregate, the bounded objects' together (1
+    /// where there are none), and the hits' offsets scale with it.
+    #[test]
+    fn objects_take_their_own_length_and_unbounded_ones_the_scenes() {
+        let sphere = |c: DVec3, r: f64| Object::new(Quadric::sphere(c, r), vec![], None).unwrap();
+        let plane = || {
+            Object::new(
+                Quadric::plane(DVec3::new(0.0, -1e-3, 0.0), DVec3::Y),
+                vec![],
+                None,
+            )
+            .unwrap()
+        };
+        let near = |a: f64, b: f64| (a / b - 1.0).abs() < 1e-6;
+        assert!(near(sphere(DVec3::ZERO, 1e-3).length(), 2e-3));
+        assert_eq!(sphere(DVec3::ZERO, 10.0).length(), 1.0);
+        assert_eq!(plane().length(), 1.0);
+        assert_eq!(Aggregate::new(vec![plane()]).length(), 1.0);
+        assert_eq!(Aggregate::default().length(), 1.0);
+        let small = Aggregate::new(vec![
+            sphere(DVec3::ZERO, 1e-3),
+            sphere(DVec3::new(3e-3, 0.0, 0.0), 1e-3),
+            plane(),
+        ]);
+        assert!(near(small.length(), 5e-3), "{}", small.length());
+        let lengths: Vec<f64> = small.objects().iter().map(Object::length).collect();
+        assert!(near(lengths[0], 2e-3) && near(lengths[1], 2e-3));
+        assert!(near(lengths[2], 5e-3), "{lengths:?}");
+        // A ray down onto the plane: its offset is 1e-7 of the scene's
+        // length plus the point's, not 1e-7 of a unit.
+        let ray = Ray::new(DVec3::new(1e-2, 1e-3, 0.0), -DVec3::Y);
+        let (i, hit) = small.intersect(&ray, 0.0, f64::INFINITY).unwrap();
+        assert_eq!(i, 2);
+        assert!(
+            hit.offset > 0.0 && hit.offset < 1e-7 * 2e-2,
+            "{}",
+            hit.offset
+        );
     }
 }

@@ -74,15 +74,27 @@ pub struct Hit {
     /// Unit outward normal `-grad F' / |grad F'|`.
     pub n: DVec3,
     /// How far along `n` from `p` a ray leaving the surface starts
-    /// ([`Hit::spawn`]) so as not to meet it again at `t ~ 0`: `1e-7 (1 +
+    /// ([`Hit::spawn`]) so as not to meet it again at `t ~ 0`: `1e-7 (L +
     /// |p - origin|_inf) + 1e-14 |p|_inf`, with `origin` the object's
-    /// frame ([`Object::origin`]). The first term covers the exact
+    /// frame ([`Object::origin`]) and `L` its length ([`Object::length`]:
+    /// its size, at most 1; until 2026-12-06 always 1, which lost the
+    /// contact shadows of a scene modelled under about 1e-6 units across,
+    /// docs/geometry.md "Scene scale"). The first term covers the exact
     /// intersection's error in the object's frame (a relative 1e-7 holds
     /// even near-tangent crossings, whose roots are ill-conditioned); the
     /// second, about 45 units in the last place of `p`, the rounding of
     /// world coordinates, so the offset no longer grows with the distance
     /// from the world origin (docs/geometry.md, "Scene scale").
     pub offset: f64,
+}
+
+/// The length of a box for [`Object::length`]: its largest side, at most
+/// 1 (1 for an unbounded or empty box; at least 1e-300).
+pub fn length_of(b: &Aabb) -> f64 {
+    if b.is_empty() || !b.is_finite() {
+        return 1.0;
+    }
+    (b.max - b.min).max_element().clamp(1e-300, 1.0)
 }
 
 /// The part of the world point `at` along the directions in which a
@@ -119,12 +131,13 @@ fn invariant_part(q: &Quadric, at: DVec3) -> DVec3 {
 }
 
 impl Hit {
-    /// [`Hit::offset`] for a hit at `local` in its object's frame and at
-    /// `world` in world coordinates (also a bound for a region: its
-    /// largest coordinates in each).
+    /// [`Hit::offset`] for a hit at `local` in the frame of an object of
+    /// length `length` ([`Object::length`]) and at `world` in world
+    /// coordinates (also a bound for a region: its largest coordinates in
+    /// each).
     #[inline]
-    pub fn offset_at(local: DVec3, world: DVec3) -> f64 {
-        1e-7 * (1.0 + local.abs().max_element()) + 1e-14 * world.abs().max_element()
+    pub fn offset_at(local: DVec3, world: DVec3, length: f64) -> f64 {
+        1e-7 * (length + local.abs().max_element()) + 1e-14 * world.abs().max_element()
     }
 
     /// The origin of a ray leaving the hit along `w`: `p` moved
@@ -176,6 +189,8 @@ pub struct Object {
     along: Vec<Along>,
     bvh: Bvh,
     bbox: Aabb,
+    /// [`Object::length`].
+    length: f64,
     /// How the base quadric is restricted to a ray (a sphere, usually).
     base_along: Along,
     /// A ball holding the solid, when it is bounded: tighter than `bbox`
@@ -950,6 +965,7 @@ impl Object {
             spheres,
             along,
             bvh,
+            length: length_of(&bbox),
             bbox,
             base_along: Along::new(&base),
             ball,
@@ -975,6 +991,28 @@ impl Object {
         &self.perturbations
     }
 
+    /// The length that scales the spawn offset's first term
+    /// ([`Hit::offset`]): the largest side of the object's box, at most 1;
+    /// for an unbounded object, 1, or what [`Object::set_length`] gave it
+    /// ([`crate::Aggregate::new`]: the length of the scene's bounded
+    /// objects). An offset absolute below a unit made the surfaces of a
+    /// scene modelled in small units meet their own rays (or lose contact
+    /// shadows): the perturbed-sphere example scaled by 1e-8 rendered 11%
+    /// darker; it renders the same at any scale now.
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+
+    /// Sets [`Object::length`] (clamped to `[1e-300, 1]`; NaN is taken as
+    /// 1).
+    pub fn set_length(&mut self, length: f64) {
+        self.length = if length.is_nan() {
+            1.0
+        } else {
+            length.clamp(1e-300, 1.0)
+        };
+    }
+
     /// Box containing the surface (infinite for unbounded objects), in
     /// world coordinates.
     pub fn bbox(&self) -> Aabb {
@@ -995,7 +1033,7 @@ impl Object {
         let p = hit.p + self.origin;
         Hit {
             p,
-            offset: Hit::offset_at(hit.p, p),
+            offset: Hit::offset_at(hit.p, p, self.length),
             ..hit
         }
     }

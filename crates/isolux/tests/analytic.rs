@@ -1574,6 +1574,77 @@ fn a_scene_far_from_the_origin_renders_as_at_the_origin() {
     }
 }
 
+/// The test scene `examples/tests/NAME` with its lengths multiplied by
+/// `10^exponent`, and its lights' intensities by `10^(2 exponent)`: the
+/// file writes them, and nothing else, with the exponents `e+0` and `E+0`
+/// (`small-units.toml` says how).
+fn scaled_scene(name: &str, exponent: i32) -> Scene {
+    let file = format!("{}/../../examples/tests/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(file).unwrap();
+    assert!(text.matches("e+0").count() >= 4 && text.contains("E+0"));
+    let text = text.replace("E+0", &format!("e{}", 2 * exponent));
+    scene(&text.replace("e+0", &format!("e{exponent}")))
+}
+
+/// A scene renders the same in any unit: rays leave surfaces an offset
+/// scaled by the length of the object's box, at most 1 (`Hit::offset`,
+/// `Object::length`). Until 2026-12-06 its first term was `1e-7 (1 +
+/// ..)`, a tenth of a unit's millionth whatever the scene's size: this
+/// scene at 1e-8 differed from itself at 1 by 1.7 times the difference
+/// between two seeds (the perturbed-sphere example scaled by 1e-8
+/// rendered 11% darker), its contact shadows and the bump's shading lost;
+/// now by 0.05 of it at 1e-4 to 1e-12 (the rounding of the glass's paths
+/// sends a few of them another way).
+#[test]
+fn a_scene_in_small_units_renders_as_in_large_ones() {
+    let unit = render_with(&scaled_scene("small-units.toml", 0), 2);
+    let mut other = scaled_scene("small-units.toml", 0);
+    other.integrator.seed = 2;
+    let noise = mean_difference(&unit, &render_with(&other, 2));
+    assert!(noise > 0.0);
+    for exponent in [-4, -8, -12] {
+        let small = render_with(&scaled_scene("small-units.toml", exponent), 2);
+        let d = mean_difference(&unit, &small);
+        eprintln!(
+            "scaled 1e{exponent}: {:.4} of the seeds' difference",
+            d / noise
+        );
+        assert!(d <= 0.25 * noise, "scaled 1e{exponent}: {d} vs {noise}");
+    }
+}
+
+/// Light through glass to a point (`caustic`, `RefractedLights::Manifold`)
+/// renders the same in any unit: the marble's caustic at 1, 0.1 and 1e-6.
+/// Until 2026-12-06 the legs of a solved path were traced from the point
+/// spawned off the surface along the direction from the unspawned one,
+/// parallel to the leg and the spawn offset off it, so a grazing exit (the
+/// caustic's rim) was met that offset over the cosine from the solved
+/// crossing, beyond the check's tolerance: at 0.1, where the floor's
+/// offset is relatively eight times larger than at 1 (its length is
+/// capped at 1, `Object::length`), the rim lost 12% of its light: here
+/// 0.57 of the difference between two seeds at 1e-1, now 1e-4 of it.
+#[test]
+fn caustics_render_the_same_in_any_unit() {
+    let name = "marble-caustic.toml";
+    let mut unit = scaled_scene(name, 0);
+    unit.film.spp = 16;
+    let unit_image = render_with(&unit, 2);
+    let mut other = unit.clone();
+    other.integrator.seed = 2;
+    let noise = mean_difference(&unit_image, &render_with(&other, 2));
+    assert!(noise > 0.0);
+    for exponent in [-1, -6] {
+        let mut small = scaled_scene(name, exponent);
+        small.film.spp = 16;
+        let d = mean_difference(&unit_image, &render_with(&small, 2));
+        eprintln!(
+            "caustic at 1e{exponent}: {:.4} of the seeds' difference",
+            d / noise
+        );
+        assert!(d <= 0.25 * noise, "1e{exponent}: {d} vs {noise}");
+    }
+}
+
 /// An unbounded base (a plane, a cylinder) is the same surface written
 /// about any of its points along the directions that leave it unchanged,
 /// so it renders the same, bit for bit: `shallows.toml`'s water plane

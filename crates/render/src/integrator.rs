@@ -389,7 +389,7 @@ fn refraction(
         };
     }
     let c = p + s * along + h2 * n;
-    if !in_box(&b.bbox, c, 1e-9) {
+    if !in_box(&b.bbox, c, 1e-9, scene.geometry.objects()[obj].length()) {
         return None;
     }
     let (l1, l2) = (
@@ -466,7 +466,7 @@ fn manifold_refraction(
     // `bounds`): beyond it the solution crosses no boundary. (The seed,
     // clipped by the same box, refuses most such; a drop cut by a box
     // through its cap renders the same with and without this test.)
-    if !in_box(&o.bbox(), c.x, 1e-7) {
+    if !in_box(&o.bbox(), c.x, 1e-7, o.length()) {
         return None;
     }
     let t = 1.0 - isolux_materials::fresnel::dielectric(c.cos_out, n2 / n1);
@@ -543,17 +543,25 @@ fn caustic(
         [entry.p, exit.p],
     )?;
     let bbox = o.bbox();
-    if !chain.x.iter().all(|&x| in_box(&bbox, x, 1e-7)) {
+    let length = o.length();
+    if !chain.x.iter().all(|&x| in_box(&bbox, x, 1e-7, length)) {
         return None;
     }
-    // The first surface the ray from `from` along `dir` meets within
-    // `span` (and a little beyond) is the glass, at `to`: the hit there.
-    let reaches = |from: DVec3, dir: DVec3, span: f64, to: DVec3| {
+    // The first surface the ray from `from` toward `to` meets within
+    // their distance (and a little beyond) is the glass, at `to`: the hit
+    // there. The ray aims at `to` from the spawned point itself: along
+    // the direction from the unspawned one, it ran parallel to the leg,
+    // the spawn offset off it, and met a grazing crossing that offset
+    // over the cosine away, beyond the tolerance (the caustic's rim lost
+    // 12% of its light where the offset was 1e-6 rather than 1e-7).
+    let reaches = |from: DVec3, to: DVec3| {
+        let span = (to - from).length();
+        let dir = (to - from).try_normalize()?;
         let (first, at) =
             scene
                 .geometry
                 .intersect(&Ray::new(from, dir), 0.0, span * (1.0 + 1e-6))?;
-        (first == obj && (at.p - to).length() <= 1e-6 * (1.0 + span)).then_some(at)
+        (first == obj && (at.p - to).length() <= 1e-6 * (length + span)).then_some(at)
     };
     // The leg from the point to the exit crossing x[0], then the leg
     // inside, from x[0] to x[1].
@@ -561,13 +569,11 @@ fn caustic(
     let wi = (x[0] - hit.p).try_normalize()?;
     let from = hit.spawn(wi);
     let leg = (x[0] - from).length();
-    let at = reaches(from, wi, leg, x[0])?;
-    let inner = x[1] - x[0];
-    let span = inner.length();
-    let dir = inner / span;
-    reaches(at.spawn(dir), dir, span, x[1])?;
+    let at = reaches(from, x[0])?;
+    let dir = (x[1] - x[0]).try_normalize()?;
+    reaches(at.spawn(dir), x[1])?;
     // The leg from x[1] to the light.
-    let out = x[1] + chain.normal[1] * (1e-7 * (1.0 + x[1].abs().max_element()));
+    let out = x[1] + chain.normal[1] * (1e-7 * (length + x[1].abs().max_element()));
     let beyond = light_transmittance(scene, media, stack, out, light.position)?;
     let around = around.map_or(Rgb::WHITE, |m| transmittance(m.sigma_t(), leg));
     let eta = glass.ior / n_out;
@@ -581,9 +587,11 @@ fn caustic(
 }
 
 /// Whether a crossing point `c` lies in the box `b` that clips its
-/// boundary, the faces rounded outward by `rel (1 + |c|_max)`.
-fn in_box(b: &isolux_core::Aabb, c: DVec3, rel: f64) -> bool {
-    let tol = rel * (1.0 + c.abs().max_element());
+/// boundary, the faces rounded outward by `rel (length + |c|_max)`, with
+/// `length` its object's (`Object::length`, at most 1: so that the test
+/// holds in a scene of any unit, as the spawn offset, `Hit::offset`).
+fn in_box(b: &isolux_core::Aabb, c: DVec3, rel: f64, length: f64) -> bool {
+    let tol = rel * (length + c.abs().max_element());
     !(c.cmplt(b.min - tol) | c.cmpgt(b.max + tol)).any()
 }
 
@@ -604,20 +612,28 @@ fn refracted_irradiance(
     origin: DVec3,
 ) -> Option<Rgb> {
     let to_c = (r.c - origin).length();
+    // Tolerances in units of length scale with the boundary's own
+    // (`Object::length`, at most 1), as the spawn offset does.
+    let length = scene.geometry.objects()[r.obj].length();
+    // Aimed at the crossing from `origin` itself (not along `r.wi`, from
+    // the unspawned point: parallel to it, the spawn offset off it, the
+    // ray met a grazing boundary that offset over the cosine from `c`;
+    // as in `caustic`).
+    let dir = (r.c - origin).try_normalize().unwrap_or(r.wi);
     if let Some((obj, hit)) =
         scene
             .geometry
-            .intersect(&Ray::new(origin, r.wi), 0.0, to_c * (1.0 + 1e-6))
+            .intersect(&Ray::new(origin, dir), 0.0, to_c * (1.0 + 1e-6))
     {
         // Only the boundary, and there (not an earlier crossing of it).
-        if obj != r.obj || (hit.p - r.c).length() > 1e-6 * (1.0 + to_c) {
+        if obj != r.obj || (hit.p - r.c).length() > 1e-6 * (length + to_c) {
             return None;
         }
     }
     let inside = transmittance(object_medium(scene, r.obj)?.sigma_t(), r.inside);
     let mut after = *stack;
     after.cross(r.obj)?;
-    let out = r.c + r.normal * (1e-7 * (1.0 + r.c.abs().max_element()));
+    let out = r.c + r.normal * (1e-7 * (length + r.c.abs().max_element()));
     let beyond = light_transmittance(scene, media, &after, out, light.position)?;
     Some(light.intensity * inside * beyond * r.factor)
 }

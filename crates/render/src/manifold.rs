@@ -86,7 +86,7 @@ pub fn connect(obj: &Object, p: DVec3, light: DVec3, n_in: f64, n_out: f64) -> O
     let to_x = c.x - p;
     let lx = to_x.length();
     let first = obj.intersect(&Ray::new(p, to_x / lx), 0.0, lx * (1.0 + 1e-6))?;
-    ((first.p - c.x).length() <= 1e-6 * (1.0 + lx)).then_some(c)
+    ((first.p - c.x).length() <= 1e-6 * (obj.length() + lx)).then_some(c)
 }
 
 /// [`connect`] from `seed`, a point on the surface where the solve

@@ -463,7 +463,8 @@ impl Scene {
     }
 
     /// The CPU's ray offset off the surface of `o` ([`Hit::offset_at`]:
-    /// `1e-7 (1 + |p - origin|_inf) + 1e-14 |p|_inf`) at the
+    /// `1e-7 (L + |p - origin|_inf) + 1e-14 |p|_inf`, `L` its
+    /// [`Object::length`]) at the
     /// corner of its box farthest from its frame's origin, or, for an
     /// unbounded object, at the camera: the largest a bounded object's
     /// hits take.
@@ -474,10 +475,11 @@ impl Scene {
             Hit::offset_at(
                 (b.min - at).abs().max((b.max - at).abs()),
                 b.min.abs().max(b.max.abs()),
+                o.length(),
             )
         } else {
             let p = self.camera.position;
-            Hit::offset_at(p - o.origin(), p)
+            Hit::offset_at(p - o.origin(), p, o.length())
         }
     }
 
