@@ -79,8 +79,11 @@ pub struct GpuObject {
     pub bmax: [f32; 4],
     /// `[first perturbation, count, material index, hierarchy root]`.
     pub range: [u32; 4],
-    /// The object's frame: its origin in the GPU's coordinates (`w`
-    /// unused).
+    /// The object's frame: its origin in the GPU's coordinates; `w`, the
+    /// object's length (`isolux_geometry::Object::length`: its box's
+    /// largest side, at most 1; an unbounded object's, its scene's bounded
+    /// objects'), which scales the walk's tolerances in units of length
+    /// (geometry.wgsl `object_hit`), so that they hold in any unit.
     pub origin: [f32; 4],
     /// The base quadric's anchor in the object's frame (`w` unused): the
     /// base is written about it, and evaluated at `x - anchor` for a point
@@ -358,7 +361,12 @@ impl GpuScene {
                 bmin,
                 bmax,
                 range: [first, o.perturbations().len() as u32, mi as u32, root],
-                origin: [origin.x as f32, origin.y as f32, origin.z as f32, 0.0],
+                origin: [
+                    origin.x as f32,
+                    origin.y as f32,
+                    origin.z as f32,
+                    o.length().max(1e-30) as f32,
+                ],
                 anchor: [anchor.x as f32, anchor.y as f32, anchor.z as f32, 0.0],
             });
         }

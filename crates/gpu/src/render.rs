@@ -580,7 +580,7 @@ fn nums3(v: glam::DVec3) -> String {
 
 /// A warning for the thinnest object of `scene` whose box is thinner than
 /// `THIN_FACTOR` times the offset at which the GPU starts a ray leaving its
-/// surface ([`crate::SPAWN_OFFSET`] plus [`crate::SPAWN_OFFSET_WORLD`]
+/// surface ([`spawn_floor`] plus [`crate::SPAWN_OFFSET_WORLD`]
 /// times its distance from the GPU's origin), if there is one: a ray
 /// leaving one face of it can start beyond the other, so light through a
 /// thin glass or translucent sheet, and shadows right behind it, differ
@@ -592,6 +592,7 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
     /// How many offsets thick an object must be not to be warned about.
     const THIN_FACTOR: f64 = 4.0;
     let at = rebase_point(scene);
+    let floor = spawn_floor(scene);
     let mut worst: Option<(usize, f64, f64)> = None;
     for (i, o) in scene.geometry.objects().iter().enumerate() {
         let b = o.bbox();
@@ -599,7 +600,7 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
             continue;
         }
         let reach = box_reach(&b, at);
-        let offset = gpu_spawn_offset(reach);
+        let offset = gpu_spawn_offset(floor, reach);
         let thickness = (b.max - b.min).min_element();
         if thickness < THIN_FACTOR * offset && worst.is_none_or(|(_, t, _)| thickness < t) {
             worst = Some((i, thickness, offset));
@@ -616,25 +617,41 @@ pub fn thin_object_warning(scene: &Scene) -> Option<String> {
 }
 
 /// The GPU's ray offset off a surface at `reach` from its origin
-/// (`spawn_offset` in render.wgsl): [`crate::SPAWN_OFFSET`] +
+/// (`spawn_offset` in render.wgsl): `floor` ([`spawn_floor`]) +
 /// [`crate::SPAWN_OFFSET_WORLD`] `reach`.
-fn gpu_spawn_offset(reach: f64) -> f64 {
-    crate::SPAWN_OFFSET as f64 + crate::SPAWN_OFFSET_WORLD as f64 * reach
+fn gpu_spawn_offset(floor: f64, reach: f64) -> f64 {
+    floor + crate::SPAWN_OFFSET_WORLD as f64 * reach
+}
+
+/// The part of the GPU's spawn offset that does not grow with the
+/// distance from the camera, for `scene`: [`crate::SPAWN_OFFSET`] times
+/// the length of its bounded objects (`isolux_geometry::Aggregate::length`:
+/// the largest side of the box holding them, at most 1), in
+/// `GpuParams::origin.w`. A scene of unit size or larger keeps 1e-4; one
+/// 1e-5 across, 1e-9. Before 2026-12-06 it was 1e-4 in any scene, and the
+/// perturbed-sphere example scaled by 1e-4 (a sphere of radius 6e-5)
+/// rendered 1.4% brighter than on the CPU, by 1e-5 12% darker (docs/gpu.md,
+/// "Scenes in small units"). Unbounded objects do not count: the GPU
+/// walks them in a frame at the camera, where their rounding is the
+/// offset's second term, [`crate::SPAWN_OFFSET_WORLD`] times the distance.
+pub fn spawn_floor(scene: &Scene) -> f64 {
+    (crate::SPAWN_OFFSET as f64 * scene.geometry.length()).max(1e-30) as f32 as f64
 }
 
 /// The random-walk medium of `scene` whose shortest mean free path spans
 /// fewer than [`isolux_render::FINE_MEDIUM_OFFSETS`] of the GPU's ray
-/// offsets off its surface ([`crate::SPAWN_OFFSET`] +
+/// offsets off its surface ([`spawn_floor`] +
 /// [`crate::SPAWN_OFFSET_WORLD`] times its box's reach from the GPU's
 /// origin; an unbounded medium's at the camera), described for a
 /// warning ([`isolux_render::Scene::finest_medium`]). The GPU's offset,
-/// 1e-4 units at least, is some thousand times the CPU's on a scene of
-/// unit size, so a medium whose mean free path is under a millimetre in
+/// 1e-4 units on a scene of unit size or larger, is some thousand times
+/// the CPU's there, so a medium whose mean free path is under a millimetre in
 /// such a scene reaches it first: `lamplit-milk.toml` with its milk's
 /// `scale` at 1e4 (a mean free path of 5e-5 units) came out 2% darker
 /// than the CPU's image, at 1e5 8%.
 pub fn fine_medium_warning(scene: &Scene) -> Option<String> {
     let at = rebase_point(scene);
+    let floor = spawn_floor(scene);
     scene
         .finest_medium(|o| {
             let b = o.bbox();
@@ -643,7 +660,7 @@ pub fn fine_medium_warning(scene: &Scene) -> Option<String> {
             } else {
                 (scene.camera.position - at).abs().max_element()
             };
-            gpu_spawn_offset(reach)
+            gpu_spawn_offset(floor, reach)
         })
         .map(|f| f.describe(scene, "the GPU"))
 }
@@ -724,8 +741,9 @@ fn f32_overflow(scene: &Scene) -> Option<String> {
         if o.base().coefficients().into_iter().any(beyond) {
             return Some(format!(
                 "object[{i}]: its base quadric has a coefficient beyond the {F32_VALUE_LIMIT:e} \
-                 that the GPU's f32 arithmetic holds (about its own centre; a radius above \
-                 1e15): {fix}"
+                 that the GPU's f32 arithmetic holds (about its own centre: a radius above \
+                 1e15, or a `transform` whose `scale` under 1e-15 divides its terms by the \
+                 scale squared): {fix}"
             ));
         }
         for (k, q) in o.perturbations().iter().enumerate() {
@@ -1901,7 +1919,10 @@ impl Gpu {
         let grid_n = film.spp.div_ceil(grid_m);
         let seed = isolux_core::rng::mix64(scene.integrator.seed ^ 0x1502_7a1e);
         let params = GpuParams {
-            origin: v4(origin),
+            origin: {
+                let [x, y, z, _] = v4(origin);
+                [x, y, z, spawn_floor(scene) as f32]
+            },
             forward: v4(forward),
             right: v4(right),
             up: v4(up),

@@ -2118,6 +2118,65 @@ fn scenes_far_from_the_origin_render_as_at_the_origin() {
     }
 }
 
+/// The test scene `examples/tests/small-units.toml` with its lengths
+/// multiplied by `10^exponent`, and its light's intensity by `10^(2
+/// exponent)`: the file writes them, and nothing else, with the exponents
+/// `e+0` and `E+0` (its comment says how; isolux's analytic.rs renders it
+/// on the CPU alike).
+fn scaled_scene(exponent: i32) -> Scene {
+    let file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/tests/small-units.toml"
+    );
+    let text = std::fs::read_to_string(file).unwrap();
+    assert!(text.matches("e+0").count() >= 4 && text.contains("E+0"));
+    let text = text.replace("E+0", &format!("e{}", 2 * exponent));
+    let text = text.replace("e+0", &format!("e{exponent}"));
+    isolux_scene::parse_str(&text, Path::new(file), Path::new(".")).unwrap()
+}
+
+/// A scene renders the same on the GPU in any unit: the spawn offset's
+/// floor and the walk's tolerances scale with the length of the scene's
+/// bounded objects and of each object, at most 1 (`spawn_floor`,
+/// `GpuObject::origin.w`). Until 2026-12-06 they were absolute (1e-4
+/// units off a surface): the perturbed-sphere example scaled by 1e-4
+/// rendered 1.4% brighter than on the CPU, by 1e-5 12% darker; this
+/// scene at 1e-6 differed from the CPU's at 1 by 9.1 times the CPU's
+/// seed-to-seed noise (8 x 8 blocks), its mean 1.1% darker, and was
+/// warned about as thin. Now 1.25 times at 1e-3 and 1e-6, the means
+/// within 0.16% (lavapipe).
+#[test]
+fn scenes_in_small_units_render_as_in_large_ones() {
+    for exponent in [-3, -6] {
+        let scene = scaled_scene(exponent);
+        assert_eq!(isolux_gpu::thin_object_warning(&scene), None);
+        let floor = isolux_gpu::spawn_floor(&scene);
+        assert!(floor < 1e-4 * 10f64.powi(exponent + 1), "{floor}");
+    }
+    assert_eq!(
+        isolux_gpu::spawn_floor(&scaled_scene(0)),
+        isolux_gpu::SPAWN_OFFSET as f64
+    );
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    for exponent in [-3, -6] {
+        let mut unit = scaled_scene(0);
+        let (diff, noise, mg, mc) = common::compare_with_cpu(
+            &mut unit,
+            |s| {
+                let mut small = scaled_scene(exponent);
+                small.integrator.seed = s.integrator.seed;
+                gpu_image(&gpu, &small)
+            },
+            cpu_image,
+            &format!("1e{exponent} (GPU) against 1 (CPU)"),
+        );
+        assert!(diff <= 1.5 * noise, "1e{exponent}: {diff} vs noise {noise}");
+        assert!((mg - mc).abs() <= 0.02 * mc, "1e{exponent}: {mg} vs {mc}");
+    }
+}
+
 /// Every example scene runs with `--gpu`: none is refused for f32's
 /// resolution (their largest object ratios, from the GPU's origin, are
 /// printed; docs/gpu.md "Precision" quotes them), and none needs the f64

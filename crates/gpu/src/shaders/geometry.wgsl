@@ -691,7 +691,11 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     // object of the scene has more than MASK_CANDIDATES (32, the mask's
     // bits) perturbations: the list and its array are then dead code.
     let masked = !CANDIDATE_LIST || count <= MASK_CANDIDATES;
-    let slack = 1e-5 * max(1.0, max(abs(span.x), abs(span.y)));
+    // The tolerances here and in the walk below hold for an object of
+    // about a unit; `obj.origin.w` is its length, at most 1 (layout.rs
+    // `object_length`), so that they shrink with a smaller one.
+    let len = real(obj.origin.w);
+    let slack = 1e-5 * max(len, max(abs(span.x), abs(span.y)));
     if (obj.range.w != NO_NODE && count <= LINEAR_CULL) {
         // A few supports: the same test on each, no traversal.
         for (var k = 0u; k < count; k++) {
@@ -781,7 +785,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         // Next breakpoint: the nearest root of an active Q_i beyond a, or
         // the base's vertex, `u = 0` (where `tv` is 0, never beyond a).
         var b = u_end;
-        let eps = 1e-6 * max(1.0, abs(a));
+        let eps = 1e-6 * max(len, abs(a));
         if (0.0 > a + eps && 0.0 < b) {
             b = 0.0;
         }

@@ -32,7 +32,7 @@
 // module, and realtime.wgsl after them.
 
 struct Params {
-    origin: vec4<f32>,
+    origin: vec4<f32>,    // camera position, the spawn offset's floor (render.rs `spawn_floor`)
     forward: vec4<f32>,
     right: vec4<f32>,
     up: vec4<f32>,
@@ -145,10 +145,11 @@ fn occluded(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
 }
 
 // How far a ray leaving the surface at p starts off it (lib.rs
-// `SPAWN_OFFSET`).
+// `SPAWN_OFFSET`): `params.origin.w` is that constant times the length of
+// the scene's bounded objects, at most 1 (render.rs `spawn_floor`).
 fn spawn_offset(p: vec3<f32>) -> f32 {
     let a = abs(p);
-    return SPAWN_OFFSET + SPAWN_OFFSET_WORLD * max(a.x, max(a.y, a.z));
+    return params.origin.w + SPAWN_OFFSET_WORLD * max(a.x, max(a.y, a.z));
 }
 
 // The hit point moved off the surface along n to the side of w (f32: a

@@ -205,7 +205,7 @@ struct Refraction {
 // `in_box`).
 fn in_box(ob: Object, c: vec3<f32>) -> bool {
     let lc = c - ob.origin.xyz;
-    let tol = 1e-5 * (1.0 + max3(abs(lc)));
+    let tol = 1e-5 * (ob.origin.w + max3(abs(lc)));
     return !(any(lc < ob.bmin.xyz - tol) || any(lc > ob.bmax.xyz + tol));
 }
 
