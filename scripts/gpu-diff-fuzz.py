@@ -19,6 +19,7 @@ of fireflies), and lights and materials whose values overflow f32 (docs/gpu.md,
 usage: scripts/gpu-diff-fuzz.py [--seed N] [--rounds N] [--objects-only]
            [--realtime] [--spp N] [--keep DIR] [--isolux PATH] [--bounds]
            [--cpu-only [--structure]] [--timeout S] [--gpu-flag FLAG ...]
+           [--units]
 
 `--gpu-flag=--sorted` (or `--megakernel`, `--f64`) passes a flag to the
 GPU's renders only: the CPU against that kernel.
@@ -32,6 +33,14 @@ index out of its array. Where the two differ, the clamped render runs
 again: if it differs from itself, the driver's wavefront is not
 deterministic (Mesa 22.3's lavapipe with random-walk media), and both
 probes run again by the megakernel, whose images must then agree.
+
+`--units` rescales the whole scene instead, by a power of ten from 1e-6
+to 1e3 (every object under an outer `transform`'s scale, the camera,
+lights, `bounds` and `wave` mappings' centres moved with it, point lights'
+intensities times the scale squared, media's `scale` divided by it): the
+two back ends must agree in any unit. This found, on 2026-12-06, both
+back ends' tolerances in units of length that were absolute (docs/gpu.md,
+"Scenes in small units").
 
 `--cpu-only --structure` mutates the file's lines instead (deleted,
 duplicated, swapped, an array emptied, a number made a string): the
@@ -157,6 +166,62 @@ def restructure(rng, src):
     return "\n".join(lines), what
 
 
+ARRAY = re.compile(r"\[([^\[\]]*)\]")
+NUM = re.compile(r"-?\d+(\.\d+)?([eE][-+]?\d+)?")
+
+
+def times(text, f):
+    """`text` with every number in it multiplied by `f`."""
+    return NUM.sub(lambda m: repr(float(m.group(0)) * f), text)
+
+
+def rescale(src, s):
+    """Scene text `src` in units `1 / s` as large: its lengths times `s`
+    (objects under an outer `transform`'s scale), point lights'
+    intensities times `s^2`, media's `scale` (their coefficients per
+    unit) over `s`. The same scene to physics, where the media's
+    coefficients are given with a `scale`."""
+    out = []
+    blocks = re.split(r"(?m)^(?=\[)", src)
+    for block in blocks:
+        header = block.split("\n", 1)[0].strip()
+        lines = block.split("\n")
+        kind = re.search(r'(?m)^type\s*=\s*"([a-z_]+)"', block)
+        kind = kind.group(1) if kind else ""
+        has_transform = any(re.match(r"transform\s*=", l) for l in lines)
+        for i, line in enumerate(lines):
+            key = line.split("=", 1)[0].strip() if "=" in line else ""
+            if header == "[camera]" and key in ("position", "look_at"):
+                line = ARRAY.sub(lambda m: "[" + times(m.group(1), s) + "]", line, count=1)
+            elif header == "[[light]]" and key == "position":
+                line = ARRAY.sub(lambda m: "[" + times(m.group(1), s) + "]", line, count=1)
+            elif header == "[[light]]" and key == "intensity":
+                line = ARRAY.sub(lambda m: "[" + times(m.group(1), s * s) + "]", line, count=1)
+            elif header == "[[object]]" and key == "bounds":
+                line = ARRAY.sub(lambda m: "[" + times(m.group(1), s) + "]", line)
+            elif header == "[[object]]" and key == "transform":
+                # M = T R S: s M = (s T) R (s S) for a uniform s.
+                body = line.split("=", 1)[1]
+                body = re.sub(r"translate\s*=\s*\[([^\]]*)\]",
+                              lambda m: "translate = [" + times(m.group(1), s) + "]", body)
+                if re.search(r"scale\s*=", body):
+                    body = re.sub(r"scale\s*=\s*(\[[^\]]*\]|[-0-9.eE+]+)",
+                                  lambda m: "scale = " + times(m.group(1), s), body)
+                else:
+                    body = body.replace("{", "{ scale = %r," % s, 1)
+                line = "transform =" + body
+            elif header == "[[material]]" and kind.startswith("subsurface") and key == "scale":
+                line = re.sub(r"=\s*[-0-9.eE+]+", lambda m: "= %r" % (float(m.group(0)[1:]) / s),
+                              line, count=1)
+            elif header == "[[material]]" and kind == "wave" and key == "center":
+                line = ARRAY.sub(lambda m: "[" + times(m.group(1), s) + "]", line, count=1)
+            lines[i] = line
+        if header == "[[object]]" and not has_transform:
+            lines.insert(1, "transform = { scale = %r }" % s)
+        out.append("\n".join(lines))
+    return "".join(out)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seed", type=int, default=1)
@@ -174,6 +239,8 @@ def main():
     p.add_argument("--structure", action="store_true",
                    help="with --cpu-only: delete, duplicate or swap lines instead of numbers")
     p.add_argument("--timeout", type=float, default=300.0, help="seconds per render")
+    p.add_argument("--units", action="store_true",
+                   help="rescale the whole scene by a power of ten instead of changing numbers")
     p.add_argument("--bounds", action="store_true",
                    help="render on the GPU with indices out of bounds clamped and read as "
                         "zero; flag images that differ (a read out of bounds)")
@@ -209,7 +276,11 @@ def main():
             if not found:
                 continue
             what = []
-            if args.structure:
+            if args.units:
+                e = rng.choice([-6, -5, -4, -3, -2, -1, 1, 2, 3])
+                src = rescale(src, 10.0 ** e)
+                what = [f"units x1e{e}"]
+            elif args.structure:
                 src, what = restructure(rng, src)
             else:
                 for m in sorted(rng.sample(found, min(len(found), rng.randint(1, 3))),
