@@ -48,21 +48,6 @@ impl Culled {
 impl Aggregate {
     /// Builds the aggregate.
     pub fn new(mut objects: Vec<Object>) -> Self {
-        // Unbounded objects take the length of the bounded ones
-        // (`Object::length`), so that a scene modelled in small units
-        // offsets rays off its planes at its own scale.
-        let mut all = Aabb::EMPTY;
-        for o in &objects {
-            if o.bbox().is_finite() {
-                all = all.union(&o.bbox());
-            }
-        }
-        let length = crate::object::length_of(&all);
-        for o in objects.iter_mut() {
-            if !o.bbox().is_finite() {
-                o.set_length(length);
-            }
-        }
         let mut boxes = Vec::new();
         let mut bounded = Vec::new();
         let mut unbounded = Vec::new();
@@ -73,6 +58,14 @@ impl Aggregate {
             } else {
                 unbounded.push(i as u32);
             }
+        }
+        // Unbounded objects take the length of the bounded ones
+        // (`Object::length`), so that a scene modelled in small units
+        // offsets rays off its planes at its own scale.
+        let all = boxes.iter().fold(Aabb::EMPTY, |all, b| all.union(b));
+        let length = crate::object::length_of(&all);
+        for &i in &unbounded {
+            objects[i as usize].set_length(length);
         }
         Self {
             bvh: Bvh::build(&boxes),

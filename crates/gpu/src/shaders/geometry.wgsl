@@ -693,7 +693,8 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     let masked = !CANDIDATE_LIST || count <= MASK_CANDIDATES;
     // The tolerances here and in the walk below hold for an object of
     // about a unit; `obj.origin.w` is its length, at most 1 (layout.rs
-    // `object_length`), so that they shrink with a smaller one.
+    // `GpuObject::origin`, from `Object::length`), so that they shrink
+    // with a smaller one.
     let len = real(obj.origin.w);
     let slack = 1e-5 * max(len, max(abs(span.x), abs(span.y)));
     if (obj.range.w != NO_NODE && count <= LINEAR_CULL) {
