@@ -83,7 +83,9 @@ pub struct GpuObject {
     /// object's length (`isolux_geometry::Object::length`: its box's
     /// largest side, at most 1; an unbounded object's, its scene's bounded
     /// objects'), which scales the walk's tolerances in units of length
-    /// (geometry.wgsl `object_hit`), so that they hold in any unit.
+    /// (geometry.wgsl `object_hit`) and the offset of rays leaving its
+    /// surface (render.wgsl `object_floor`), so that they hold in any
+    /// unit and beside objects of other sizes.
     pub origin: [f32; 4],
     /// The base quadric's anchor in the object's frame (`w` unused): the
     /// base is written about it, and evaluated at `x - anchor` for a point

@@ -39,10 +39,10 @@ mod render;
 pub use naga;
 pub use render::{
     f32_ill_conditioned, f32_plane_at_box_face, f32_shortfall, fine_medium_warning,
-    has_random_walk, medium_bits, mix_of_waves, nested_too_deep, padded_pixels, rebase_point,
-    refracted_media, replace_unsupported, scene_features, spawn_floor, thin_object_warning,
-    unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio, BumpCondition,
-    DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT,
+    has_random_walk, medium_bits, mix_of_waves, nested_too_deep, object_floor, padded_pixels,
+    rebase_point, refracted_media, replace_unsupported, scene_features, spawn_floor,
+    thin_object_warning, unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio,
+    BumpCondition, DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT,
     F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
@@ -67,10 +67,13 @@ pub const MIN_WIDTH: f32 = 1.0 / 4096.0;
 /// Cap on subdivision steps per segment.
 pub const MAX_SUBDIVISIONS: i32 = 4096;
 /// Rays leaving a surface start `SPAWN_OFFSET L + SPAWN_OFFSET_WORLD
-/// |p|_inf` off it along the normal, `L` the length of the scene's
-/// bounded objects, at most 1 (`isolux_geometry::Aggregate::length`;
-/// [`render::spawn_floor`], in `GpuParams::origin.w`, so that a scene
-/// renders the same in any unit; until 2026-12-06 `L` was 1). The CPU's
+/// |p|_inf` off it along the normal, `L` the length of the surface's
+/// object, its box's largest side at most 1, an unbounded object's that
+/// of the scene's bounded objects (`isolux_geometry::Object::length`;
+/// [`render::object_floor`], from `GpuObject::origin.w`), so that a scene
+/// renders the same in any unit and a small object beside a large one
+/// keeps its own offset (until 2026-12-06 `L` was 1, then for one day the
+/// scene's length). The CPU's
 /// f64 path uses `1e-7 (L + |p - origin|_inf) + 1e-14 |p|_inf` in its
 /// objects' frames (`isolux_geometry::Hit::offset`). The intersection works in each object's frame
 /// (`layout::GpuObject`), so a hit is good to about 1e-7 of its object's
@@ -142,6 +145,7 @@ pub fn prelude() -> String {
          const MASK_LIGHTS: u32 = {MASK_LIGHTS}u;\n\
          const LINEAR_CULL: u32 = {LINEAR_CULL}u;\n\
          const NO_NODE: u32 = {}u;\n\
+         const SPAWN_OFFSET: f32 = {SPAWN_OFFSET:e};\n\
          const SPAWN_OFFSET_WORLD: f32 = {SPAWN_OFFSET_WORLD:e};\n\
          const ENV_CONSTANT: u32 = {ENV_CONSTANT}u;\n\
          const ENV_MAP: u32 = {ENV_MAP}u;\n\

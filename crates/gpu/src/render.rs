@@ -580,7 +580,7 @@ fn nums3(v: glam::DVec3) -> String {
 
 /// A warning for the thinnest object of `scene` whose box is thinner than
 /// `THIN_FACTOR` times the offset at which the GPU starts a ray leaving its
-/// surface ([`spawn_floor`] plus [`crate::SPAWN_OFFSET_WORLD`]
+/// surface ([`object_floor`] plus [`crate::SPAWN_OFFSET_WORLD`]
 /// times its distance from the GPU's origin), if there is one: a ray
 /// leaving one face of it can start beyond the other, so light through a
 /// thin glass or translucent sheet, and shadows right behind it, differ
@@ -588,59 +588,105 @@ fn nums3(v: glam::DVec3) -> String {
 /// A warning, not a refusal: an opaque thin object seen from outside
 /// renders the same. (Found by `scripts/gpu-diff-fuzz.py`: a subsurface
 /// disc 2e-6 thick rendered dark on the GPU.)
+///
+/// An unbounded object (a plane without `bounds`) takes the scene's floor
+/// ([`spawn_floor`]), however small the objects beside it: rays leaving it
+/// start that far off it, and pass under an object thinner than that
+/// where it lies on the plane (its contact shadow, and the light between
+/// them). So an object is also warned about when its box is thinner than
+/// `THIN_FACTOR` such offsets of an unbounded object at its place, naming
+/// both and the cure (`bounds` on the plane gives it its own floor): the
+/// small-units test scene at 1e-4 beside a sphere 1 across, on an
+/// unbounded floor, differed from the CPU by 5.4 times the noise, and by
+/// 1.2 times with the floor bounded.
 pub fn thin_object_warning(scene: &Scene) -> Option<String> {
     /// How many offsets thick an object must be not to be warned about.
     const THIN_FACTOR: f64 = 4.0;
     let at = rebase_point(scene);
-    let floor = spawn_floor(scene);
-    let mut worst: Option<(usize, f64, f64)> = None;
-    for (i, o) in scene.geometry.objects().iter().enumerate() {
+    let objects = scene.geometry.objects();
+    let unbounded = objects.iter().position(|o| !o.bbox().is_finite());
+    // (object, thickness, offset, the unbounded object whose offset it is)
+    let mut worst: Option<(usize, f64, f64, Option<usize>)> = None;
+    for (i, o) in objects.iter().enumerate() {
         let b = o.bbox();
         if !b.is_finite() || b.is_empty() {
             continue;
         }
         let reach = box_reach(&b, at);
-        let offset = gpu_spawn_offset(floor, reach);
         let thickness = (b.max - b.min).min_element();
-        if thickness < THIN_FACTOR * offset && worst.is_none_or(|(_, t, _)| thickness < t) {
-            worst = Some((i, thickness, offset));
+        let own = gpu_spawn_offset(object_floor(o), reach);
+        let shared = unbounded.map(|u| (gpu_spawn_offset(object_floor(&objects[u]), reach), u));
+        let thin = if thickness < THIN_FACTOR * own {
+            Some((own, None))
+        } else {
+            shared
+                .filter(|&(s, _)| thickness < THIN_FACTOR * s)
+                .map(|(s, u)| (s, Some(u)))
+        };
+        if let Some((offset, by)) = thin {
+            if worst.is_none_or(|(_, t, ..)| thickness < t) {
+                worst = Some((i, thickness, offset, by));
+            }
         }
     }
-    worst.map(|(i, thickness, offset)| {
-        format!(
+    worst.map(|(i, thickness, offset, by)| match by {
+        None => format!(
             "object[{i}]'s box is {thickness:.2e} units thick, under {THIN_FACTOR} times the \
              {offset:.2e} units at which the GPU starts rays off a surface: light through it \
              and shadows right behind it can differ from the CPU's image (docs/gpu.md, \
              \"Precision\"); render without --gpu where they matter"
-        )
+        ),
+        Some(u) => format!(
+            "object[{i}]'s box is {thickness:.2e} units thick, under {THIN_FACTOR} times the \
+             {offset:.2e} units at which the GPU starts rays off the unbounded object[{u}], \
+             whose offset is the scene's: where object[{i}] lies on it, its contact shadow \
+             can differ from the CPU's image (docs/gpu.md, \"Thin objects\"); give \
+             object[{u}] `bounds` (its own offset is then its box's), or render without --gpu"
+        ),
     })
 }
 
 /// The GPU's ray offset off a surface at `reach` from its origin
-/// (`spawn_offset` in render.wgsl): `floor` ([`spawn_floor`]) +
+/// (`spawn_offset_at` in render.wgsl): `floor` ([`object_floor`]) +
 /// [`crate::SPAWN_OFFSET_WORLD`] `reach`.
 fn gpu_spawn_offset(floor: f64, reach: f64) -> f64 {
     floor + crate::SPAWN_OFFSET_WORLD as f64 * reach
 }
 
 /// The part of the GPU's spawn offset that does not grow with the
-/// distance from the camera, for `scene`: [`crate::SPAWN_OFFSET`] times
-/// the length of its bounded objects (`isolux_geometry::Aggregate::length`:
-/// the largest side of the box holding them, at most 1), in
-/// `GpuParams::origin.w`. A scene of unit size or larger keeps 1e-4; one
-/// 1e-5 across, 1e-9. Before 2026-12-06 it was 1e-4 in any scene, and the
-/// perturbed-sphere example scaled by 1e-4 (a sphere of radius 6e-5)
-/// rendered 1.4% brighter than on the CPU, by 1e-5 12% darker (docs/gpu.md,
-/// "Scenes in small units"). Unbounded objects do not count: the GPU
-/// walks them in a frame at the camera, where their rounding is the
-/// offset's second term, [`crate::SPAWN_OFFSET_WORLD`] times the distance.
+/// distance from the camera, for `scene`'s unbounded surfaces:
+/// [`crate::SPAWN_OFFSET`] times the length of its bounded objects
+/// (`isolux_geometry::Aggregate::length`: the largest side of the box
+/// holding them, at most 1), in `GpuParams::origin.w`. A scene of unit
+/// size or larger keeps 1e-4; one 1e-5 across, 1e-9. Before 2026-12-06 it
+/// was 1e-4 in any scene, and the perturbed-sphere example scaled by 1e-4
+/// (a sphere of radius 6e-5) rendered 1.4% brighter than on the CPU, by
+/// 1e-5 12% darker (docs/gpu.md, "Scenes in small units"). Unbounded
+/// objects do not count: the GPU walks them in a frame at the camera,
+/// where their rounding is the offset's second term,
+/// [`crate::SPAWN_OFFSET_WORLD`] times the distance. Each object's own
+/// floor is [`object_floor`] (an unbounded object's is this one).
 pub fn spawn_floor(scene: &Scene) -> f64 {
     (crate::SPAWN_OFFSET as f64 * scene.geometry.length()).max(1e-30) as f32 as f64
 }
 
+/// The part of the GPU's offset off object `o`'s surface that does not
+/// grow with the distance (`object_floor` in render.wgsl):
+/// [`crate::SPAWN_OFFSET`] times [`isolux_geometry::Object::length`] (its
+/// box's largest side at most 1, an unbounded object's the scene's),
+/// which `GpuObject::origin.w` carries. Since 2026-12-06 (later the same
+/// day as [`spawn_floor`]) each object has its own, as on the CPU
+/// (`isolux_geometry::Hit::offset`): before, every object took the
+/// scene's, and a bead 1e-3 across in a scene 1 or more across started
+/// its rays 1e-4 off it, a tenth of its radius (docs/gpu.md, "Thin
+/// objects").
+pub fn object_floor(o: &isolux_geometry::Object) -> f64 {
+    crate::SPAWN_OFFSET as f64 * o.length().max(1e-30) as f32 as f64
+}
+
 /// The random-walk medium of `scene` whose shortest mean free path spans
 /// fewer than [`isolux_render::FINE_MEDIUM_OFFSETS`] of the GPU's ray
-/// offsets off its surface ([`spawn_floor`] +
+/// offsets off its surface ([`object_floor`] +
 /// [`crate::SPAWN_OFFSET_WORLD`] times its box's reach from the GPU's
 /// origin; an unbounded medium's at the camera), described for a
 /// warning ([`isolux_render::Scene::finest_medium`]). The GPU's offset,
@@ -651,7 +697,6 @@ pub fn spawn_floor(scene: &Scene) -> f64 {
 /// than the CPU's image, at 1e5 8%.
 pub fn fine_medium_warning(scene: &Scene) -> Option<String> {
     let at = rebase_point(scene);
-    let floor = spawn_floor(scene);
     scene
         .finest_medium(|o| {
             let b = o.bbox();
@@ -660,7 +705,7 @@ pub fn fine_medium_warning(scene: &Scene) -> Option<String> {
             } else {
                 (scene.camera.position - at).abs().max_element()
             };
-            gpu_spawn_offset(floor, reach)
+            gpu_spawn_offset(object_floor(o), reach)
         })
         .map(|f| f.describe(scene, "the GPU"))
 }

@@ -2124,15 +2124,96 @@ fn scenes_far_from_the_origin_render_as_at_the_origin() {
 /// `e+0` and `E+0` (its comment says how; isolux's analytic.rs renders it
 /// on the CPU alike).
 fn scaled_scene(exponent: i32) -> Scene {
-    let file = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/tests/small-units.toml"
-    );
-    let text = std::fs::read_to_string(file).unwrap();
+    parsed_scene(&scaled_text(exponent))
+}
+
+/// The path of `examples/tests/small-units.toml`.
+const SMALL_UNITS: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../examples/tests/small-units.toml"
+);
+
+/// The text of [`scaled_scene`].
+fn scaled_text(exponent: i32) -> String {
+    let text = std::fs::read_to_string(SMALL_UNITS).unwrap();
     assert!(text.matches("e+0").count() >= 4 && text.contains("E+0"));
     let text = text.replace("E+0", &format!("e{}", 2 * exponent));
-    let text = text.replace("e+0", &format!("e{exponent}"));
-    isolux_scene::parse_str(&text, Path::new(file), Path::new(".")).unwrap()
+    text.replace("e+0", &format!("e{exponent}"))
+}
+
+/// `text` parsed as a scene beside `small-units.toml`.
+fn parsed_scene(text: &str) -> Scene {
+    isolux_scene::parse_str(text, Path::new(SMALL_UNITS), Path::new(".")).unwrap()
+}
+
+/// [`scaled_scene`] at `10^exponent` beside a clay sphere 2 units across,
+/// 100 units behind the camera (out of the picture, a 4e-5 share of the
+/// sky hidden): the scene's length is 1, its objects' 1e4 times smaller.
+/// With `bounded`, the floor plane is clipped to a box 16 x 1.5 x 16
+/// times the scale under the spheres, which gives it its own length.
+fn small_beside_large(exponent: i32, bounded: bool) -> Scene {
+    let mut text = scaled_text(exponent);
+    let plane = "normal = [0.0, 1.0, 0.0] }\n";
+    assert!(text.ends_with(plane));
+    if bounded {
+        let s = 10f64.powi(exponent);
+        text += &format!(
+            "bounds = {{ min = [{}, {}, {}], max = [{}, {}, {}] }}\n",
+            -8.0 * s,
+            -2.0 * s,
+            -8.0 * s,
+            8.0 * s,
+            -0.5 * s,
+            8.0 * s
+        );
+    }
+    text += "\n[[object]]\nmaterial = \"clay\"\n\
+             base = { type = \"sphere\", center = [0.0, 0.0, 100.0], radius = 1.0 }\n";
+    parsed_scene(&text)
+}
+
+/// Each object starts its rays off its own surface at its own length's
+/// floor (`object_floor`, render.wgsl), as on the CPU, not at the
+/// scene's: the small-units scene at 1e-4 beside a sphere 2 units across
+/// (its floor bounded) matches the CPU's image of the same scene within
+/// 1.5 times the CPU's seed-to-seed noise (1.2 times on lavapipe). Until
+/// 2026-12-06 every object took the scene's floor, 1e-4 here, the radius
+/// of the clay sphere: warned about as thin, 6.1 times the noise at 1e-4,
+/// 12.5 times at 1e-5 (means 1.4% dark and 1.2% bright). With the floor
+/// plane unbounded it keeps the scene's floor (as on the CPU, an
+/// unbounded object's length is the scene's), 5.4 times the noise: the
+/// thin-object warning names the plane and `bounds`.
+#[test]
+fn small_objects_beside_large_ones_keep_their_own_offset() {
+    let bounded = small_beside_large(-4, true);
+    assert_eq!(isolux_gpu::thin_object_warning(&bounded), None);
+    let floors: Vec<f64> = bounded
+        .geometry
+        .objects()
+        .iter()
+        .map(isolux_gpu::object_floor)
+        .collect();
+    assert!(floors[..3].iter().all(|&f| f < 2e-7), "{floors:?}");
+    assert_eq!(floors[3], isolux_gpu::SPAWN_OFFSET as f64);
+    let why = isolux_gpu::thin_object_warning(&small_beside_large(-4, false)).expect("a warning");
+    assert!(
+        why.contains("object[1]")
+            && why.contains("unbounded object[2]")
+            && why.contains("`bounds`"),
+        "{why}"
+    );
+    let Some(gpu) = common::open("GPU image tests") else {
+        return;
+    };
+    let mut scene = small_beside_large(-4, true);
+    let (diff, noise, mg, mc) = common::compare_with_cpu(
+        &mut scene,
+        |s| gpu_image(&gpu, s),
+        cpu_image,
+        "small objects beside a large one",
+    );
+    assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
+    assert!((mg - mc).abs() <= 0.02 * mc, "{mg} vs {mc}");
 }
 
 /// A scene renders the same on the GPU in any unit: the spawn offset's

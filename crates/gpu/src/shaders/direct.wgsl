@@ -129,6 +129,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var refracted = false;
         var refr_c = vec3<f32>(0.0);
         var refr_n = vec3<f32>(0.0);
+        var refr_floor = 0.0;
         var refr_cross = true; // the second leg starts beyond a medium's boundary
         var plain = false;     // a point light's straight shadow ray
         var li = 0u;           // the light of a light's gather
@@ -165,6 +166,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             refr_cross = false;
             refr_c = c.x1;
             refr_n = c.n1;
+            refr_floor = c.floor;
         } else if (i < n_pl) {
             li = select(i, i >> 1u, caus);
             plain = true;
@@ -195,12 +197,13 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
             origin = offset_origin(p, ng, wi);
             // To the crossing point, short of the boundary; the medium
             // attenuates the way there.
-            t_max = dot(r.c - origin, wi) * (1.0 - 1e-4) - spawn_offset(r.c);
+            t_max = dot(r.c - origin, wi) * (1.0 - 1e-4) - spawn_offset_at(r.c, r.floor);
             rad = lights[li].intensity.rgb * r.factor
                 * medium_extinction(path.medium, r.inside);
             refracted = true;
             refr_c = r.c;
             refr_n = r.n;
+            refr_floor = r.floor;
         } else if (i < k_env + n_env) {
             let s = env_sample(rand2());
             if (!(s.w > 0.0)) {
@@ -269,7 +272,7 @@ fn direct_light(p: vec3<f32>, ng: vec3<f32>, fr: Frame, m: Material, wo_l: vec3<
         var lit = true;
         if (!first) {
             let tr = connection_transmittance(origin, wi, t_max, plain, refracted, refr_cross,
-                                              refr_c, refr_n, li);
+                                              refr_c, refr_n, refr_floor, li);
             rad *= tr;
             lit = max3(tr) > 0.0;
             blocked = plain && !lit;
@@ -305,10 +308,11 @@ struct Path {
     env_counted: bool,
     // The next vertex is the entry point x_i of a dipole medium chosen by
     // `sss_dipole_bounce` (at `o`, normal `entry_n`, medium material
-    // `entry_m`): no ray to trace.
+    // `entry_m`, on object `entry_o`): no ray to trace.
     entry: bool,
     entry_n: vec3<f32>,
     entry_m: u32,
+    entry_o: u32,
     // Each channel's path density relative to their mean (spectral MIS,
     // integrator.rs `Spectral`): 1 outside chromatic media.
     ratio: vec3<f32>,

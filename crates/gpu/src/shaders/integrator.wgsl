@@ -25,6 +25,7 @@ fn bounce() -> bool {
         ng = path.entry_n;
         wo = ng;
         m = materials[path.entry_m];
+        oi = path.entry_o;
         m.tag.x = MAT_SSS_ENTRY_LOBE;
         m.tag.z = 0u;
     } else {
@@ -147,6 +148,7 @@ fn placed(m: Material, p: vec3<f32>, t: f32) -> Material {
 // shadow rays were traced ahead (`shadows_ahead`), and the intersection
 // is not in the caller's kernel.
 fn shade(p: vec3<f32>, ng: vec3<f32>, wo: vec3<f32>, m: Material, oi: u32, mi: u32, traced: bool) -> bool {
+    vertex_floor = object_floor(oi);
     let fr = bsdf_frame(m, ng, wo);
     let wo_l = to_local(fr, wo);
     if (wo_l.z == 0.0) {
@@ -257,7 +259,7 @@ fn grey_medium(m: Material) -> bool {
 // A camera path from o along d, in `path`.
 // A camera inside random-walk media starts in them (integrator.rs).
 fn start_path(o: vec3<f32>, d: vec3<f32>) {
-    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u, vec3<f32>(1.0));
+    path = Path(o, d, vec3<f32>(0.0), vec3<f32>(1.0), -1.0, 1.0, 0u, 0u, 3u, 0u, false, false, vec3<f32>(0.0), 0u, 0u, vec3<f32>(1.0));
     if (SUBSURFACE && params.camera.x != 0u) {
         path.medium = params.camera.x;
     }

@@ -200,7 +200,7 @@ fn medium_object(list: u32, p: vec3<f32>) -> u32 {
 // material; index n2 inside, n1 outside): integrator.rs
 // `manifold_refraction`, manifold.rs `connect_from`.
 fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
-    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
     let to_light = light - p;
     let dist = length(to_light);
     if (!(dist > 0.0)) {
@@ -312,7 +312,7 @@ fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32
     if (!(factor > 0.0) || !finite(factor)) {
         return r;
     }
-    return Refraction(to_x / lx, lx, x, factor, n);
+    return Refraction(to_x / lx, lx, x, factor, n, object_floor(oi));
 }
 
 // ---- Caustics: point lights through glass (manifold.rs `connect_through`)
@@ -338,6 +338,7 @@ struct Caustic {
     factor: f32,
     x1: vec3<f32>,
     n1: vec3<f32>,
+    floor: f32, // the glass's spawn floor (render.wgsl `object_floor`)
 }
 
 // m^-1 v for the 4 x 4 matrix of rows m, by Gaussian elimination with
@@ -425,7 +426,7 @@ fn chain_jacobian(oi: u32, x0: vec3<f32>, x1: vec3<f32>, f0: Frame, f1: Frame, p
 // Point light k's path to p (geometric normal ng) through a glass object,
 // where its shadow ray meets one first (integrator.rs `caustic`).
 fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
-    var r = Caustic(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+    var r = Caustic(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
     let light = lights[k].position.xyz;
     let origin = offset_origin(p, ng, light - p);
     let to = light - origin;
@@ -439,6 +440,7 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
         return r;
     }
     let oi = hit_object;
+    let glass = object_floor(oi);
     let mm = materials[objects[oi].range.z];
     let e0 = origin + h.x * dir;
     // A dielectric entered (against the hit's outward normal) ...
@@ -446,7 +448,7 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
         return r;
     }
     // ... and left short of the light.
-    let beyond = offset_origin(e0, h.yzw, dir);
+    let beyond = offset_from(e0, h.yzw, dir, glass);
     let h2 = scene_hit(beyond, dir, dot(light - beyond, dir));
     if (!(h2.x >= 0.0) || hit_object != oi) {
         return r;
@@ -538,8 +540,8 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
         return r;
     }
     // Nothing inside the glass between the crossings.
-    let o_in = offset_origin(x0, f0.n, inner);
-    let t_in = dot(x1 - o_in, inner) * (1.0 - 1e-4) - spawn_offset(x1);
+    let o_in = offset_from(x0, f0.n, inner, glass);
+    let t_in = dot(x1 - o_in, inner) * (1.0 - 1e-4) - spawn_offset_at(x1, glass);
     if (t_in > 0.0 && occluded(o_in, inner, t_in)) {
         return r;
     }
@@ -555,7 +557,7 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     let o_p = offset_origin(p, ng, -to_p);
     let leg = length(x0 - o_p);
     let to_x0_o = (x0 - o_p) / leg;
-    let h0 = scene_hit(o_p, to_x0_o, leg * (1.0 + 1e-3) + spawn_offset(x0));
+    let h0 = scene_hit(o_p, to_x0_o, leg * (1.0 + 1e-3) + spawn_offset_at(x0, glass));
     if (!(leg > 0.0) || !(h0.x >= 0.0) || hit_object != oi
         || length(o_p + h0.x * to_x0_o - x0) > 1e-3 * (objects[oi].origin.w + leg)) {
         return r;
@@ -581,5 +583,5 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     if (!(factor > 0.0) || !finite(factor)) {
         return r;
     }
-    return Caustic(-to_p, lp, x0, factor, x1, f1.n);
+    return Caustic(-to_p, lp, x0, factor, x1, f1.n, glass);
 }

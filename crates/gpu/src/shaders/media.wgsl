@@ -10,14 +10,14 @@
 // The transmittance of a light's connection from o along d to t_max
 // (`as_light`: a point light's shadow ray, `shadow_transmittance`), and
 // where `refracted` (a `Refraction`'s, to light i, ending at c on the
-// innermost medium's boundary, flat or curved, of outward normal cn,
-// short of it) also beyond the boundary, from c to the light in the
+// innermost medium's boundary, flat or curved, of outward normal cn and
+// spawn floor c_floor, short of it) also beyond the boundary, from c to the light in the
 // media after crossing (`crosses`; a `Caustic`'s second leg, from the
 // glass's entry crossing c, stays in the same media). One call site of
 // `shadow_transmittance` per caller.
 fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bool,
                             refracted: bool, crosses: bool, c: vec3<f32>, cn: vec3<f32>,
-                            i: u32) -> vec3<f32> {
+                            c_floor: f32, i: u32) -> vec3<f32> {
     let med = path.medium;
     var tr = vec3<f32>(1.0);
     var oo = o;
@@ -30,7 +30,7 @@ fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bo
             if (crosses) {
                 path.medium = medium_crossed(med, medium_top());
             }
-            oo = c + cn * spawn_offset(c);
+            oo = c + cn * spawn_offset_at(c, c_floor);
             let to = lights[i].position.xyz - oo;
             tt = length(to);
             dd = to / tt;
@@ -116,7 +116,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
         for (var k = 0u; k < select(3u, 4u, CAUSTICS); k++) {
             var tk = t;
             var w = vec3<f32>(0.0);
-            var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+            var refr = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
             var leaves = true; // the second leg starts beyond the boundary
             if (k == 3u) {
                 if (!blocked) {
@@ -129,7 +129,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
                 // As a refraction: to the exit crossing (checked by
                 // `caustic`), then from the entry crossing to the light in
                 // the same media.
-                refr = Refraction(c.wi, c.inside, c.x1, c.factor, c.n1);
+                refr = Refraction(c.wi, c.inside, c.x1, c.factor, c.n1, c.floor);
                 leaves = false;
                 w = ss * tr_t / density_t;
             } else if (k == 2u) {
@@ -180,7 +180,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
                 // To the crossing point, short of the boundary; the medium
                 // attenuates the way there.
                 wl = refr.wi;
-                dist = refr.inside * (1.0 - 1e-4) - spawn_offset(refr.c);
+                dist = refr.inside * (1.0 - 1e-4) - spawn_offset_at(refr.c, refr.floor);
                 rad = light.intensity.rgb * refr.factor * exp(-st * refr.inside);
             } else {
                 let dl = light.position.xyz - p;
@@ -192,7 +192,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
                 wl = dl / dist;
                 rad = light.intensity.rgb / dist2;
             }
-            let tr = connection_transmittance(p, wl, dist, k < 2u, k >= 2u, leaves, refr.c, refr.n, i);
+            let tr = connection_transmittance(p, wl, dist, k < 2u, k >= 2u, leaves, refr.c, refr.n, refr.floor, i);
             if (k == 1u) {
                 blocked = !(max3(tr) > 0.0);
             }
@@ -302,7 +302,7 @@ fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) ->
         if (med == MEDIA_TOO_DEEP) {
             return vec3<f32>(0.0);
         }
-        o = offset_origin(o + h.x * d, h.yzw, d);
+        o = offset_from(o + h.x * d, h.yzw, d, object_floor(hit_object));
         left = dot(goal - o, d);
         if (!(left > 0.0)) {
             return tr;

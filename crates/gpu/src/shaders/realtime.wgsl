@@ -79,6 +79,7 @@ fn realtime_shade(o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
         return env_eval(d);
     }
     let mi = objects[hit_object].range.z;
+    vertex_floor = object_floor(hit_object);
     let p = o + h.x * d;
     let ng = h.yzw;
     // The point lights' shadow rays before the material is loaded

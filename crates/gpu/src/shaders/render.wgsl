@@ -144,17 +144,38 @@ fn occluded(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
     return scene_first_hit(o, d, 0.0, t_max, params.counts.x, true).x >= 0.0;
 }
 
-// How far a ray leaving the surface at p starts off it (lib.rs
-// `SPAWN_OFFSET`): `params.origin.w` is that constant times the length of
-// the scene's bounded objects, at most 1 (render.rs `spawn_floor`).
-fn spawn_offset(p: vec3<f32>) -> f32 {
-    let a = abs(p);
-    return params.origin.w + SPAWN_OFFSET_WORLD * max(a.x, max(a.y, a.z));
+// The spawn offset's floor at the path's current vertex: its object's
+// (`object_floor`), set where a vertex is shaded (`shade`, the real-time
+// kernel, `trace_shadow`) for the rays `offset_origin` spawns there.
+var<private> vertex_floor: f32;
+
+// The part of the offset off object oi's surface that does not grow with
+// the distance (lib.rs `SPAWN_OFFSET`): that constant times the object's
+// length, its box's largest side at most 1 (`GpuObject::origin.w`; an
+// unbounded object's the scene's, `isolux_geometry::Aggregate::length`),
+// as the CPU's `Hit::offset`: a bead 1e-3 across on a floor 10 wide
+// starts its rays 1e-7 off it, not the floor's 1e-4.
+fn object_floor(oi: u32) -> f32 {
+    return SPAWN_OFFSET * objects[oi].origin.w;
 }
 
-// The hit point moved off the surface along n to the side of w (f32: a
-// wider margin than the CPU's 1e-7; lib.rs `SPAWN_OFFSET`).
-fn offset_origin(p: vec3<f32>, n: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
-    let eps = spawn_offset(p);
+// How far a ray leaving a surface of floor `floor` (`object_floor`) at p
+// starts off it: the floor plus `SPAWN_OFFSET_WORLD` of the distance, the
+// world point's own f32 rounding.
+fn spawn_offset_at(p: vec3<f32>, floor: f32) -> f32 {
+    let a = abs(p);
+    return floor + SPAWN_OFFSET_WORLD * max(a.x, max(a.y, a.z));
+}
+
+// The point p of a surface of floor `floor` moved off it along n to the
+// side of w (f32: a wider margin than the CPU's 1e-7; lib.rs
+// `SPAWN_OFFSET`).
+fn offset_from(p: vec3<f32>, n: vec3<f32>, w: vec3<f32>, floor: f32) -> vec3<f32> {
+    let eps = spawn_offset_at(p, floor);
     return select(p - n * eps, p + n * eps, dot(w, n) >= 0.0);
+}
+
+// The path's current vertex p moved off its surface (`offset_from`).
+fn offset_origin(p: vec3<f32>, n: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+    return offset_from(p, n, w, vertex_floor);
 }

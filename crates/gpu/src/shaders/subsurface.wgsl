@@ -145,7 +145,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
         if (rand() * f32(k) < 1.0) {
             chosen = x;
         }
-        t0 = x.x + spawn_offset(start + x.x * dir);
+        t0 = x.x + spawn_offset_at(start + x.x * dir, object_floor(oi));
     }
     if (k == 0u) {
         return false;
@@ -179,6 +179,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
     path.o = xp;
     path.entry_n = xn;
     path.entry_m = mi;
+    path.entry_o = oi;
     path.entry = true;
     return max3(path.beta) > 0.0;
 }
@@ -198,6 +199,7 @@ struct Refraction {
     c: vec3<f32>,
     factor: f32,
     n: vec3<f32>, // the boundary's outward normal at c
+    floor: f32,   // the boundary's spawn floor (render.wgsl `object_floor`)
 }
 
 // Whether a crossing point c lies in the box of object ob that clips its
@@ -210,7 +212,7 @@ fn in_box(ob: Object, c: vec3<f32>) -> bool {
 }
 
 fn refraction(i: u32, p: vec3<f32>) -> Refraction {
-    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+    var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
     let light = lights[i];
     let id = medium_top();
     if (!REFRACTION || !SUBSURFACE || id == 0u) {
@@ -327,5 +329,8 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
             return r;
         }
     }
-    return Refraction((c - p) / l2, l2, c, factor, n);
+    // A flat boundary without a box is unbounded: its length is the
+    // scene's (`params.origin.w`, render.rs `spawn_floor`).
+    let floor = select(params.origin.w, object_floor(boxed - 1u), boxed != 0u);
+    return Refraction((c - p) / l2, l2, c, factor, n, floor);
 }

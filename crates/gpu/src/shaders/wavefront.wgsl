@@ -16,7 +16,7 @@ struct WfPath {
     beta: vec4<f32>,    // beta, pixel (bits)
     entry_n: vec4<f32>, // entry_n, entry_m (bits)
     info: vec4<u32>,    // depth, medium, channel | env_counted << 8 | entry << 9, events
-    ratio: vec4<f32>,   // ratio, 0
+    ratio: vec4<f32>,   // ratio, entry_o (bits)
 }
 
 @group(1) @binding(0) var<storage, read_write> wf_paths: array<WfPath>;
@@ -38,7 +38,7 @@ fn wf_store(slot: u32, pixel: u32) {
         vec4<f32>(path.beta, bitcast<f32>(pixel)),
         vec4<f32>(path.entry_n, bitcast<f32>(path.entry_m)),
         vec4<u32>(path.depth, path.medium, flags, path.events),
-        vec4<f32>(path.ratio, 0.0),
+        vec4<f32>(path.ratio, bitcast<f32>(path.entry_o)),
     );
 }
 
@@ -47,7 +47,7 @@ fn wf_load(slot: u32) -> u32 {
     let w = wf_paths[slot];
     path = Path(w.o.xyz, w.d.xyz, w.l.xyz, w.beta.xyz, w.o.w, w.d.w, w.info.x, w.info.y,
         w.info.z & 255u, w.info.w, (w.info.z & 256u) != 0u, (w.info.z & 512u) != 0u,
-        w.entry_n.xyz, bitcast<u32>(w.entry_n.w), w.ratio.xyz);
+        w.entry_n.xyz, bitcast<u32>(w.entry_n.w), bitcast<u32>(w.ratio.w), w.ratio.xyz);
     // Without the subsurface integrator its fields keep `start_path`'s
     // values (every write to them is behind SUBSURFACE): constants, not
     // values loaded and carried through the bounce to `wf_store` (RADV:
@@ -60,6 +60,7 @@ fn wf_load(slot: u32) -> u32 {
         path.entry = false;
         path.entry_n = vec3<f32>(0.0);
         path.entry_m = 0u;
+        path.entry_o = 0u;
         path.ratio = vec3<f32>(1.0);
     }
     rng_state = bitcast<u32>(w.l.w);
@@ -375,7 +376,9 @@ fn trace_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let h = wf_hits[2u * slot];
     let info = wf_hits[2u * slot + 1u];
-    let mi = objects[bitcast<u32>(info.x)].range.z;
+    let oi = bitcast<u32>(info.x);
+    let mi = objects[oi].range.z;
+    vertex_floor = object_floor(oi);
     shadows_ahead(path.o + h.x * path.d, h.yzw, -path.d, materials[mi]);
     let stamp = bitcast<u32>(info.z) | select(0u, 128u, shadow_env);
     wf_hits[2u * slot + 1u] = vec4<f32>(info.x, info.y, bitcast<f32>(stamp),
