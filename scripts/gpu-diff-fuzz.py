@@ -184,7 +184,8 @@ def rescale(src, s):
     out = []
     blocks = re.split(r"(?m)^(?=\[)", src)
     for block in blocks:
-        header = block.split("\n", 1)[0].strip()
+        # (A table's header may carry a comment: `[[object]]   # a stone`.)
+        header = block.split("\n", 1)[0].split("#", 1)[0].strip()
         lines = block.split("\n")
         kind = re.search(r'(?m)^type\s*=\s*"([a-z_]+)"', block)
         kind = kind.group(1) if kind else ""
