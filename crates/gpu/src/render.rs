@@ -667,7 +667,7 @@ fn gpu_spawn_offset(floor: f64, reach: f64) -> f64 {
 /// [`crate::SPAWN_OFFSET_WORLD`] times the distance. Each object's own
 /// floor is [`object_floor`] (an unbounded object's is this one).
 pub fn spawn_floor(scene: &Scene) -> f64 {
-    (crate::SPAWN_OFFSET as f64 * scene.geometry.length()).max(1e-30) as f32 as f64
+    floor_of(scene.geometry.length())
 }
 
 /// The part of the GPU's offset off object `o`'s surface that does not
@@ -681,7 +681,15 @@ pub fn spawn_floor(scene: &Scene) -> f64 {
 /// its rays 1e-4 off it, a tenth of its radius (docs/gpu.md, "Thin
 /// objects").
 pub fn object_floor(o: &isolux_geometry::Object) -> f64 {
-    crate::SPAWN_OFFSET as f64 * o.length().max(1e-30) as f32 as f64
+    floor_of(o.length())
+}
+
+/// [`crate::SPAWN_OFFSET`] times `length` as the GPU computes it from the
+/// f32 length it is given (`GpuObject::origin.w`, at least 1e-30): the
+/// f32 product, so that [`spawn_floor`] in `GpuParams::origin.w` is the
+/// value render.wgsl's `object_floor` gives an unbounded object.
+fn floor_of(length: f64) -> f64 {
+    (crate::SPAWN_OFFSET * length.max(1e-30) as f32) as f64
 }
 
 /// The random-walk medium of `scene` whose shortest mean free path spans

@@ -136,6 +136,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
     var k = 0u;
     var chosen = vec4<f32>(MISS, 0.0, 0.0, 0.0);
     var t0 = 0.0;
+    let floor = object_floor(oi);
     for (var i = 0u; i < 64u; i++) {
         let x = object_first_hit(oi, start, dir, t0, 2.0 * hh);
         if (x.x < 0.0) {
@@ -145,7 +146,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
         if (rand() * f32(k) < 1.0) {
             chosen = x;
         }
-        t0 = x.x + spawn_offset_at(start + x.x * dir, object_floor(oi));
+        t0 = x.x + spawn_offset_at(start + x.x * dir, floor);
     }
     if (k == 0u) {
         return false;
