@@ -1067,9 +1067,12 @@ pub struct GpuLight {
     /// normal and `n . p` on the plane (in the frame's rebased
     /// coordinates).
     pub plane: [f32; 4],
-    /// `[b, 0, 0, 0]`: where that plane has `bounds`, `b` is 1 + its
+    /// `[b, o, 0, 0]`: where that plane has `bounds`, `b` is 1 + its
     /// object, whose box (`GpuObject::bmin`, `bmax`) the crossing point
-    /// must lie in (0: an unbounded plane, no box to test).
+    /// must lie in (0: an unbounded plane, no box to test); `o` is 1 + the
+    /// plane's object, bounded or not (0: no medium), whose spawn floor
+    /// (`object_floor` in render.wgsl; an unbounded object's length is
+    /// the scene's) the crossing point takes.
     pub flat: [u32; 4],
 }
 
@@ -1079,7 +1082,9 @@ pub struct GpuLight {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuParams {
-    /// Camera position.
+    /// Camera position; `w` 0 (the scene's spawn floor until
+    /// 2026-12-06, now each object's, `GpuObject::origin.w`, and a flat
+    /// medium boundary's through its light, `GpuLight::flat`).
     pub origin: [f32; 4],
     /// Unit view direction.
     pub forward: [f32; 4],

@@ -657,7 +657,8 @@ fn gpu_spawn_offset(floor: f64, reach: f64) -> f64 {
 /// distance from the camera, for `scene`'s unbounded surfaces:
 /// [`crate::SPAWN_OFFSET`] times the length of its bounded objects
 /// (`isolux_geometry::Aggregate::length`: the largest side of the box
-/// holding them, at most 1), in `GpuParams::origin.w`. A scene of unit
+/// holding them, at most 1), which its unbounded objects carry in
+/// `GpuObject::origin.w` (their length, as on the CPU). A scene of unit
 /// size or larger keeps 1e-4; one 1e-5 across, 1e-9. Before 2026-12-06 it
 /// was 1e-4 in any scene, and the perturbed-sphere example scaled by 1e-4
 /// (a sphere of radius 6e-5) rendered 1.4% brighter than on the CPU, by
@@ -686,8 +687,8 @@ pub fn object_floor(o: &isolux_geometry::Object) -> f64 {
 
 /// [`crate::SPAWN_OFFSET`] times `length` as the GPU computes it from the
 /// f32 length it is given (`GpuObject::origin.w`, at least 1e-30): the
-/// f32 product, so that [`spawn_floor`] in `GpuParams::origin.w` is the
-/// value render.wgsl's `object_floor` gives an unbounded object.
+/// f32 product, so that [`spawn_floor`] is the value render.wgsl's
+/// `object_floor` gives an unbounded object.
 fn floor_of(length: f64) -> f64 {
     (crate::SPAWN_OFFSET * length.max(1e-30) as f32) as f64
 }
@@ -1942,7 +1943,7 @@ impl Gpu {
                 flat: [
                     r.filter(|(_, b)| bounded(b))
                         .map_or(0, |(i, _)| i as u32 + 1),
-                    0,
+                    r.map_or(0, |(i, _)| i as u32 + 1),
                     0,
                     0,
                 ],
@@ -1974,7 +1975,7 @@ impl Gpu {
         let params = GpuParams {
             origin: {
                 let [x, y, z, _] = v4(origin);
-                [x, y, z, spawn_floor(scene) as f32]
+                [x, y, z, 0.0]
             },
             forward: v4(forward),
             right: v4(right),

@@ -32,7 +32,7 @@
 // module, and realtime.wgsl after them.
 
 struct Params {
-    origin: vec4<f32>,    // camera position, the spawn offset's floor (render.rs `spawn_floor`)
+    origin: vec4<f32>,    // camera position, 0
     forward: vec4<f32>,
     right: vec4<f32>,
     up: vec4<f32>,

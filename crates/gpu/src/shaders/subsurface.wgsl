@@ -241,10 +241,12 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     if (n1 == n2) {
         return r;
     }
-    // The plane (outward normal, offset) and 1 + the object whose box
-    // clips it (0: none).
+    // The plane (outward normal, offset), 1 + the object whose box clips
+    // it (0: none), and the object it bounds, whose floor the crossing
+    // takes (`GpuLight::flat`).
     var plane = light.plane;
     var boxed = light.flat.x;
+    var bounding = light.flat.y - 1u;
     if (MANIFOLD && !flat) {
         let oi = medium_object(objs - 1u, p);
         if (oi == NO_OBJECT) {
@@ -330,8 +332,5 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
             return r;
         }
     }
-    // A flat boundary without a box is unbounded: its length is the
-    // scene's (`params.origin.w`, render.rs `spawn_floor`).
-    let floor = select(params.origin.w, object_floor(boxed - 1u), boxed != 0u);
-    return Refraction((c - p) / l2, l2, c, factor, n, floor);
+    return Refraction((c - p) / l2, l2, c, factor, n, object_floor(bounding));
 }
