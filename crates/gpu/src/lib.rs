@@ -31,19 +31,23 @@
 //!
 //! What is not on the GPU yet is listed in `docs/gpu.md`.
 
+mod checks;
 pub mod layout;
 mod render;
 
+pub use checks::{
+    f32_ill_conditioned, f32_plane_at_box_face, f32_shortfall, fine_medium_warning,
+    has_random_walk, mix_of_waves, object_floor, replace_unsupported, spawn_floor,
+    thin_object_warning, unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio,
+    BumpCondition, ScaleRatio, F32_CONDITION_LIMIT, F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT,
+    MAX_SCALE_RATIO,
+};
 /// The naga that writes the bounds probe's SPIR-V ([`kernel_spirv`]): the
 /// one wgpu builds on.
 pub use naga;
 pub use render::{
-    f32_ill_conditioned, f32_plane_at_box_face, f32_shortfall, fine_medium_warning,
-    has_random_walk, medium_bits, mix_of_waves, nested_too_deep, object_floor, padded_pixels,
-    rebase_point, refracted_media, replace_unsupported, scene_features, spawn_floor,
-    thin_object_warning, unsupported_material, wave_count, worst_bump_condition, worst_scale_ratio,
-    BumpCondition, DispatchTime, GpuFrame, Profile, ScaleRatio, SortedSteps, F32_CONDITION_LIMIT,
-    F32_PLANE_GAP_ULPS, F32_VALUE_LIMIT, MAX_SCALE_RATIO, PARAM_BLOCKS, WF_TILE_MAX,
+    medium_bits, nested_too_deep, padded_pixels, rebase_point, refracted_media, scene_features,
+    DispatchTime, GpuFrame, Profile, SortedSteps, PARAM_BLOCKS, WF_TILE_MAX,
 };
 /// The wgpu this crate is built on (the viewer draws with the same).
 pub use wgpu;
@@ -70,7 +74,7 @@ pub const MAX_SUBDIVISIONS: i32 = 4096;
 /// |p|_inf` off it along the normal, `L` the length of the surface's
 /// object, its box's largest side at most 1, an unbounded object's that
 /// of the scene's bounded objects (`isolux_geometry::Object::length`;
-/// [`render::object_floor`], from `GpuObject::origin.w`), so that a scene
+/// [`checks::object_floor`], from `GpuObject::origin.w`), so that a scene
 /// renders the same in any unit and a small object beside a large one
 /// keeps its own offset (until 2026-12-06 `L` was 1, then for one day the
 /// scene's length). The CPU's
