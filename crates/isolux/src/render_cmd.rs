@@ -205,6 +205,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     {
         eprintln!("isolux: warning: {}: {why}", a.scene.display());
     }
+    if let Some(why) = a
+        .realtime
+        .then(|| isolux_render::realtime::volume_left_out(&scene))
+        .flatten()
+    {
+        eprintln!("isolux: warning: --realtime: {}: {why}", a.scene.display());
+    }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),
         // Each worker reserves a stack; 100,000 of them took minutes to

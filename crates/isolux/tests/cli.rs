@@ -760,3 +760,38 @@ fn a_medium_finer_than_the_ray_offset_is_warned_about() {
         }
     }
 }
+
+/// `render --realtime` warns where the real-time mode leaves out a
+/// medium's volume (`isolux_render::realtime::volume_left_out`): the
+/// stones under `shallows.toml`'s water, hidden by its opaque boundary;
+/// the image is still written. The path tracer is not warned.
+#[test]
+fn realtime_warns_about_volumes_it_leaves_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenes/shallows.toml"
+    );
+    let out = dir.path().join("s.png");
+    for (realtime, warned) in [(true, true), (false, false)] {
+        let mut cmd = isolux();
+        cmd.args([
+            "render", scene, "--width", "16", "--height", "12", "--spp", "4",
+        ])
+        .arg("-o")
+        .arg(&out);
+        if realtime {
+            cmd.arg("--realtime");
+        }
+        let o = cmd.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(out.exists());
+        assert_eq!(
+            err.contains("lies inside the random-walk medium of object[0]"),
+            warned,
+            "{err}"
+        );
+        std::fs::remove_file(&out).unwrap();
+    }
+}

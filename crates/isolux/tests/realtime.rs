@@ -245,3 +245,82 @@ base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.9 }}
         assert!(worst < 1e-5, "{mode}: {worst}");
     }
 }
+
+/// The real-time mode renders no volume, and says so where that is more
+/// than the local approximation leaves out (`volume_left_out`, warned
+/// about by `render --realtime`): a camera inside a random-walk medium, a
+/// medium of index 1 (fog), an object inside a medium, which the
+/// medium's opaque boundary hides. The last claim checked on images: the
+/// real-time image of a medium with a ball inside equals, sample for
+/// sample, the image without the ball, where the path tracer's differ. A
+/// marble alone, and a dipole medium around a ball (a surface), are
+/// not named.
+#[test]
+fn volumes_the_real_time_mode_leaves_out_are_named() {
+    use isolux_render::realtime::volume_left_out;
+    let with = |material: &str, camera_z: f64, ball: bool| {
+        let mut src = format!(
+            "{}
+[[light]]
+type = \"point\"
+position = [2.0, 3.0, 4.0]
+intensity = [20.0, 20.0, 20.0]
+[[material]]
+name = \"m\"
+{material}
+[[material]]
+name = \"clay\"
+type = \"diffuse\"
+reflectance = [0.8, 0.2, 0.2]
+[[object]]
+material = \"m\"
+base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.2 }}
+",
+            HEAD.replace("[0.0, 0.0, 4.0]", &format!("[0.0, 0.0, {camera_z:?}]"))
+        );
+        if ball {
+            src.push_str(
+                "[[object]]\nmaterial = \"clay\"\n\
+                 base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.5 }\n",
+            );
+        }
+        let mut s = scene(&src);
+        s.environment = sky();
+        s
+    };
+    let walk = |ior: f64| {
+        format!(
+            "type = \"subsurface\"\nsigma_s = [0.5, 0.5, 0.5]\nsigma_a = [0.1, 0.1, 0.1]\n\
+             ior = {ior:?}\nmode = \"random_walk\""
+        )
+    };
+    let dipole = "type = \"subsurface\"\nmedium = \"marble\"\nmode = \"dipole\"";
+    let said = |s: &Scene| volume_left_out(s).unwrap_or_default();
+
+    assert_eq!(volume_left_out(&with(&walk(1.5), 4.0, false)), None);
+    assert_eq!(volume_left_out(&with(dipole, 4.0, true)), None);
+    assert!(said(&with(&walk(1.5), 0.9, false)).contains("the camera is inside"));
+    assert!(said(&with(&walk(1.0), 4.0, false)).contains("has index 1"));
+    let inside = with(&walk(1.5), 4.0, true);
+    assert!(
+        said(&inside).starts_with("object[1] lies inside the random-walk medium of object[0]"),
+        "{}",
+        said(&inside)
+    );
+
+    let empty = with(&walk(1.5), 4.0, false);
+    assert_eq!(image(&inside, true).rgb, image(&empty, true).rgb);
+    let mut pt = [inside, empty];
+    for s in &mut pt {
+        s.integrator.max_depth = 64;
+        s.film.spp = 4;
+    }
+    let [a, b] = pt.map(|s| image(&s, false));
+    let red = |img: &Image| img.rgb.iter().map(|p| (p[0] - p[2]) as f64).sum::<f64>();
+    eprintln!(
+        "path traced, red over blue: with the ball {}, without {}",
+        red(&a),
+        red(&b)
+    );
+    assert!(red(&a) > red(&b) + 1.0, "{} vs {}", red(&a), red(&b));
+}
