@@ -210,7 +210,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         .then(|| isolux_render::realtime::volume_left_out(&scene))
         .flatten()
     {
-        eprintln!("isolux: warning: --realtime: {}: {why}", a.scene.display());
+        eprintln!(
+            "isolux: warning: --realtime: {}: {why}; render without --realtime for it",
+            a.scene.display()
+        );
     }
     let threads = match a.threads {
         Some(0) => bail!("--threads must be at least 1"),

@@ -277,8 +277,9 @@ pub fn realtime_radiance(
 }
 
 /// What the real-time image of `scene` leaves out of its random-walk
-/// media, for a warning, where it is more than their local approximation
-/// does (`None` otherwise): the real-time mode renders no volume, so
+/// media, for a warning (the caller says what renders it: the path
+/// tracer), where it is more than their local approximation does
+/// (`None` otherwise): the real-time mode renders no volume, so
 /// - a camera inside such a medium (under water) sees through it as
 ///   through clear air, its scattering and absorption around the camera
 ///   left out (`underwater.toml`, CPU, 96 x 54 at 16 spp: image mean 0.54
@@ -308,8 +309,7 @@ pub fn volume_left_out(scene: &Scene) -> Option<String> {
         return Some(format!(
             "the camera is inside the random-walk medium of object[{object}] (material \"{}\"), \
              and the real-time mode renders no volume: the medium's scattering and absorption \
-             around the camera are left out; render without --realtime for them \
-             (docs/realtime.md)",
+             around the camera are left out (docs/realtime.md)",
             name(object)
         ));
     }
@@ -317,8 +317,8 @@ pub fn volume_left_out(scene: &Scene) -> Option<String> {
         return Some(format!(
             "the random-walk medium of object[{object}] (material \"{}\") has index 1, so its \
              look is the light it scatters inside (haze, light shafts), and the real-time mode \
-             renders no volume: it shades the medium's boundary with its local BRDF alone; \
-             render without --realtime for its light (docs/realtime.md)",
+             renders no volume: it shades the medium's boundary with its local BRDF alone \
+             (docs/realtime.md)",
             name(object)
         ));
     }
@@ -331,8 +331,8 @@ pub fn volume_left_out(scene: &Scene) -> Option<String> {
         Some(format!(
             "object[{}] lies inside the random-walk medium of object[{object}] (material \
              \"{}\"), and the real-time mode renders no volume: it shades the medium's \
-             boundary with its local BRDF, an opaque surface that hides what lies inside; \
-             render without --realtime to see it (docs/realtime.md)",
+             boundary with its local BRDF, an opaque surface that hides what lies inside \
+             (docs/realtime.md)",
             inside.0,
             name(object)
         ))

@@ -149,6 +149,20 @@ pub fn run(opts: Options) -> anyhow::Result<()> {
     {
         eprintln!("isolux: warning: {file}: {why}");
     }
+    // And what `render --realtime` warns of: the viewer's frames while
+    // moving are real-time ones, which render no volume.
+    if let Some(why) = isolux_render::realtime::volume_left_out(scene) {
+        match opts.mode {
+            Mode::Path => {}
+            Mode::Auto => eprintln!(
+                "isolux: warning: {file}: in the real-time frames (while moving): {why}; the \
+                 path-traced frames (when still) show it"
+            ),
+            Mode::Realtime => {
+                eprintln!("isolux: warning: {file}: {why}; `--mode path` or `--mode auto` shows it")
+            }
+        }
+    }
     check_display()?;
     #[allow(unused_mut)]
     let mut builder = EventLoop::builder();
