@@ -287,8 +287,7 @@ pub fn realtime_radiance(
 /// - a medium of index 1 (fog: its boundary bends no ray, and its look is
 ///   the light it scatters inside, light shafts and haze) is reduced to
 ///   its boundary shaded with the medium's local BRDF (`fog.toml`: the
-///   PNG's mean 0.084 in real time against 0.45 path traced).
-///
+///   PNG's mean 0.084 in real time against 0.45 path traced);
 /// - an object inside such a medium (stones on the floor of shallow
 ///   water) is hidden: the medium's boundary, shaded with its local BRDF,
 ///   is opaque (`shallows.toml`: the water an even dark blue in real
