@@ -296,20 +296,12 @@ pub fn realtime_radiance(
 /// Media seen from outside with nothing inside them (marble, milk) are
 /// what the local approximation is for, and are not named.
 pub fn volume_left_out(scene: &Scene) -> Option<String> {
-    let name = |object: usize| {
-        scene
-            .object_material
-            .get(object)
-            .and_then(|&m| scene.material_names.get(m))
-            .map_or("?", |n| n.as_str())
-            .to_string()
-    };
     if let Some((object, _)) = scene.medium_at(scene.camera.position) {
         return Some(format!(
             "the camera is inside the random-walk medium of object[{object}] (material \"{}\"), \
              and the real-time mode renders no volume: the medium's scattering and absorption \
              around the camera are left out (docs/realtime.md)",
-            name(object)
+            scene.object_material_name(object)
         ));
     }
     if let Some((object, _, _)) = scene.media().find(|(_, _, m)| m.boundary.ior == 1.0) {
@@ -318,7 +310,7 @@ pub fn volume_left_out(scene: &Scene) -> Option<String> {
              look is the light it scatters inside (haze, light shafts), and the real-time mode \
              renders no volume: it shades the medium's boundary with its local BRDF alone \
              (docs/realtime.md)",
-            name(object)
+            scene.object_material_name(object)
         ));
     }
     let objects = scene.geometry.objects();
@@ -333,7 +325,7 @@ pub fn volume_left_out(scene: &Scene) -> Option<String> {
              boundary with its local BRDF, an opaque surface that hides what lies inside \
              (docs/realtime.md)",
             inside.0,
-            name(object)
+            scene.object_material_name(object)
         ))
     })
 }

@@ -483,6 +483,15 @@ impl Scene {
         }
     }
 
+    /// The name of object `object`'s material, for messages ("?" where the
+    /// object or its material has none).
+    pub fn object_material_name(&self, object: usize) -> &str {
+        self.object_material
+            .get(object)
+            .and_then(|&m| self.material_names.get(m))
+            .map_or("?", |n| n.as_str())
+    }
+
     /// The objects whose material is a random-walk medium (`subsurface`
     /// in `random_walk` mode), with their index and medium, in file
     /// order.
@@ -522,11 +531,7 @@ impl FineMedium {
     /// lengths, and what it does to the image; `who` names the renderer
     /// ("the CPU", "the GPU").
     pub fn describe(&self, scene: &Scene, who: &str) -> String {
-        let name = scene
-            .object_material
-            .get(self.object)
-            .and_then(|&m| scene.material_names.get(m))
-            .map_or("?", |n| n.as_str());
+        let name = scene.object_material_name(self.object);
         format!(
             "the random-walk medium of object[{}] (material \"{name}\") has a mean free path \
              of {:.2e} units, under {FINE_MEDIUM_OFFSETS} times the {:.2e} units at which {who} \
