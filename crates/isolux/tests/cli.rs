@@ -707,6 +707,26 @@ fn paths_ended_in_a_medium_too_thick_for_the_walk_are_warned_about() {
     }
 }
 
+/// `isolux render` of `scene` to `out` at 4 x 3 pixels and 4 spp,
+/// real-time or path traced: it must succeed and write `out`; returns
+/// its standard error.
+fn render_small(scene: &Path, out: &Path, realtime: bool) -> String {
+    let mut cmd = isolux();
+    cmd.args([
+        "render", "--spp", "4", "--width", "4", "--height", "3", "-o",
+    ])
+    .arg(out)
+    .arg(scene);
+    if realtime {
+        cmd.arg("--realtime");
+    }
+    let o = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(out.exists());
+    err
+}
+
 /// `isolux render` names a random-walk medium whose mean free path spans
 /// fewer than ten of the CPU's ray offsets (`lamplit-milk.toml`'s milk
 /// at `scale = 1e7`, 2% dark: docs/subsurface.md, "Media too thick for
@@ -729,20 +749,7 @@ fn a_medium_finer_than_the_ray_offset_is_warned_about() {
         (&thick, true, false),
     ] {
         let scene = write_scene(dir.path(), src);
-        let out = dir.path().join("out.png");
-        let mut cmd = isolux();
-        cmd.args([
-            "render", "--spp", "4", "--width", "4", "--height", "3", "-o",
-        ])
-        .arg(&out)
-        .arg(&scene);
-        if realtime {
-            cmd.arg("--realtime");
-        }
-        let o = cmd.output().unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success(), "{err}");
-        assert!(out.exists());
+        let err = render_small(&scene, &dir.path().join("out.png"), realtime);
         let named = format!(
             "warning: {}: the random-walk medium of object[0] (material \"milk\") has a mean \
              free path of 5.22e-8 units",
@@ -774,19 +781,7 @@ fn realtime_warns_about_volumes_it_leaves_out() {
     );
     let out = dir.path().join("s.png");
     for (realtime, warned) in [(true, true), (false, false)] {
-        let mut cmd = isolux();
-        cmd.args([
-            "render", scene, "--width", "16", "--height", "12", "--spp", "4",
-        ])
-        .arg("-o")
-        .arg(&out);
-        if realtime {
-            cmd.arg("--realtime");
-        }
-        let o = cmd.output().unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success(), "{err}");
-        assert!(out.exists());
+        let err = render_small(Path::new(scene), &out, realtime);
         assert_eq!(
             err.contains("lies inside the random-walk medium of object[0]"),
             warned,
