@@ -1,6 +1,6 @@
 // ---- AOVs -----------------------------------------------------------------
 //
-// Part of the path tracer's module (lib.rs `RENDER_FILES`).
+// Part of the path tracer's module (source.rs `RENDER_FILES`).
 
 // AOVs of the first hit for sample `pass_info.x`, at the same sub-pixel
 // position as in `main`, added to the pixel's sums: the material's albedo

@@ -4,7 +4,7 @@
 // rays' tile lists (`cull_tiles`, `use_tile`), the megakernel `main` (a
 // thread per pixel and sample, each path to its end), the sample layers
 // and `resolve`, which adds them to the image in sample order. Part of the
-// path tracer's module (lib.rs `RENDER_FILES`).
+// path tracer's module (source.rs `RENDER_FILES`).
 
 // The camera ray of sample s = `pass_info.x + gid.z` of pixel gid (one
 // sample per thread, in every entry point): seeds the random stream of (seed,
@@ -58,7 +58,7 @@ fn tiles_x() -> u32 {
 }
 
 // The camera ray of pixel gid tests its tile's list (geometry.wgsl
-// `tile_rays`) in kernels with TILE_LISTS (generated, lib.rs
+// `tile_rays`) in kernels with TILE_LISTS (generated, source.rs
 // `Features::tiles`), unless the list overflowed.
 fn use_tile(gid: vec3<u32>) {
     if (TILE_LISTS) {

@@ -4,7 +4,7 @@
 // weighted by MIS against the BSDF; the shadow rays a caller traced ahead
 // (`trace_shadows`); and the state of the path a thread carries (`Path`,
 // `path`) with the packing of the media it is in. Part of the path
-// tracer's module (lib.rs `RENDER_FILES`).
+// tracer's module (source.rs `RENDER_FILES`).
 
 // What `direct_light` gathers (bits of its `what`).
 const GATHER_LIGHTS: u32 = 1u; // the point lights

@@ -1,7 +1,7 @@
 // The environment (crates/render/src/environment.rs): a direction's
 // texel of the map, its radiance and its pdf over the sphere, and the
 // map's importance sampling by its marginal and conditional CDFs. Part of
-// the path tracer's module (lib.rs `RENDER_FILES`: the files are
+// the path tracer's module (source.rs `RENDER_FILES`: the files are
 // concatenated after render.wgsl, which declares the bindings).
 
 fn env_uv(d: vec3<f32>) -> vec2<f32> {

@@ -639,7 +639,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
         let reach = max(max(abs(o_obj.x), abs(o_obj.y)), max(abs(o_obj.z), abs(entry.y)));
         end = min(t1, entry.y + 16.0 * REAL_EPS * reach);
     }
-    // No longer than `REAL_SPAN` (lib.rs `REAL_SPAN_F32`): the segments'
+    // No longer than `REAL_SPAN` (source.rs `REAL_SPAN_F32`): the segments'
     // polynomials scale with powers of their length.
     end = min(end, shift + REAL_SPAN);
     let o = o_obj + shift * d;
@@ -687,7 +687,7 @@ fn object_hit(oi: u32, o_world: vec3<real>, d: vec3<real>, t0: real, t1: real, a
     var nc = 0u;
     var all = false;
     var mask = 0u;
-    // CANDIDATE_LIST (generated, lib.rs `Features::list`) is false when no
+    // CANDIDATE_LIST (generated, source.rs `Features::list`) is false when no
     // object of the scene has more than MASK_CANDIDATES (32, the mask's
     // bits) perturbations: the list and its array are then dead code.
     let masked = !CANDIDATE_LIST || count <= MASK_CANDIDATES;
@@ -947,7 +947,7 @@ fn scene_hit_real(o: vec3<real>, d: vec3<real>, t0: real, t_max: real, n: u32, a
     var t1 = t_max;
     // A camera ray of a culled tile tests its tile's list (`tile_rays`,
     // above); other rays walk the hierarchy.
-    // TILE_LISTS (generated, lib.rs `Features::tiles`): without it the
+    // TILE_LISTS (generated, source.rs `Features::tiles`): without it the
     // list's code is dead.
     let listed = TILE_LISTS && tile_rays;
     tile_rays = false;

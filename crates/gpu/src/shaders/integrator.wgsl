@@ -4,7 +4,7 @@
 // the shading of a surface vertex (`shade`) and a path's radiance from
 // its camera ray (`radiance`), which the megakernel (`main`, camera.wgsl)
 // runs whole and the wavefront (wavefront.wgsl) a bounce a step. Part of
-// the path tracer's module (lib.rs `RENDER_FILES`).
+// the path tracer's module (source.rs `RENDER_FILES`).
 
 // One bounce of the path: false when it ends. (The loop lives in
 // `radiance`, the body here: one large loop body miscompiled on lavapipe.)

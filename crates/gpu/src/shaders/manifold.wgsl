@@ -2,7 +2,7 @@
 // point light refracted into a random-walk medium through its curved
 // surface (`manifold_refraction`), and caustics, point lights through
 // glass (`caustic`), both by Newton's method on the surfaces. Part of the
-// path tracer's module (lib.rs `RENDER_FILES`).
+// path tracer's module (source.rs `RENDER_FILES`).
 
 // ---- Manifold next-event estimation (manifold.rs) --------------------------
 //
@@ -317,7 +317,7 @@ fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32
 
 // ---- Caustics: point lights through glass (manifold.rs `connect_through`)
 //
-// With `integrator.caustics = "manifold"` (`CAUSTICS`, lib.rs
+// With `integrator.caustics = "manifold"` (`CAUSTICS`, source.rs
 // `Features::caustics`), a point light whose shadow ray from p first enters
 // a `dielectric` object and leaves it again short of the light lights p
 // through it (integrator.rs `caustic`): the path p -> x0 -> x1 -> light

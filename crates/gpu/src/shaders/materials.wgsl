@@ -1031,7 +1031,7 @@ fn merl_f(m: Material, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
 // ---- The dispatch ---------------------------------------------------------
 
 // Whether this kernel carries model `tag`'s code: `MODELS` is a constant
-// the Rust side writes (lib.rs `Features`), so every branch of a model left
+// the Rust side writes (source.rs `Features`), so every branch of a model left
 // out is dead code that the driver drops; a material of such a model never
 // reaches these kernels (`GpuFrame::set_features` refuses them).
 fn has_model(tag: u32) -> bool {

@@ -5,7 +5,7 @@
 // free flight (equiangular sampling, `medium_light`), the stack of media a
 // path is in (`medium_outside`, `medium_crossed`), and a free flight's
 // scattering event (`medium_scatter`). Part of the path tracer's module
-// (lib.rs `RENDER_FILES`).
+// (source.rs `RENDER_FILES`).
 
 // The transmittance of a light's connection from o along d to t_max
 // (`as_light`: a point light's shadow ray, `shadow_transmittance`), and
@@ -260,7 +260,7 @@ fn medium_extinction(med: u32, t: f32) -> vec3<f32> {
 // environment's rays stop at every surface. One call site of the
 // intersection, in the loop (docs/gpu.md, "One call site per switch").
 fn shadow_transmittance(o0: vec3<f32>, d: vec3<f32>, t_max: f32, light: bool) -> vec3<f32> {
-    // Kernels for scenes without null boundaries (`NULL_BOUNDARIES`, lib.rs
+    // Kernels for scenes without null boundaries (`NULL_BOUNDARIES`, source.rs
     // `Features::null_boundaries`): one occlusion test, no loop.
     if (!SUBSURFACE || !NULL_BOUNDARIES) {
         if (occluded(o0, d, t_max)) {

@@ -1,5 +1,5 @@
 // The real-time mode on the GPU, mirroring crates/render/src/realtime.rs
-// (appended to the path tracer's files, lib.rs `RENDER_FILES`: the same
+// (appended to the path tracer's files, source.rs `RENDER_FILES`: the same
 // bindings, random numbers, geometry and environment helpers):
 //   * one thread per pixel and sample, `pass_info.y` samples (4-25) of
 //     the pixel on the stratified sub-pixel grid, which `resolve` writes

@@ -27,7 +27,7 @@
 //
 // This file declares the parameters, the bindings, the random numbers and
 // the ray helpers; the rest of the path tracer follows it in the files of
-// lib.rs `RENDER_FILES` (environment, direct light, subsurface, manifold,
+// source.rs `RENDER_FILES` (environment, direct light, subsurface, manifold,
 // media, integrator, camera, wavefront, AOVs), concatenated into one
 // module, and realtime.wgsl after them.
 

@@ -2,7 +2,7 @@
 // entry points and single scattering, the random walk's phase function,
 // and point lights refracted into a medium through its flat boundary
 // (`refraction`); also Russian roulette (`roulette`), which every path
-// takes. Part of the path tracer's module (lib.rs `RENDER_FILES`).
+// takes. Part of the path tracer's module (source.rs `RENDER_FILES`).
 
 // ---- Subsurface scattering (integrator.rs) ---------------------------------
 //
