@@ -573,7 +573,7 @@ fn caustic(
     let dir = (x[1] - x[0]).try_normalize()?;
     reaches(at.spawn(dir), x[1])?;
     // The leg from x[1] to the light.
-    let out = x[1] + chain.normal[1] * (1e-7 * (length + x[1].abs().max_element()));
+    let out = off_crossing(x[1], chain.normal[1], length);
     let beyond = light_transmittance(scene, media, stack, out, light.position)?;
     let around = around.map_or(Rgb::WHITE, |m| transmittance(m.sigma_t(), leg));
     let eta = glass.ior / n_out;
@@ -593,6 +593,15 @@ fn caustic(
 fn in_box(b: &isolux_core::Aabb, c: DVec3, rel: f64, length: f64) -> bool {
     let tol = rel * (length + c.abs().max_element());
     !(c.cmplt(b.min - tol) | c.cmpgt(b.max + tol)).any()
+}
+
+/// The crossing point `c` of a boundary moved off it along its `normal`
+/// by `1e-7 (length + |c|_max)` (the tolerance of [`in_box`] at `1e-7`,
+/// `length` the boundary's `Object::length`): where the shadow ray toward
+/// the light leaves the boundary, on the light's side (`caustic`,
+/// `refracted_irradiance`).
+fn off_crossing(c: DVec3, normal: DVec3, length: f64) -> DVec3 {
+    c + normal * (1e-7 * (length + c.abs().max_element()))
 }
 
 /// The irradiance of point light `light` arriving along a [`Refraction`]
@@ -633,7 +642,7 @@ fn refracted_irradiance(
     let inside = transmittance(object_medium(scene, r.obj)?.sigma_t(), r.inside);
     let mut after = *stack;
     after.cross(r.obj)?;
-    let out = r.c + r.normal * (1e-7 * (length + r.c.abs().max_element()));
+    let out = off_crossing(r.c, r.normal, length);
     let beyond = light_transmittance(scene, media, &after, out, light.position)?;
     Some(light.intensity * inside * beyond * r.factor)
 }
