@@ -217,7 +217,7 @@ impl Heightfield {
         let layer = Layer::new(
             (self.width, self.height),
             attrs,
-            Encoding::FAST_LOSSLESS,
+            isolux_io::EXR_ENCODING,
             channels,
         );
         let img = exr::image::Image::from_layer(layer);
