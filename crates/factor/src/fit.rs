@@ -513,7 +513,6 @@ impl Solver<'_> {
         let wsum: f64 = weights.iter().sum();
         let wdata = 1.0 / wsum;
         // Lower triangle, column-major: column j holds rows i >= j.
-        // Lower triangle, column-major: column j holds rows i >= j.
         let mut ata = vec![0.0f64; n * n];
         let cols_per_chunk = n.div_ceil(rayon::current_num_threads().max(1) * 8).max(1);
         ata.par_chunks_mut(cols_per_chunk * n)
