@@ -243,7 +243,8 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
     }
     // The plane (outward normal, offset), 1 + the object whose box clips
     // it (0: none), and the object it bounds, whose floor the crossing
-    // takes (`GpuLight::flat`).
+    // takes (`GpuLight::flat`); where the record names no plane, those of
+    // the plane found in the medium's list of objects (below).
     var plane = light.plane;
     var boxed = light.flat.x;
     var bounding = light.flat.y - 1u;
@@ -264,6 +265,7 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
         let nrm = -b / lb;
         plane = vec4<f32>(nrm, dot(nrm, ob.origin.xyz + ob.anchor.xyz) + q[2].y / (2.0 * lb));
         boxed = oi + 1u;
+        bounding = oi;
     }
     let n = plane.xyz;
     let lp = light.position.xyz;
