@@ -203,17 +203,13 @@ base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.9 }}
     }
 }
 
-/// A translucent medium (`subsurface`, dipole or random walk) renders in
-/// the real-time mode with its local approximation, the seed's eq. 19:
-/// the image equals that of a `subsurface_brdf` of the same medium, sample
-/// for sample, under a point light and the sky (before 2026-12-03
-/// `--realtime` refused such a scene, and the GPU's real-time kernel, the
-/// viewer's while moving, drew the medium black).
-#[test]
-fn media_render_with_their_local_brdf() {
-    let with = |material: &str| {
-        let mut s = scene(&format!(
-            "{HEAD}
+/// A sphere of `material` (its keys, without the name) of `radius` at the
+/// origin, under a point light and [`sky`], seen from `camera_z` on the
+/// z axis ([`HEAD`] otherwise), `more` (materials and objects) appended.
+fn sphere_under_lamp(material: &str, radius: f64, camera_z: f64, more: &str) -> Scene {
+    let head = HEAD.replace("[0.0, 0.0, 4.0]", &format!("[0.0, 0.0, {camera_z:?}]"));
+    let mut s = scene(&format!(
+        "{head}
 [[light]]
 type = \"point\"
 position = [2.0, 3.0, 4.0]
@@ -223,12 +219,22 @@ name = \"m\"
 {material}
 [[object]]
 material = \"m\"
-base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.9 }}
-"
-        ));
-        s.environment = sky();
-        image(&s, true)
-    };
+base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = {radius:?} }}
+{more}"
+    ));
+    s.environment = sky();
+    s
+}
+
+/// A translucent medium (`subsurface`, dipole or random walk) renders in
+/// the real-time mode with its local approximation, the seed's eq. 19:
+/// the image equals that of a `subsurface_brdf` of the same medium, sample
+/// for sample, under a point light and the sky (before 2026-12-03
+/// `--realtime` refused such a scene, and the GPU's real-time kernel, the
+/// viewer's while moving, drew the medium black).
+#[test]
+fn media_render_with_their_local_brdf() {
+    let with = |material: &str| image(&sphere_under_lamp(material, 0.9, 4.0, ""), true);
     let local = with("type = \"subsurface_brdf\"\nmedium = \"marble\"");
     for mode in ["dipole", "random_walk"] {
         let medium = with(&format!(
@@ -258,35 +264,11 @@ base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.9 }}
 #[test]
 fn volumes_the_real_time_mode_leaves_out_are_named() {
     use isolux_render::realtime::volume_left_out;
-    let with = |material: &str, camera_z: f64, ball: bool| {
-        let mut src = format!(
-            "{}
-[[light]]
-type = \"point\"
-position = [2.0, 3.0, 4.0]
-intensity = [20.0, 20.0, 20.0]
-[[material]]
-name = \"m\"
-{material}
-[[material]]
-name = \"clay\"
-type = \"diffuse\"
-reflectance = [0.8, 0.2, 0.2]
-[[object]]
-material = \"m\"
-base = {{ type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.2 }}
-",
-            HEAD.replace("[0.0, 0.0, 4.0]", &format!("[0.0, 0.0, {camera_z:?}]"))
-        );
-        if ball {
-            src.push_str(
-                "[[object]]\nmaterial = \"clay\"\n\
-                 base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.5 }\n",
-            );
-        }
-        let mut s = scene(&src);
-        s.environment = sky();
-        s
+    let ball = "[[material]]\nname = \"clay\"\ntype = \"diffuse\"\nreflectance = [0.8, 0.2, 0.2]\n\
+                [[object]]\nmaterial = \"clay\"\n\
+                base = { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.5 }\n";
+    let with = |material: &str, camera_z: f64, inside: bool| {
+        sphere_under_lamp(material, 1.2, camera_z, if inside { ball } else { "" })
     };
     let walk = |ior: f64| {
         format!(
