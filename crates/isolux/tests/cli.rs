@@ -24,6 +24,14 @@ material = "m"
 base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 1.0 }
 "#;
 
+/// The file `path` under the repository's `examples/` (`scenes/...`,
+/// `tests/...`).
+fn example(path: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .join(path)
+}
+
 fn write_scene(dir: &Path, src: &str) -> std::path::PathBuf {
     let p = dir.join("scene.toml");
     std::fs::write(&p, src).unwrap();
@@ -587,11 +595,7 @@ fn sss_media_and_profile() {
 #[test]
 fn a_light_outside_the_cameras_medium_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
-    let example = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/scenes/underwater.toml"
-    );
-    let src = std::fs::read_to_string(example).unwrap();
+    let src = std::fs::read_to_string(example("scenes/underwater.toml")).unwrap();
     let lamp = "position = [0.3, -1.0, 1.2]";
     assert!(src.contains(lamp));
     let sun = "position = [0.3, 2.0, 1.2]";
@@ -664,11 +668,7 @@ fn paths_ended_in_a_medium_too_thick_for_the_walk_are_warned_about() {
     // examples/tests/medium-too-thick.toml (shared with the GPU's
     // `paths_ended_at_the_cap_of_medium_events_are_counted`), its
     // `sigma_s` and the camera's z replaced.
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/tests/medium-too-thick.toml"
-    ))
-    .unwrap();
+    let text = std::fs::read_to_string(example("tests/medium-too-thick.toml")).unwrap();
     assert!(
         text.contains("sigma_s = [1e4, 1e4, 1e4]") && text.contains("position = [0.0, 0.0, 0.0]")
     );
@@ -735,11 +735,7 @@ fn render_small(scene: &Path, out: &Path, realtime: bool) -> String {
 #[test]
 fn a_medium_finer_than_the_ray_offset_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
-    let example = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/scenes/lamplit-milk.toml"
-    );
-    let src = std::fs::read_to_string(example).unwrap();
+    let src = std::fs::read_to_string(example("scenes/lamplit-milk.toml")).unwrap();
     let line = "scale = 10.0          # 1 scene unit = 10 mm";
     assert!(src.contains(line));
     let thick = src.replacen(line, "scale = 1e7", 1);
@@ -775,13 +771,10 @@ fn a_medium_finer_than_the_ray_offset_is_warned_about() {
 #[test]
 fn realtime_warns_about_volumes_it_leaves_out() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/scenes/shallows.toml"
-    );
+    let scene = example("scenes/shallows.toml");
     let out = dir.path().join("s.png");
     for (realtime, warned) in [(true, true), (false, false)] {
-        let err = render_small(Path::new(scene), &out, realtime);
+        let err = render_small(&scene, &out, realtime);
         assert_eq!(
             err.contains("lies inside the random-walk medium of object[0]"),
             warned,
