@@ -944,7 +944,9 @@ impl Gpu {
                 self.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                         label: Some(entry),
-                        layout: Some(if entry.starts_with("trace") {
+                        // `main` binds group 1 too, where it counts
+                        // its capped paths (render.rs `MegaCount`).
+                        layout: Some(if entry.starts_with("trace") || entry == "main" {
                             &self.wavefront_layout().1
                         } else {
                             &self.render_layout().1

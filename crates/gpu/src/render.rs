@@ -313,6 +313,28 @@ pub struct SortedSteps {
     pub bins: Vec<u32>,
 }
 
+/// The megakernel's group 1 (the wavefront's layout, [`Gpu::wavefront_layout`]):
+/// `main` counts the paths it ends at `MAX_MEDIUM_EVENTS` in the first
+/// word of `ctl`, as `wf_end` does in the last four of the wavefront's
+/// counters (camera.wgsl `count_capped`); the other three bindings are
+/// stubs of one element, which `main` never reads.
+struct MegaCount {
+    bind: wgpu::BindGroup,
+    ctl: wgpu::Buffer,
+}
+
+impl MegaCount {
+    fn new(gpu: &Gpu) -> MegaCount {
+        let paths = gpu.output("megakernel group 1 (paths stub)", WF_PATH_BYTES);
+        let queue = gpu.output("megakernel group 1 (queue stub)", 16);
+        let hits = gpu.output("megakernel group 1 (hits stub)", 16);
+        // Created zeroed (wgpu clears new buffers), cleared by `reset`.
+        let ctl = gpu.output("megakernel capped paths", 16);
+        let bind = gpu.wavefront_bind_group(&[&paths, &queue, &ctl, &hits]);
+        MegaCount { bind, ctl }
+    }
+}
+
 /// The wavefront path tracer's buffers for one frame (`trace` in
 /// wavefront.wgsl, docs/gpu.md "The wavefront path tracer").
 struct Wavefront {
@@ -476,6 +498,9 @@ pub struct GpuFrame {
     wavefront: bool,
     /// Its buffers, made on first use.
     wf: Option<Wavefront>,
+    /// The megakernel's group 1 and its count of paths ended at
+    /// `MAX_MEDIUM_EVENTS`, made on its first run ([`MegaCount`]).
+    mega: Option<MegaCount>,
     /// The wavefront's hits shaded in order of their material
     /// ([`GpuFrame::set_sorted`]).
     sorted: bool,
@@ -1271,6 +1296,7 @@ impl Gpu {
             samples: 0,
             wavefront,
             wf: None,
+            mega: None,
             sorted,
             by_material: true,
             sorted_steps: u32::MAX,
@@ -1495,6 +1521,9 @@ impl GpuFrame {
         // its pixel lost many of them on long paths (the loop defect of
         // docs/gpu.md: a random-walk medium at 16 samples per dispatch
         // came out 38% dark).
+        if self.mega.is_none() {
+            self.mega = Some(MegaCount::new(gpu));
+        }
         self.dispatch_samples(
             gpu,
             ("main", &gpu.render_pipeline(false, self.features)),
@@ -1993,6 +2022,9 @@ impl GpuFrame {
                 label: Some("samples"),
             });
         let groups = self.film_groups();
+        // `main` counts its capped paths in group 1 ([`MegaCount`], made
+        // by `run_with`); the other kernels bind group 0 only.
+        let group1 = self.mega.as_ref().filter(|_| name == "main");
         for (i, &(_, n)) in chunks.iter().enumerate() {
             let at = staged.offset(&mut enc, &self.params_buf, i);
             let (first, last) = (i == 0, i + 1 == chunks.len());
@@ -2001,6 +2033,9 @@ impl GpuFrame {
             let writes = clock.writes(gpu, name, None, first, last);
             let mut pass = begin_pass(&mut enc, "samples", writes);
             pass.set_bind_group(0, &self.bind, &[at]);
+            if let Some(mega) = group1 {
+                pass.set_bind_group(1, &mega.bind, &[]);
+            }
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(groups.0, groups.1, n);
             if let Some(resolve) = resolve {
@@ -2122,6 +2157,9 @@ impl GpuFrame {
         if let Some(wf) = self.wf.as_ref() {
             enc.clear_buffer(&wf.ctl, wf.ctl_init.size(), None);
         }
+        if let Some(mega) = self.mega.as_ref() {
+            enc.clear_buffer(&mega.ctl, 0, None);
+        }
         if let (true, Some(aov)) = (self.first_hits, self.aov.as_ref()) {
             enc.clear_buffer(aov, 0, None);
         }
@@ -2131,9 +2169,10 @@ impl GpuFrame {
 
     /// The mean of the samples so far (waits for queued passes), and its
     /// counts: the samples dropped as not finite, and the paths ended at
-    /// `MAX_MEDIUM_EVENTS` where the wavefront traced them (its counter,
-    /// cleared by [`GpuFrame::reset`], goes with the wavefront's buffers,
-    /// which a change of its tile, samples a run or sorting rebuilds).
+    /// `MAX_MEDIUM_EVENTS` (counted by either path-tracing kernel, cleared
+    /// by [`GpuFrame::reset`]; the wavefront's counter goes with its
+    /// buffers, which a change of its tile, samples a run or sorting
+    /// rebuilds).
     pub fn image(&self, gpu: &Gpu) -> Result<(Image, RenderStats), GpuError> {
         let acc: Vec<[f32; 4]> = gpu.read_back(&self.accum)?;
         let inv = 1.0 / self.samples.max(1) as f32;
@@ -2147,17 +2186,22 @@ impl GpuFrame {
             })
             .collect();
         let (width, height) = (self.params.film[0], self.params.film[1]);
-        // Counted by the wavefront (`wf_end`), the default for scenes with
-        // media, in kernels with the subsurface integrator (no other can
-        // count one: nothing is read back for them); the megakernel ends
-        // such paths alike uncounted.
-        let capped_paths = match self.wf.as_ref().filter(|_| self.features.subsurface()) {
-            Some(wf) => {
+        // Counted by the wavefront (`wf_end`) and by the megakernel
+        // (`count_capped`) in kernels with the subsurface integrator (no
+        // other raises a path's medium events: nothing is read back for
+        // them); a frame that ran both (`set_wavefront` between runs) adds
+        // their counts.
+        let mut capped_paths = 0;
+        if self.features.subsurface() {
+            if let Some(wf) = self.wf.as_ref() {
                 let ctl: Vec<u32> = gpu.read_back(&wf.ctl)?;
-                ctl[ctl.len() - 4] as u64
+                capped_paths += ctl[ctl.len() - 4] as u64;
             }
-            None => 0,
-        };
+            if let Some(mega) = self.mega.as_ref() {
+                let ctl: Vec<u32> = gpu.read_back(&mega.ctl)?;
+                capped_paths += ctl[0] as u64;
+            }
+        }
         Ok((
             Image {
                 width,

@@ -48,8 +48,8 @@ pub struct RenderStats {
     /// inside random-walk media, their light beyond lost: non-zero where
     /// a medium is too thick (optically) for the walk, whose part of the
     /// image is then darker than it should be. Counted by the CPU
-    /// renderer and by the GPU's wavefront path tracer; the GPU's
-    /// megakernel ends such paths alike uncounted (0).
+    /// renderer and by both of the GPU's path-tracing kernels (the
+    /// wavefront and the megakernel).
     pub capped_paths: u64,
 }
 

@@ -140,6 +140,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     use_tile(gid);
     store_sample(gid, radiance(params.origin.xyz, camera_sample(gid)));
+    count_capped();
 }
 
 // What a sample's radiance v adds to its pixel's sum: (v, 0), or

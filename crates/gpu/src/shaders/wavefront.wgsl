@@ -26,7 +26,8 @@ struct WfPath {
 // Per step k: the workgroups of its indirect dispatch, 1, 1, and the
 // number of queued paths (filled by step k - 1, cleared by the host).
 // Its last four words, which the host clears with the frame's sums only,
-// count the paths ended at MAX_MEDIUM_EVENTS (`wf_end`) in the first.
+// count the paths ended at MAX_MEDIUM_EVENTS (`count_capped`) in the
+// first. The megakernel binds four words of its own here (`main`).
 @group(1) @binding(2) var<storage, read_write> wf_ctl: array<atomic<u32>>;
 
 fn wf_store(slot: u32, pixel: u32) {
@@ -149,10 +150,16 @@ fn wf_end(slot: u32, pixel: u32, alive: bool) {
         return;
     }
     add_sample(pixel, path.l);
-    // A path ended at the cap of its medium events (`bounce`,
-    // `medium_scatter`: its light beyond lost) is counted, as the CPU's
-    // `Media::capped` (render.rs `GpuFrame::image`). Only media raise
-    // `events`, and the sorted wavefront runs no scene with media.
+    count_capped();
+}
+
+// Counts `path` if it ended at the cap of its medium events (`bounce`,
+// `medium_scatter`: its light beyond lost), as the CPU's `Media::capped`
+// (render.rs `GpuFrame::image`), in the first of `wf_ctl`'s last four
+// words: the wavefront's counters' (`wf_end`), or the megakernel's own
+// four (`main`, render.rs `MegaCount`). Only media raise `events`, and
+// the sorted wavefront runs no scene with media.
+fn count_capped() {
     if (SUBSURFACE && path.events > MAX_MEDIUM_EVENTS) {
         atomicAdd(&wf_ctl[arrayLength(&wf_ctl) - 4u], 1u);
     }
