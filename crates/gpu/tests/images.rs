@@ -301,7 +301,7 @@ base = { type = "sphere", center = [0.3, -0.2, 0.0], radius = 0.8 }
         }
         out
     };
-    let scene = isolux_scene::parse_str(src, Path::new("furnace.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(src, "furnace.toml");
     let s = stats(&gpu_image(&gpu, &scene));
     eprintln!("non-absorbing, GPU: {s:?}");
     for (c, (m, se)) in s.iter().enumerate() {
@@ -311,7 +311,7 @@ base = { type = "sphere", center = [0.3, -0.2, 0.0], radius = 0.8 }
         );
     }
     let src = src.replace("sigma_a = [0.0, 0.0, 0.0]", "sigma_a = [0.05, 0.5, 2.0]");
-    let scene = isolux_scene::parse_str(&src, Path::new("furnace.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&src, "furnace.toml");
     let s = stats(&gpu_image(&gpu, &scene));
     eprintln!("absorbing, GPU: {s:?}");
     for (c, (m, se)) in s.iter().enumerate() {
@@ -356,7 +356,7 @@ mode = "dipole"
 material = "medium"
 base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 0.8 }
 "#;
-    let scene = isolux_scene::parse_str(src, Path::new("dipole.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(src, "dipole.toml");
     // The mean over the sphere's pixels (those that differ from the white
     // background) and its standard error.
     let stats = |img: &Image| {
@@ -432,8 +432,7 @@ fn lamps_in_media_match_the_cpu() {
         ("scattering, floor", lamp(0.3, 0.2, true)),
         ("absorbing, dipole floor", dipole),
     ] {
-        let mut scene =
-            isolux_scene::parse_str(&src, Path::new("lamp.toml"), Path::new(".")).unwrap();
+        let mut scene = common::parse(&src, "lamp.toml");
         (scene.film.width, scene.film.height, scene.film.spp) = (96, 64, 128);
         scene.integrator.max_depth = 4;
         assert_matches_cpu(&gpu, &mut scene, name, 0.01);
@@ -458,7 +457,7 @@ fn equiangular_sampling_quiets_lamps_on_the_gpu() {
         .replace("look_at = [0.0, -0.6, 0.0]", "look_at = [0.6, 0.8, -0.4]");
     let mut src = src.replace("max_depth = 1", "max_depth = 4");
     src.truncate(src.find("\n# floor\n").unwrap());
-    let mut scene = isolux_scene::parse_str(&src, Path::new("lamp.toml"), Path::new(".")).unwrap();
+    let mut scene = common::parse(&src, "lamp.toml");
     (scene.film.width, scene.film.height, scene.film.spp) = (48, 36, 32);
     let (diff, noise, _, _) = compare(&gpu, &mut scene, "lamp in view");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
@@ -525,7 +524,7 @@ fn lamps_above_water_match_the_cpu() {
         return;
     };
     let floor = common::test_scene_text("sun-above-water.toml");
-    let scene = isolux_scene::parse_str(&floor, Path::new("sun.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&floor, "sun.toml");
     let m = image_mean(&gpu_image(&gpu, &scene));
     eprintln!("floor under water: GPU {m}");
     assert!((m - 0.041059).abs() < 0.02 * 0.041059, "{m}");
@@ -551,8 +550,7 @@ fn lamps_above_water_match_the_cpu() {
         // lit, and this comparison failed).
         ("floor under a pool with bounds", pool),
     ] {
-        let mut scene =
-            isolux_scene::parse_str(&src, Path::new("sun.toml"), Path::new(".")).unwrap();
+        let mut scene = common::parse(&src, "sun.toml");
         assert_matches_cpu(&gpu, &mut scene, name, 0.001);
     }
 }
@@ -571,7 +569,7 @@ fn lamps_above_drops_match_the_cpu() {
         return;
     };
     let floor = common::test_scene_text("lamp-above-drop.toml");
-    let scene = isolux_scene::parse_str(&floor, Path::new("drop.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&floor, "drop.toml");
     let m = image_mean(&gpu_image(&gpu, &scene));
     eprintln!("floor in a drop: GPU {m}");
     assert!((m - 0.22456).abs() < 0.02 * 0.22456, "{m}");
@@ -598,15 +596,14 @@ fn lamps_above_drops_match_the_cpu() {
         ("scattering drop under a lamp", water),
         ("two drops of one material", twin),
     ] {
-        let mut scene =
-            isolux_scene::parse_str(&src, Path::new("drop.toml"), Path::new(".")).unwrap();
+        let mut scene = common::parse(&src, "drop.toml");
         assert_matches_cpu(&gpu, &mut scene, name, 0.001);
     }
     let flat = floor.replace(
         "[integrator]\n",
         "[integrator]\nrefracted_lights = \"flat\"\n",
     );
-    let scene = isolux_scene::parse_str(&flat, Path::new("drop.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&flat, "drop.toml");
     assert_eq!(image_mean(&gpu_image(&gpu, &scene)), 0.0);
 }
 
@@ -622,8 +619,7 @@ fn lamps_above_drops_match_the_cpu() {
 #[test]
 fn flat_media_the_lights_records_cannot_name_go_by_the_media_lists() {
     let src = common::test_scene_text("sun-above-water.toml");
-    let parse =
-        |s: &str| isolux_scene::parse_str(s, Path::new("sun.toml"), Path::new(".")).unwrap();
+    let parse = |s: &str| common::parse(s, "sun.toml");
     let flat = |s: &str| {
         s.replace(
             "[integrator]\n",
@@ -693,7 +689,7 @@ fn flat_water_shared_by_a_drop_matches_the_cpu() {
     let drop = "[[object]]\nmaterial = \"water\"\nbase = { type = \"sphere\", center = [4.0, 1.0, 3.0], radius = 0.4 }\n";
     let shared = floor.replace(water, &format!("{water}\n{drop}"));
     assert_ne!(shared, floor);
-    let scene = isolux_scene::parse_str(&shared, Path::new("sun.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&shared, "sun.toml");
     assert!(isolux_gpu::scene_features(&scene).unwrap().manifold);
     let m = image_mean(&gpu_image(&gpu, &scene));
     eprintln!("floor under shared water: GPU {m}");
@@ -710,8 +706,7 @@ fn flat_water_shared_by_a_drop_matches_the_cpu() {
         ),
         ("floor under a shared pool with bounds", pool),
     ] {
-        let mut scene =
-            isolux_scene::parse_str(&src, Path::new("sun.toml"), Path::new(".")).unwrap();
+        let mut scene = common::parse(&src, "sun.toml");
         assert_matches_cpu(&gpu, &mut scene, name, 0.001);
     }
 }
@@ -731,7 +726,7 @@ fn surfaces_under_water_match_the_cpu() {
         return;
     };
     let wall = common::test_scene_text("plastic-under-water.toml");
-    let mut scene = isolux_scene::parse_str(&wall, Path::new("wall.toml"), Path::new(".")).unwrap();
+    let mut scene = common::parse(&wall, "wall.toml");
     let m = image_mean(&gpu_image(&gpu, &scene));
     eprintln!("plastic wall under water: GPU {m}");
     assert!((m - 0.00626).abs() < 0.0004, "{m}");
@@ -786,7 +781,7 @@ material = "marble"
 base = { type = "sphere", center = [-2.4, -0.3, 0.3], radius = 0.15 }
 "#
     );
-    scene = isolux_scene::parse_str(&src, Path::new("under-water.toml"), Path::new(".")).unwrap();
+    scene = common::parse(&src, "under-water.toml");
     (scene.film.width, scene.film.height, scene.film.spp) = (48, 32, 64);
     let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "surfaces under water");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
@@ -805,7 +800,7 @@ fn lamps_through_fog_match_the_cpu() {
         return;
     };
     let floor = common::test_scene_text("fog-lamp-outside.toml");
-    let scene = isolux_scene::parse_str(&floor, Path::new("fog.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&floor, "fog.toml");
     let m = image_mean(&gpu_image(&gpu, &scene));
     eprintln!("floor through fog: GPU {m}");
     assert!((m - 0.19617).abs() < 0.002, "{m}");
@@ -821,8 +816,7 @@ fn lamps_through_fog_match_the_cpu() {
         ),
         ("glowing fog", glow),
     ] {
-        let mut scene =
-            isolux_scene::parse_str(&src, Path::new("fog.toml"), Path::new(".")).unwrap();
+        let mut scene = common::parse(&src, "fog.toml");
         assert_matches_cpu(&gpu, &mut scene, name, 0.001);
     }
 }
@@ -888,8 +882,7 @@ fn a_camera_inside_a_random_walk_medium_sees_it_on_the_gpu() {
         return;
     };
     let src = common::test_scene_text("medium-around-camera.toml");
-    let mut scene =
-        isolux_scene::parse_str(&src, Path::new("inside.toml"), Path::new(".")).unwrap();
+    let mut scene = common::parse(&src, "inside.toml");
     // Prepared with the camera outside, then moved in.
     let inside = scene.camera.position;
     scene.camera.position.z = 3.0;
@@ -964,8 +957,7 @@ fn media_nest_on_the_gpu() {
     // `at`).
     let closed_form = |text: &str, at: &str, camera: &str, n: f64| {
         let text = text.replacen(at, camera, 1);
-        let scene =
-            isolux_scene::parse_str(&text, Path::new("media.toml"), Path::new(".")).unwrap();
+        let scene = common::parse(&text, "media.toml");
         let mut frame = gpu.prepare(&scene).unwrap();
         for wavefront in [true, false] {
             frame.set_wavefront(wavefront);
@@ -988,7 +980,7 @@ fn media_nest_on_the_gpu() {
     }
     // A grey medium carries every channel: each is 1.5^2 exactly.
     let grey = src.replace("sigma_s = [2.0, 1.0, 0.5]", "sigma_s = [1.0, 1.0, 1.0]");
-    let scene = isolux_scene::parse_str(&grey, Path::new("grey.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&grey, "grey.toml");
     for p in &gpu_image(&gpu, &scene).rgb {
         for &v in p {
             assert!((v as f64 - 2.25).abs() < 1e-4, "grey medium: {p:?}");
@@ -1015,8 +1007,7 @@ mode = "random_walk"
 material = "jelly"
 base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
 "#;
-    let mut scene =
-        isolux_scene::parse_str(&jelly, Path::new("jelly.toml"), Path::new(".")).unwrap();
+    let mut scene = common::parse(&jelly, "jelly.toml");
     // 128 spp: at 64 a block lit through the jelly by one rare path
     // put |GPU - CPU| at 1.57 times the CPU's own seed-to-seed difference
     // for one seed, where five others gave 0.80-1.14 (the GPU's mean
@@ -1050,7 +1041,7 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
         text.replacen("[[material]]", &format!("{padding}[[material]]"), 1)
     };
     let fifth = behind(11, &deep) + &deeper_medium("fifth", 1.6, 0.14);
-    let scene = isolux_scene::parse_str(&fifth, Path::new("fifth.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&fifth, "fifth.toml");
     assert_eq!(isolux_gpu::medium_bits(&scene), 4);
     closed_form(&fifth, "[0.5, 0.0, 0.3]", "[0.5, 0.0, 0.3]", 1.6);
     // Media of 15 materials: the slots are 8 bits wide, four deep still
@@ -1074,10 +1065,10 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
     };
     let padded = pad(11, &deep);
     closed_form(&padded, "[0.5, 0.0, 0.3]", "[0.5, 0.0, 0.3]", 1.9);
-    let scene = isolux_scene::parse_str(&padded, Path::new("padded.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&padded, "padded.toml");
     assert_eq!(isolux_gpu::medium_bits(&scene), 8);
     let fifth = padded.clone() + &deeper_medium("fifth", 1.6, 0.14);
-    let scene = isolux_scene::parse_str(&fifth, Path::new("fifth.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&fifth, "fifth.toml");
     let Err(e) = gpu.prepare(&scene) else {
         panic!("five nested media accepted in 8-bit slots")
     };
@@ -1089,7 +1080,7 @@ base = { type = "sphere", center = [0.0, -0.5, 0.0], radius = 0.45 }
     // Media of 256 materials: the slots are 16 bits wide, two deep still
     // render, three are refused.
     let late = pad(254, &nested);
-    let scene = isolux_scene::parse_str(&late, Path::new("late.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&late, "late.toml");
     assert_eq!(isolux_gpu::medium_bits(&scene), 16);
     for p in &gpu_image(&gpu, &scene).rgb {
         let sum = p.iter().map(|&v| v as f64).sum::<f64>();
@@ -1103,7 +1094,7 @@ material = "water"
 base = { type = "sphere", center = [0.3, 0.0, 0.0], radius = 0.5 }
 "#
     );
-    let scene = isolux_scene::parse_str(&third, Path::new("third.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&third, "third.toml");
     let Err(e) = gpu.prepare(&scene) else {
         panic!("three nested media accepted in 16-bit slots")
     };
@@ -1114,16 +1105,14 @@ base = { type = "sphere", center = [0.3, 0.0, 0.0], radius = 0.5 }
     // position), but a path leaves media from below the top of its packed
     // list; the GPU's image agrees with the CPU's within noise.
     let overlapping = deep.replace("center = [0.3, 0.0, 0.2]", "center = [0.6, 0.0, 0.0]");
-    let mut scene =
-        isolux_scene::parse_str(&overlapping, Path::new("overlapping.toml"), Path::new("."))
-            .unwrap();
+    let mut scene = common::parse(&overlapping, "overlapping.toml");
     (scene.film.width, scene.film.height, scene.film.spp) = (48, 32, 64);
     let (diff, noise, mg, mc) = compare(&gpu, &mut scene, "overlapping media");
     assert!(diff <= 1.5 * noise, "{diff} vs noise {noise}");
     assert!((mg - mc).abs() <= 0.02 * mc, "{mg} vs {mc}");
     // Nine deep: refused.
     let ninth = deeper.clone() + &deeper_medium("ninth", 1.3, 0.01);
-    let scene = isolux_scene::parse_str(&ninth, Path::new("ninth.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&ninth, "ninth.toml");
     let Err(e) = gpu.prepare(&scene) else {
         panic!("nine nested media accepted")
     };
@@ -2030,7 +2019,7 @@ fn paths_ended_at_the_cap_of_medium_events_are_counted() {
             "sigma_s = [1e4, 1e4, 1e4]",
             &format!("sigma_s = [{sigma:e}, {sigma:e}, {sigma:e}]"),
         );
-        isolux_scene::parse_str(&src, Path::new("thick.toml"), Path::new(".")).unwrap()
+        common::parse(&src, "thick.toml")
     };
     for (sigma, capped) in [(1e4, 4), (1e2, 0)] {
         let s = scene(sigma);
@@ -2173,7 +2162,7 @@ fn scaled_text(exponent: i32) -> String {
 
 /// `text` parsed as a scene beside `small-units.toml`.
 fn parsed_scene(text: &str) -> Scene {
-    isolux_scene::parse_str(text, Path::new(SMALL_UNITS), Path::new(".")).unwrap()
+    common::parse(text, SMALL_UNITS)
 }
 
 /// [`scaled_scene`] at `10^exponent` beside a clay sphere 2 units across,
@@ -2623,7 +2612,7 @@ fn caustics_match_the_cpu() {
         return;
     };
     let slab = common::test_scene_text("lamp-above-glass.toml");
-    let scene = isolux_scene::parse_str(&slab, Path::new("glass.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&slab, "glass.toml");
     let m = image_mean(&gpu_image(&gpu, &scene));
     eprintln!("floor under a glass slab: GPU {m}");
     assert!((m - 0.40040).abs() < 0.01 * 0.40040, "{m}");
@@ -2651,14 +2640,13 @@ fn caustics_match_the_cpu() {
             common::test_scene_text("marble-caustic.toml"),
         ),
     ] {
-        let mut scene =
-            isolux_scene::parse_str(&src, Path::new("glass.toml"), Path::new(".")).unwrap();
+        let mut scene = common::parse(&src, "glass.toml");
         assert!(isolux_gpu::scene_features(&scene).unwrap().caustics);
         assert_matches_cpu(&gpu, &mut scene, name, 0.01);
     }
     assert_matches_cpu(&gpu, &mut example, "caustics.toml", 0.01);
     let none = slab.replace("caustics = \"manifold\"", "caustics = \"none\"");
-    let scene = isolux_scene::parse_str(&none, Path::new("glass.toml"), Path::new(".")).unwrap();
+    let scene = common::parse(&none, "glass.toml");
     assert!(!isolux_gpu::scene_features(&scene).unwrap().caustics);
     assert_eq!(image_mean(&gpu_image(&gpu, &scene)), 0.0);
     // The gallery has glass and a point light, and keeps "none" for its

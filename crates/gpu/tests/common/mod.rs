@@ -48,6 +48,13 @@ pub fn test_scene_text(name: &str) -> String {
     std::fs::read_to_string(p).unwrap()
 }
 
+/// The scene of TOML `text`, as if read from `file` in the current folder
+/// (errors name `file`); a test's own text, so it must parse.
+#[allow(dead_code)]
+pub fn parse(text: &str, file: &str) -> isolux_render::Scene {
+    isolux_scene::parse_str(text, std::path::Path::new(file), std::path::Path::new(".")).unwrap()
+}
+
 /// Mean luminance of each 8 x 8 block of `img`.
 #[allow(dead_code)]
 pub fn blocks(img: &isolux_core::Image) -> Vec<f64> {
