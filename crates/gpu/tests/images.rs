@@ -50,14 +50,9 @@ fn compare(gpu: &Gpu, scene: &mut Scene, label: &str) -> (f64, f64, f64, f64) {
     common::compare_with_cpu(scene, |s| gpu_image(gpu, s), cpu_image, label)
 }
 
-/// [`compare`] with the usual verdict: the GPU's image within 1.5 times
-/// the CPU's own seed-to-seed noise of the CPU's, their means within 3%,
-/// and the CPU's mean above `floor` (not a blank image).
+/// [`compare`] with the usual verdict ([`common::assert_within_noise`]).
 fn assert_matches_cpu(gpu: &Gpu, scene: &mut Scene, name: &str, floor: f64) {
-    let (diff, noise, mg, mc) = compare(gpu, scene, name);
-    assert!(mc > floor, "{name}: {mc}");
-    assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
-    assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    common::assert_within_noise(compare(gpu, scene, name), name, floor);
 }
 
 /// The mean of all channels of all pixels.

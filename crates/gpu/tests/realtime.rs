@@ -19,7 +19,6 @@ use isolux_core::Image;
 use isolux_gpu::Gpu;
 use isolux_materials::Material;
 use isolux_render::{render, RenderOptions, Scene};
-use std::path::Path;
 
 fn gpu_image(gpu: &Gpu, scene: &Scene) -> Image {
     let (img, stats) = gpu.render_realtime(scene).unwrap();
@@ -42,14 +41,9 @@ fn compare(gpu: &Gpu, scene: &mut Scene, label: &str) -> (f64, f64, f64, f64) {
     common::compare_with_cpu(scene, |s| gpu_image(gpu, s), cpu_image, label)
 }
 
-/// [`compare`] with the usual verdict (as images.rs): the GPU's image
-/// within 1.5 times the CPU's own seed-to-seed noise of the CPU's, their
-/// means within 3%, and the CPU's mean above `floor`.
+/// [`compare`] with the usual verdict ([`common::assert_within_noise`]).
 fn assert_matches_cpu(gpu: &Gpu, scene: &mut Scene, name: &str, floor: f64) {
-    let (diff, noise, mg, mc) = compare(gpu, scene, name);
-    assert!(mc > floor, "{name}: {mc}");
-    assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
-    assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+    common::assert_within_noise(compare(gpu, scene, name), name, floor);
 }
 
 #[test]
@@ -78,7 +72,7 @@ reflectance = [0.5, 0.25, 0.75]
 material = "grey"
 base = { type = "sphere", center = [0.0, 0.0, 0.0], radius = 2.0 }
 "#;
-    let s = isolux_scene::parse_str(src, Path::new("t.toml"), Path::new(".")).unwrap();
+    let s = common::parse(src, "t.toml");
     let img = gpu_image(&gpu, &s);
     for p in &img.rgb {
         for (c, want) in p.iter().zip([0.5, 0.25, 0.75]) {

@@ -55,6 +55,16 @@ pub fn parse(text: &str, file: &str) -> isolux_render::Scene {
     isolux_scene::parse_str(text, std::path::Path::new(file), std::path::Path::new(".")).unwrap()
 }
 
+/// The usual verdict on [`compare_with_cpu`]'s figures: the GPU's image
+/// within 1.5 times the CPU's own seed-to-seed noise of the CPU's, their
+/// means within 3%, and the CPU's mean above `floor` (not a blank image).
+#[allow(dead_code)]
+pub fn assert_within_noise((diff, noise, mg, mc): (f64, f64, f64, f64), name: &str, floor: f64) {
+    assert!(mc > floor, "{name}: {mc}");
+    assert!(diff <= 1.5 * noise, "{name}: {diff} vs noise {noise}");
+    assert!((mg - mc).abs() <= 0.03 * mc, "{name}: {mg} vs {mc}");
+}
+
 /// Mean luminance of each 8 x 8 block of `img`.
 #[allow(dead_code)]
 pub fn blocks(img: &isolux_core::Image) -> Vec<f64> {
