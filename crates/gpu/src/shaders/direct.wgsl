@@ -297,7 +297,7 @@ struct Path {
     // as 1 + its material (0: none) in a slot of `medium_bits()` bits, the
     // innermost in the lowest slot and each around it in the next
     // (`medium_top`; eight media deep in 4-bit slots, four in 8-bit ones,
-    // two in 16-bit ones, render.rs `medium_bits`); the hero channel
+    // two in 16-bit ones, render/media.rs `medium_bits`); the hero channel
     // whose coefficients its free flights sample (3: none yet; `ratio`
     // below), the scattering events and boundary crossings so far.
     medium: u32,

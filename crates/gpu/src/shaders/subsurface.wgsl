@@ -224,7 +224,7 @@ fn refraction(i: u32, p: vec3<f32>) -> Refraction {
         return r;
     }
     // Flat (the light's record names the medium) or found among the
-    // objects the medium's record lists (render.rs `manifold_media`): a
+    // objects the medium's record lists (render/media.rs `manifold_media`): a
     // curved one by manifold next-event estimation, a flat one the light's
     // record cannot name (its material shared, or the light above two) by
     // the same closed form as through the record.
