@@ -1,7 +1,7 @@
 // ---- The wavefront path tracer (`trace`) ---------------------------------
 //
 // The same paths as `main`, bounce for bounce, with the loop over bounces
-// split into dispatches (render.rs `dispatch_wavefront`): step 0 runs over
+// split into dispatches (render/wavefront.rs `dispatch_wavefront`): step 0 runs over
 // every pixel of a tile, starts its camera ray and takes one bounce; each
 // path still alive is stored in `wf_paths` and its slot queued; step k > 0
 // runs (an indirect dispatch) over step k - 1's queue only, so a workgroup
@@ -186,7 +186,7 @@ fn wf_step(gid: vec3<u32>, last: bool) {
     wf_end(sp.x, sp.y, alive && !last);
 }
 
-// Every step of the wavefront but the last (render.rs `dispatch_wavefront`).
+// Every step of the wavefront but the last (render/wavefront.rs `dispatch_wavefront`).
 @compute @workgroup_size(64)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     wf_step(gid, false);
@@ -201,7 +201,7 @@ fn trace_last(@builtin(global_invocation_id) gid: vec3<u32>) {
 // ---- The sorted wavefront (`PathKernel::Sorted`) ---------------------------
 //
 // Each step but the last in three or four dispatches instead of `trace`'s
-// one (render.rs `dispatch_wavefront`, docs/gpu.md "The sorted
+// one (render/wavefront.rs `dispatch_wavefront`, docs/gpu.md "The sorted
 // wavefront"): `trace_extend` finds each queued path's next surface (a
 // path that escapes or reaches max depth ends there), lists the path
 // with its hit and counts the list by material; `trace_scatter`
