@@ -944,9 +944,7 @@ impl Gpu {
                 self.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                         label: Some(entry),
-                        // `main` binds group 1 too, where it counts
-                        // its capped paths (render.rs `MegaCount`).
-                        layout: Some(if entry.starts_with("trace") || entry == "main" {
+                        layout: Some(if binds_wavefront_group(entry) {
                             &self.wavefront_layout().1
                         } else {
                             &self.render_layout().1
@@ -1204,6 +1202,14 @@ impl Gpu {
             &out,
         )
     }
+}
+
+/// Whether the render module's entry point `entry` binds the wavefront's
+/// group 1 ([`Gpu::wavefront_layout`]) beside the render group: the
+/// wavefront's steps (`trace...`) and the megakernel `main`, which counts
+/// its capped paths there (render.rs `MegaCount`).
+pub(crate) fn binds_wavefront_group(entry: &str) -> bool {
+    entry.starts_with("trace") || entry == "main"
 }
 
 #[cfg(test)]

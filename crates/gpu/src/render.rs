@@ -1284,8 +1284,11 @@ impl GpuFrame {
             });
         let groups = self.film_groups();
         // `main` counts its capped paths in group 1 ([`MegaCount`], made
-        // by `run_with`); the other kernels bind group 0 only.
-        let group1 = self.mega.as_ref().filter(|_| name == "main");
+        // by `run_with`); the other kernels here bind group 0 only.
+        let group1 = self
+            .mega
+            .as_ref()
+            .filter(|_| crate::binds_wavefront_group(name));
         for (i, &(_, n)) in chunks.iter().enumerate() {
             let at = staged.offset(&mut enc, &self.params_buf, i);
             let (first, last) = (i == 0, i + 1 == chunks.len());
