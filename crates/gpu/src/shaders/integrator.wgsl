@@ -92,7 +92,7 @@ fn bounce() -> bool {
         // record with its indices relative to the medium's, through the
         // medium's table (tag.y - 1; layout.rs `relative_in_media`). The
         // boundary of the innermost medium, met from inside, meets the
-        // medium around it (integrator.rs `MediumStack::outside_of`).
+        // medium around it (integrator/media.rs `MediumStack::outside_of`).
         if (SUBSURFACE && path.medium != 0u) {
             let seen = medium_outside(path.medium, mi + 1u);
             if (seen != 0u) {

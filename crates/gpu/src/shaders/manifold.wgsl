@@ -7,7 +7,7 @@
 // ---- Manifold next-event estimation (manifold.rs) --------------------------
 //
 // A point light reaching a point p inside a random-walk medium through its
-// curved boundary (integrator.rs `manifold_refraction`): Newton's method
+// curved boundary (integrator/refraction.rs `manifold_refraction`): Newton's method
 // on the surface for the crossing x where `n_out w_o + n_in w_i` lies
 // along the normal, from the straight segment's crossing, each iterate
 // projected back onto F' = 0; the spreading `dOmega_L / dA_p` from the
@@ -197,7 +197,7 @@ fn medium_object(list: u32, p: vec3<f32>) -> u32 {
 
 // Manifold next-event estimation of the light at `light` from p through
 // the curved surface of object oi, the boundary of medium id (1 + its
-// material; index n2 inside, n1 outside): integrator.rs
+// material; index n2 inside, n1 outside): integrator/refraction.rs
 // `manifold_refraction`, manifold.rs `connect_from`.
 fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32, n2: f32) -> Refraction {
     var r = Refraction(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
@@ -207,7 +207,7 @@ fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32
         return r;
     }
     // Russian roulette by the attenuation of the straight way out, in two
-    // stages (integrator.rs `manifold_refraction`): first by d1, a lower
+    // stages (integrator/refraction.rs `manifold_refraction`): first by d1, a lower
     // bound on the crossing from closed forms (geometry `Object::exit_bound`:
     // the base quadric's crossing, or a dent's support if sooner; 0 where p
     // is outside the base or in a dent's support), so that most declined
@@ -320,7 +320,7 @@ fn manifold_refraction(oi: u32, id: u32, p: vec3<f32>, light: vec3<f32>, n1: f32
 // With `integrator.caustics = "manifold"` (`CAUSTICS`, source.rs
 // `Features::caustics`), a point light whose shadow ray from p first enters
 // a `dielectric` object and leaves it again short of the light lights p
-// through it (integrator.rs `caustic`): the path p -> x0 -> x1 -> light
+// through it (integrator/refraction.rs `caustic`): the path p -> x0 -> x1 -> light
 // obeying Snell's law at both crossings, by Newton's method on the two
 // crossings' four tangential constraint components together (the
 // Jacobian's diagonal blocks `manifold_jacobian`'s, the off-diagonal ones
@@ -424,7 +424,7 @@ fn chain_jacobian(oi: u32, x0: vec3<f32>, x1: vec3<f32>, f0: Frame, f1: Frame, p
 }
 
 // Point light k's path to p (geometric normal ng) through a glass object,
-// where its shadow ray meets one first (integrator.rs `caustic`).
+// where its shadow ray meets one first (integrator/refraction.rs `caustic`).
 fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     var r = Caustic(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
     let light = lights[k].position.xyz;
@@ -553,7 +553,7 @@ fn caustic(k: u32, p: vec3<f32>, ng: vec3<f32>) -> Caustic {
     // itself: along `-to_p`, from p, it ran parallel to the leg, the
     // spawn offset off it, and met a grazing crossing that offset over
     // the cosine from x0 (the CPU lost 12% of the rim's light so, its
-    // offset 1e-6 rather than 1e-7; `caustic` in integrator.rs).
+    // offset 1e-6 rather than 1e-7; `caustic` in integrator/refraction.rs).
     let o_p = offset_origin(p, ng, -to_p);
     let leg = length(x0 - o_p);
     let to_x0_o = (x0 - o_p) / leg;

@@ -1,4 +1,4 @@
-// ---- Media (integrator.rs) -------------------------------------------------
+// ---- Media (integrator.rs and integrator/) ---------------------------------
 //
 // Light along rays that cross media and their boundaries: a connection's
 // and a shadow ray's transmittance, the lamps in a medium gathered along a
@@ -46,7 +46,7 @@ fn connection_transmittance(o: vec3<f32>, d: vec3<f32>, t_max: f32, as_light: bo
 }
 
 // Whether scattering events in the path's media try point light i
-// (integrator.rs `medium_lights`): every light in a scene with null
+// (integrator/medium.rs `medium_lights`): every light in a scene with null
 // boundaries, else only the lights of the innermost medium's material
 // (`position.w`, layout.rs `GpuLight`): one outside it is occluded by
 // its boundary, and no shadow ray is traced to it.
@@ -81,7 +81,7 @@ fn equiangular_pdf(e: vec4<f32>, t: f32) -> f32 {
 // The point lights' light scattered toward the path along its flight
 // from o along d through the innermost medium, which meets the next
 // surface at t_end, per channel and unit of the path's throughput at o
-// (integrator.rs `medium_light` and `equiangular_light`): where
+// (integrator/medium.rs `medium_light` and `equiangular_light`): where
 // `scatter`, next-event estimation at the flight's scattering point t,
 // `sigma_s T(t) / density(t) I p T_l / r^2` per light (the scattering
 // point's weight, `Spectral`; with the lights through the medium's flat
@@ -110,7 +110,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
         // k = 0: the equiangular sample; k = 1: the scattering point; k =
         // 2: the scattering point lit through the medium's flat boundary;
         // k = 3 (with CAUSTICS): the scattering point lit through glass
-        // that blocked its shadow ray (`caustic`, integrator.rs
+        // that blocked its shadow ray (`caustic`, integrator/medium.rs
         // `caustic_scattered_at`), unweighted: the scattering points alone
         // sample that light.
         for (var k = 0u; k < select(3u, 4u, CAUSTICS); k++) {
@@ -203,7 +203,7 @@ fn medium_light(o: vec3<f32>, d: vec3<f32>, t: f32, t_end: f32, equi: bool, scat
 }
 
 // The medium on the outer side of the surface of medium id (1 + its
-// material) for a path in the packed media med (integrator.rs
+// material) for a path in the packed media med (integrator/media.rs
 // `MediumStack::outside_of`): the innermost, or where id is the innermost
 // (the path leaving it) the one around it.
 fn medium_outside(med: u32, id: u32) -> u32 {
@@ -215,7 +215,7 @@ fn medium_outside(med: u32, id: u32) -> u32 {
 }
 
 // The packed media med after crossing the boundary of medium id
-// (integrator.rs `MediumStack::cross`): out of it if med holds it (in any
+// (integrator/media.rs `MediumStack::cross`): out of it if med holds it (in any
 // slot: media may overlap), else into it; MEDIA_TOO_DEEP for one more
 // than the slots hold (refused before the render, render.rs
 // `nested_too_deep`).

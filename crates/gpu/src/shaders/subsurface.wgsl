@@ -4,7 +4,7 @@
 // (`refraction`); also Russian roulette (`roulette`), which every path
 // takes. Part of the path tracer's module (source.rs `RENDER_FILES`).
 
-// ---- Subsurface scattering (integrator.rs) ---------------------------------
+// ---- Subsurface scattering (integrator.rs and integrator/) -----------------
 //
 // `SUBSURFACE` (a constant the Rust side writes before this file,
 // `render_source_variant`) is false in kernels for scenes without a
@@ -80,7 +80,7 @@ fn roulette(beta: vec3<f32>) -> vec3<f32> {
 }
 
 // The single-scattering lobe of dipole medium m at its exit point x_o
-// (integrator.rs single_scattering_light): `bounce` gathers its light
+// (integrator/dipole.rs single_scattering_light): `bounce` gathers its light
 // samples and one cosine-sampled direction toward the environment through
 // it.
 fn sss_single_lobe(m: Material) -> Material {
@@ -105,7 +105,7 @@ fn sss_axis(fr: Frame, j: u32) -> mat3x3<f32> {
 }
 
 // Light refracted into a dipole medium at p re-emerges at an entry point
-// x_i sampled around it (integrator.rs bssrdf_entry): a channel, a
+// x_i sampled around it (integrator/dipole.rs bssrdf_entry): a channel, a
 // projection axis (the normal 1/2, each tangent 1/4), a radius from the
 // channel's table, a probe ray along the axis through object oi of which
 // one of the k hits is kept (reservoir sampling), the pdf summing every
@@ -186,7 +186,7 @@ fn sss_dipole_bounce(oi: u32, p: vec3<f32>, n: vec3<f32>, m: Material, mi: u32) 
 }
 
 // A point light's connection into the innermost medium through its
-// boundary (integrator.rs `refraction`, in f32): through a flat one by
+// boundary (integrator/refraction.rs `refraction`, in f32): through a flat one by
 // the same Newton steps (the light's record's `intensity.w` names the
 // medium, layout.rs `GpuLight`), through a curved one by
 // `manifold_refraction` (the medium's record's `c.w` lists its objects).
@@ -204,7 +204,7 @@ struct Refraction {
 }
 
 // Whether a crossing point c lies in the box of object ob that clips its
-// boundary (in the object's frame, the faces rounded outward; integrator.rs
+// boundary (in the object's frame, the faces rounded outward; integrator/refraction.rs
 // `in_box`).
 fn in_box(ob: Object, c: vec3<f32>) -> bool {
     let lc = c - ob.origin.xyz;
