@@ -382,13 +382,13 @@ fn sign(x: V) -> V {
     sel(x.gt(0.0), 1.0, sel(x.lt(0.0), -1.0, 0.0))
 }
 
-/// `object::poly2`: `(q2 t + q1) t + q0`.
+/// `walk::poly2`: `(q2 t + q1) t + q0`.
 #[inline(always)]
 fn poly2(q: [V; 3], t: V) -> V {
     (q[2] * t + q[1]) * t + q[0]
 }
 
-/// `object::shift`: `q(a + s len)` as a quadratic in `s`.
+/// `walk::shift`: `q(a + s len)` as a quadratic in `s`.
 #[inline(always)]
 fn shift(q: [V; 3], a: V, len: V) -> [V; 3] {
     let [c0, c1, c2] = q;
@@ -399,7 +399,7 @@ fn shift(q: [V; 3], a: V, len: V) -> [V; 3] {
     ]
 }
 
-/// `object::range2`: the range of `q` on `[a, b]`.
+/// `walk::range2`: the range of `q` on `[a, b]`.
 #[inline(always)]
 fn range2(q: [V; 3], a: V, b: V) -> (V, V) {
     let (va, vb) = (poly2(q, a), poly2(q, b));

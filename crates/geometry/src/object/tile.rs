@@ -3,9 +3,9 @@
 //! and the first phase of the perturbation gathering run over arrays of
 //! the rays, one lane per ray (loops the compiler vectorizes, compiled
 //! for each instruction set, [`crate::simd`]); the segments of the lanes
-//! that qualify are walked together by [`solo`](super::solo), the others
-//! ray by ray by the scalar path of `object.rs`. The hits are the scalar
-//! path's to the last bit (the tests of `object.rs` compare them).
+//! that qualify are walked together by [`solo`], the others
+//! ray by ray by the scalar path of `walk.rs`. The hits are the scalar
+//! path's to the last bit (the tests in `tests.rs` compare them).
 
 use super::{solo, unit_normal, Along, Candidate, Hit, Items, Object, TILE_RAYS};
 use crate::poly::{fmax, fmin, Crossings};

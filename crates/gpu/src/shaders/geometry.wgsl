@@ -1,5 +1,6 @@
 // Exact first hit of functionally defined objects (SPEC §1) on the GPU:
-// F' = F + sum f_i Q_i^3 [Q_i >= 0], mirroring crates/geometry/src/object.rs.
+// F' = F + sum f_i Q_i^3 [Q_i >= 0], mirroring crates/geometry/src/object.rs
+// and its segment walk, object/walk.rs.
 //
 // Along a ray every Q_i is a quadratic in t; its roots split the ray into
 // segments on which the set of active perturbations is fixed, so F' is one
