@@ -90,7 +90,7 @@ fn bounce() -> bool {
         mi = objects[oi].range.z;
         // A surface inside a random-walk medium meets the medium: its
         // record with its indices relative to the medium's, through the
-        // medium's table (tag.y - 1; layout.rs `relative_in_media`). The
+        // medium's table (tag.y - 1; layout/materials.rs `relative_in_media`). The
         // boundary of the innermost medium, met from inside, meets the
         // medium around it (integrator/media.rs `MediumStack::outside_of`).
         if (SUBSURFACE && path.medium != 0u) {

@@ -2,7 +2,7 @@
 // model's `f`, `pdf` and `sample` in its local shading frame (normal +z),
 // with the same formulas and the same mapping of random numbers to
 // directions as the CPU, in f32. The tags (MAT_*, FRESNEL_*, FLAG_*) come
-// from the generated prelude; `layout.rs` fills `Material` (`GpuMaterial`).
+// from the generated prelude; `layout/materials.rs` fills `Material` (`GpuMaterial`).
 //
 // Parameters per tag (see `GpuMaterial::new` for the authority):
 //   DIFFUSE      a.rgb reflectance
@@ -1471,7 +1471,7 @@ fn base_sample(m: Material, wo: vec3<f32>, uc: f32, u: vec2<f32>) -> BsdfSample 
 // ---- Mixtures (materials[idx.y .. idx.y + idx.z], flattened on the host) ---
 
 // The weights (w_k, p_k) of component k in f and in the choice of a
-// sample, at idx.x of material_data (layout.rs `GpuMaterials::mix`).
+// sample, at idx.x of material_data (layout/materials.rs `GpuMaterials::mix`).
 fn mix_w(m: Material, k: u32) -> f32 {
     return material_data[m.idx.x + 2u * k];
 }

@@ -4,7 +4,7 @@
 // The CPU's kernel loops run in f32 too; phases are reduced to a fraction
 // of a cycle before any sine, so that no driver's range reduction matters.
 //
-// Layout (layout.rs, `GpuMaterials::wave`):
+// Layout (layout/materials.rs, `GpuMaterials::wave`):
 //   tag.y Fresnel per wavelength: ONE, DIELECTRIC (ior) or CONDUCTOR (a
 //         measured metal's rows)
 //   tag.z 1 once placed (d.xyz is then the heightfield's +x)
@@ -27,7 +27,7 @@
 fn place_material(m: Material, p: vec3<f32>, footprint: f32, xi: f32) -> Material {
     if (m.tag.x == MAT_MIX && m.tag.w > 0u) {
         // A mix's `wave` leaves (`tag.w` the first's position + 1; `a`
-        // their summed weight W, probability P and count, layout.rs
+        // their summed weight W, probability P and count, layout/materials.rs
         // `GpuMaterials::mix`): one is placed per hit, leaf j with
         // probability w_j / W, xi rescaled for its comb offset (one leaf:
         // j the first, xi as it is). `tag.w` then names j, which
