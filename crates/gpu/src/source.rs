@@ -3,8 +3,8 @@
 //! ([`Precision`]), the files of the path tracer ([`RENDER_FILES`]) and
 //! the code a scene's kernels carry ([`Features`]); and the SPIR-V that
 //! naga writes from a source where a probe or a statistic asks for it
-//! ([`probe_spirv`], [`kernel_spirv`]). The device, its pipelines and
-//! dispatches are in `lib.rs` and `render.rs`.
+//! ([`probe_spirv`], [`kernel_spirv`]). The device is in `lib.rs`, its
+//! modules and pipelines in `kernels.rs`, the dispatches in `render.rs`.
 
 use crate::layout::{self, GpuScene};
 use crate::{
