@@ -13,6 +13,7 @@ use isolux_core::{DVec3, Ray};
 use smallvec::SmallVec;
 
 impl Object {
+    #[inline]
     pub(super) fn intersect_in(
         &self,
         ray: &Ray,
