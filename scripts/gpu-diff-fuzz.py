@@ -49,10 +49,10 @@ parser must answer each with a file:line:field error or render it.
 `--cpu-only` renders on the CPU alone (no adapter needed) with wilder
 values besides (1e30, NaN, infinities, 2^32 - 1), and flags a panic, a
 non-finite sample or a render past `--timeout` seconds (default 300): a
-scene that runs for hours must be refused up front. A variant that runs
-past the timeout on either side is rendered once more with three times
-as long before it is flagged: lavapipe slows down far more than its
-share when other work loads the machine.
+scene that runs for hours must be refused up front. A render that runs
+past the timeout (CPU or GPU) is run once more with three times as long
+before it is flagged: lavapipe slows down far more than its share when
+other work loads the machine.
 
 Needs Pillow (`apt-get install python3-pil` or `pip install pillow`) and a
 release build (`cargo build --release`). The variants are written beside
@@ -295,22 +295,29 @@ def main():
                     src = src[:m.start()] + v + src[m.end():]
             open(variant, "w").write(src)
             name = f"{os.path.basename(scene)} ({'; '.join(what)})"
-            def both():
+            # With --bounds both sides are the GPU's, clamped and zero.
+            def first():
                 if args.bounds:
-                    return (render(args.isolux, variant, cpu_png, True, args, "clamp")
-                            + render(args.isolux, variant, gpu_png, True, args, "zero"))
-                cpu = render(args.isolux, variant, cpu_png, False, args)
-                return cpu + ((0, "") if args.cpu_only
-                              else render(args.isolux, variant, gpu_png, True, args))
-            rc, ec, rg, eg = both()
+                    return render(args.isolux, variant, cpu_png, True, args, "clamp")
+                return render(args.isolux, variant, cpu_png, False, args)
+
+            def second():
+                if args.bounds:
+                    return render(args.isolux, variant, gpu_png, True, args, "zero")
+                return (0, "") if args.cpu_only else render(args.isolux, variant, gpu_png, True, args)
+            (rc, ec), (rg, eg) = first(), second()
             if rc is None or rg is None:
                 # Another load on the machine slows lavapipe far more than
                 # its share of the cores (its threads wait on each other):
                 # seed 383's variant of underwater.toml ran past 300 s on
-                # the GPU during a CI run, and in 11 s alone. Once more with
-                # triple the time before a hang is flagged.
+                # the GPU during a CI run, and in 11 s alone. The side that
+                # timed out runs once more with triple the time before a
+                # hang is flagged.
                 saved, args.timeout = args.timeout, 3 * args.timeout
-                rc, ec, rg, eg = both()
+                if rc is None:
+                    rc, ec = first()
+                if rg is None:
+                    rg, eg = second()
                 args.timeout = saved
                 retried += 1
             problem = None
