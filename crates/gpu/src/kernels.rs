@@ -208,8 +208,9 @@ impl Gpu {
     }
 
     /// A compute bind group layout of buffers of `kinds` at bindings 0, 1,
-    /// 2, ... in order; binding `params` (where given) is a [`GpuParams`](crate::layout::GpuParams)
-    /// block at a dynamic offset (see [`Gpu::params_stride`]).
+    /// 2, ... in order; binding `params` (where given) is a
+    /// [`GpuParams`](crate::layout::GpuParams) block at a dynamic offset
+    /// (see [`Gpu::params_stride`]).
     fn buffer_layout(
         &self,
         label: &str,
@@ -242,8 +243,8 @@ impl Gpu {
 
     /// A bind group of `layout` with `buffers` whole at bindings 0, 1, 2,
     /// ... in order, but for binding `params` (where given): one
-    /// [`GpuParams`](crate::layout::GpuParams) block of it, at the dynamic offset each
-    /// `set_bind_group` names.
+    /// [`GpuParams`](crate::layout::GpuParams) block of it, at the dynamic
+    /// offset each `set_bind_group` names.
     pub(crate) fn buffer_bind_group(
         &self,
         label: &str,

@@ -49,8 +49,9 @@ pub struct Media<'a> {
     /// Whether point lights' shadow rays blocked by a glass object look
     /// for the path through it (`caustic`, [`Scene::casts_caustics`]).
     pub caustics: bool,
-    /// Paths ended at [`MAX_MEDIUM_EVENTS`](super::MAX_MEDIUM_EVENTS) so far (of every thread's
-    /// samples: the sum, the same whatever the thread count).
+    /// Paths ended at [`MAX_MEDIUM_EVENTS`](super::MAX_MEDIUM_EVENTS) so
+    /// far (of every thread's samples: the sum, the same whatever the
+    /// thread count).
     pub capped: AtomicU64,
 }
 

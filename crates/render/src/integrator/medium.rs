@@ -80,9 +80,9 @@ pub(super) fn caustic_scattered_at(
 /// A flight through the innermost medium of a path: the ray, the distance
 /// `t_end` at which it meets the next surface, the medium's extinction
 /// `sigma_t` and scattering `sigma_s` per channel, and the path's
-/// [`Spectral`](super::Spectral) ratios at its start. Its scattering points have the
-/// density `mean_c r_c sigma_t,c exp(-sigma_t,c t)` on `[0, t_end)`
-/// ([`Flight::density`]).
+/// [`Spectral`](super::Spectral) ratios at its start. Its scattering
+/// points have the density `mean_c r_c sigma_t,c exp(-sigma_t,c t)` on
+/// `[0, t_end)` ([`Flight::density`]).
 ///
 /// (Sampling the whole ray `[0, inf)` instead, where the free flight's
 /// search had not reached the surface, saved that search but wasted the
@@ -165,10 +165,10 @@ pub(super) fn medium_light(
 
 /// The point lights' light scattered along a whole flight, one
 /// equiangular sample per light (Kulla and Fajardo 2012,
-/// [`MediumLightSampling::Equiangular`](crate::MediumLightSampling::Equiangular)): `sigma_s exp(-sigma_t t) L(t) /
-/// pdf(t)` per channel, weighted against the free flight's scattering point
-/// ([`medium_light`]) by the power heuristic. Per unit of the path's
-/// throughput at the flight's start.
+/// [`MediumLightSampling::Equiangular`](crate::MediumLightSampling::Equiangular)):
+/// `sigma_s exp(-sigma_t t) L(t) / pdf(t)` per channel, weighted against
+/// the free flight's scattering point ([`medium_light`]) by the power
+/// heuristic. Per unit of the path's throughput at the flight's start.
 pub(super) fn equiangular_light(
     scene: &Scene,
     media: &Media,
