@@ -714,7 +714,7 @@ impl Gpu {
     }
 
     /// A frame's parameter buffer: `render::PARAM_BLOCKS` blocks, written
-    /// by copies (`render::ParamBlocks`), bound one block at a time
+    /// by copies (`render::passes::ParamBlocks`), bound one block at a time
     /// (read-only storage, not uniform: see [`Gpu::params_buffer`]).
     fn param_blocks_buffer(&self) -> wgpu::Buffer {
         self.device.create_buffer(&wgpu::BufferDescriptor {

@@ -9,14 +9,18 @@ use crate::checks::{
 };
 use crate::layout::{self, GpuLight, GpuMaterials, GpuParams, GpuScene};
 use crate::{Features, Gpu, GpuError, ENV_CONSTANT, ENV_MAP};
-use isolux_core::{Aovs, Image, Rgb, PI};
+use isolux_core::{Aovs, Image, Rgb};
 use isolux_render::{Camera, Environment, MediumLightSampling, RenderStats, Scene};
-use wgpu::util::DeviceExt;
 
+mod env;
 mod media;
+mod passes;
 mod wavefront;
+use env::{env_levels, env_tables};
 use media::{bounded, flat_routes, innermost, manifold_media, media_first, medium_of};
 pub use media::{medium_bits, nested_too_deep, refracted_media};
+use passes::{begin_pass, Clock, ParamBlocks, Stamps};
+pub use passes::{DispatchTime, Profile, PARAM_BLOCKS};
 pub use wavefront::{padded_pixels, SortedSteps, WF_TILE_MAX};
 use wavefront::{Wavefront, WF_PATH_BYTES};
 
@@ -43,225 +47,6 @@ const LAYERS_MAX: u32 = 16;
 /// fit), so that a large film takes fewer samples per dispatch rather than
 /// more memory.
 const LAYER_BYTES_MAX: u64 = 512 << 20;
-
-/// How a frame's passes are timed on the GPU.
-enum Clock<'a> {
-    /// Not at all.
-    Off,
-    /// The frame: a timestamp at the start of its first pass and one at
-    /// the end of its last (`Gpu::timestamps`, [`GpuFrame::run_timed`]).
-    Frame,
-    /// Each dispatch in a pass of its own, with timestamps at its start
-    /// and end ([`GpuFrame::profile`]).
-    Each(&'a mut Stamps),
-}
-
-impl Clock<'_> {
-    /// The timestamps of the pass of `kernel` (at wavefront `step`, if
-    /// any), the `first` or the `last` of the frame's passes.
-    fn writes<'s>(
-        &'s mut self,
-        gpu: &'s Gpu,
-        kernel: &'static str,
-        step: Option<u32>,
-        first: bool,
-        last: bool,
-    ) -> Option<wgpu::ComputePassTimestampWrites<'s>> {
-        match self {
-            Clock::Off => None,
-            Clock::Frame => gpu.timestamps.as_ref().filter(|_| first || last).map(|ts| {
-                wgpu::ComputePassTimestampWrites {
-                    query_set: &ts.set,
-                    beginning_of_pass_write_index: first.then_some(0),
-                    end_of_pass_write_index: last.then_some(1),
-                }
-            }),
-            Clock::Each(stamps) => stamps.next(kernel, step),
-        }
-    }
-
-    /// Whether each dispatch takes a pass of its own.
-    fn each(&self) -> bool {
-        matches!(self, Clock::Each(_))
-    }
-
-    /// Queues the copy of the frame's timestamps to where they are read.
-    fn resolve(&self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder) {
-        match self {
-            Clock::Off => {}
-            Clock::Frame => {
-                if let Some(ts) = gpu.timestamps.as_ref() {
-                    enc.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
-                }
-            }
-            Clock::Each(stamps) => {
-                let n = 2 * stamps.kernels.len() as u32;
-                if n > 0 {
-                    enc.resolve_query_set(&stamps.set, 0..n, &stamps.resolve, 0);
-                }
-            }
-        }
-    }
-}
-
-/// Parameter blocks a frame's parameter buffer holds, one per dispatch of
-/// a submission (256 bytes each on most devices: 256 KiB). A submission
-/// of more dispatches copies the next blocks in after every
-/// `PARAM_BLOCKS` dispatches.
-pub const PARAM_BLOCKS: usize = 1024;
-
-/// The [`GpuParams`] of each dispatch of one submission, staged at once
-/// and copied into the frame's parameter buffer ahead of the dispatches
-/// that read them, each of which binds its own block by a dynamic offset
-/// ([`crate::PARAMS_BINDING`]). Until 2026-12-05 each dispatch's
-/// parameters were copied into one block just before it: a copy, and the
-/// barriers around it, between every two dispatches of a frame (every
-/// wavefront step); now there is one copy per [`PARAM_BLOCKS`]
-/// dispatches.
-struct ParamBlocks {
-    staging: wgpu::Buffer,
-    count: usize,
-    stride: u64,
-}
-
-impl ParamBlocks {
-    /// `blocks`, each padded to the device's storage offset alignment.
-    fn new(gpu: &Gpu, blocks: &[GpuParams]) -> Self {
-        let stride = gpu.params_stride();
-        let mut bytes = vec![0u8; blocks.len().max(1) * stride as usize];
-        for (chunk, block) in bytes.chunks_exact_mut(stride as usize).zip(blocks) {
-            chunk[..std::mem::size_of::<GpuParams>()].copy_from_slice(bytemuck::bytes_of(block));
-        }
-        let staging = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("dispatch parameters"),
-                contents: &bytes,
-                usage: wgpu::BufferUsages::COPY_SRC,
-            });
-        ParamBlocks {
-            staging,
-            count: blocks.len(),
-            stride,
-        }
-    }
-
-    /// The dynamic offset of block `i` in `buffer` (of [`PARAM_BLOCKS`]
-    /// blocks), for a dispatch queued next in `enc`. Where `i` opens a run
-    /// of [`PARAM_BLOCKS`] blocks, first queues the copy of that run into
-    /// `buffer` (after the dispatches that read the previous run: wgpu
-    /// orders a copy after the earlier reads of its destination).
-    fn offset(&self, enc: &mut wgpu::CommandEncoder, buffer: &wgpu::Buffer, i: usize) -> u32 {
-        let at = i % PARAM_BLOCKS;
-        if at == 0 {
-            let n = (self.count - i).min(PARAM_BLOCKS) as u64;
-            let from = i as u64 * self.stride;
-            enc.copy_buffer_to_buffer(&self.staging, from, buffer, 0, n * self.stride);
-        }
-        (at as u64 * self.stride) as u32
-    }
-}
-
-/// A compute pass of a frame, with the timestamps `writes`.
-fn begin_pass<'e>(
-    enc: &'e mut wgpu::CommandEncoder,
-    label: &str,
-    writes: Option<wgpu::ComputePassTimestampWrites<'e>>,
-) -> wgpu::ComputePass<'e> {
-    enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: writes,
-    })
-}
-
-/// Timestamps around each dispatch of one submission
-/// ([`GpuFrame::profile`]): two per dispatch, in the order queued, and
-/// which kernel each pair timed.
-struct Stamps {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    /// Per dispatch, its kernel and wavefront step.
-    kernels: Vec<(&'static str, Option<u32>)>,
-    /// Dispatches were queued past [`Stamps::MAX`] (those went untimed).
-    full: bool,
-}
-
-impl Stamps {
-    /// Dispatches one submission can time: a query set holds at most
-    /// `wgpu::QUERY_SET_MAX_QUERIES` (4096) timestamps.
-    const MAX: u32 = wgpu::QUERY_SET_MAX_QUERIES / 2;
-
-    fn new(gpu: &Gpu) -> Self {
-        let n = 2 * Self::MAX;
-        Self {
-            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("dispatch timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: n,
-            }),
-            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("dispatch timestamps"),
-                size: n as u64 * wgpu::QUERY_SIZE as u64,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            kernels: Vec::new(),
-            full: false,
-        }
-    }
-
-    /// The timestamps of the next dispatch's pass, of `kernel` at `step`.
-    fn next(
-        &mut self,
-        kernel: &'static str,
-        step: Option<u32>,
-    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
-        let i = self.kernels.len() as u32;
-        if i >= Self::MAX {
-            self.full = true;
-            return None;
-        }
-        self.kernels.push((kernel, step));
-        Some(wgpu::ComputePassTimestampWrites {
-            query_set: &self.set,
-            beginning_of_pass_write_index: Some(2 * i),
-            end_of_pass_write_index: Some(2 * i + 1),
-        })
-    }
-}
-
-/// One dispatch's GPU time in a [`Profile`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct DispatchTime {
-    /// The kernel's entry point in the render kernels (`main`, `resolve`,
-    /// `realtime`, `aov_main`, `trace`, `trace_last`, `trace_extend`,
-    /// `trace_scatter`, `trace_shadow`, `trace_shade`).
-    pub kernel: &'static str,
-    /// The wavefront's step (0: the camera rays; `None` outside the
-    /// wavefronts).
-    pub step: Option<u32>,
-    /// GPU seconds from the start of the dispatch's pass to its end.
-    pub seconds: f64,
-}
-
-/// A frame's GPU time dispatch by dispatch ([`GpuFrame::profile`]).
-#[derive(Clone, Debug, Default)]
-pub struct Profile {
-    /// Every dispatch, in the order queued.
-    pub dispatches: Vec<DispatchTime>,
-    /// GPU seconds from each submission's first dispatch's start to its
-    /// last's end, summed over the submissions: the dispatches' time and
-    /// what passes between them (barriers, the copies of each dispatch's
-    /// parameters, the start of the next).
-    pub span: f64,
-}
-
-impl Profile {
-    /// The dispatches' time, summed.
-    pub fn dispatch_seconds(&self) -> f64 {
-        self.dispatches.iter().map(|d| d.seconds).sum()
-    }
-}
 
 /// The megakernel's group 1 (the wavefront's layout, [`Gpu::wavefront_layout`]):
 /// `main` counts the paths it ends at `MAX_MEDIUM_EVENTS` in the first
@@ -453,95 +238,6 @@ fn scene_needs(scene: &Scene) -> Result<(Features, bool), GpuError> {
     let geo = GpuScene::with_materials(scene.geometry.objects(), &scene.object_material);
     let features = needed(scene, &materials, &geo, &refracted, manifold);
     Ok((features, random_walk(&materials)))
-}
-
-/// Texels with their density in `(u, v)` (`w`), and the CDFs: the marginal
-/// over rows (`h + 1` values), then each row's conditional (`w + 1`),
-/// from the weights `luminance sin(theta)` of the CPU's sampler.
-fn env_tables(width: usize, height: usize, texels: &[Rgb]) -> (Vec<[f32; 4]>, Vec<f32>) {
-    let mut w = vec![0.0f64; width * height];
-    for y in 0..height {
-        let sin_t = (PI * (y as f64 + 0.5) / height as f64).sin();
-        for x in 0..width {
-            w[y * width + x] = texels[y * width + x].luminance().max(0.0) * sin_t;
-        }
-    }
-    let total: f64 = w.iter().sum();
-    let avg = total / (width * height) as f64;
-    let tex = texels
-        .iter()
-        .zip(&w)
-        .map(|(t, &wi)| {
-            let pdf = if avg > 0.0 { wi / avg } else { 0.0 };
-            [t.r as f32, t.g as f32, t.b as f32, pdf as f32]
-        })
-        .collect();
-    let mut cdf = Vec::with_capacity(height + 1 + height * (width + 1));
-    let rows: Vec<f64> = (0..height)
-        .map(|y| w[y * width..(y + 1) * width].iter().sum())
-        .collect();
-    let mut acc = 0.0;
-    cdf.push(0.0);
-    for (y, r) in rows.iter().enumerate() {
-        acc += r;
-        cdf.push(if total > 0.0 {
-            (acc / total) as f32
-        } else {
-            (y + 1) as f32 / height as f32
-        });
-    }
-    *cdf.last_mut().unwrap() = 1.0;
-    for (y, &r) in rows.iter().enumerate() {
-        let mut acc = 0.0;
-        cdf.push(0.0);
-        for x in 0..width {
-            acc += w[y * width + x];
-            cdf.push(if r > 0.0 {
-                (acc / r) as f32
-            } else {
-                (x + 1) as f32 / width as f32
-            });
-        }
-        *cdf.last_mut().unwrap() = 1.0;
-    }
-    (tex, cdf)
-}
-
-/// Level headers in the pyramid buffer (`realtime.wgsl`): maps up to
-/// 2^15 texels wide.
-const ENV_LEVEL_HEADERS: usize = 16;
-
-/// The prefiltered environment pyramid of the real-time mode, built by the
-/// CPU's [`isolux_render::realtime::PrefilteredEnv`]: headers `(offset,
-/// width, height, 0)`, then the levels' texels as f32 bits.
-/// Returns the buffer and the number of levels.
-fn env_levels(env: &Environment) -> Result<(Vec<[u32; 4]>, u32), GpuError> {
-    let Environment::Map(m) = env else {
-        return Ok((Vec::new(), 0));
-    };
-    let p = isolux_render::realtime::PrefilteredEnv::new(m);
-    if p.levels().len() > ENV_LEVEL_HEADERS {
-        return Err(GpuError::Setup(format!(
-            "environment map of {} x {} texels is too large for the real-time mode's \
-             pyramid (at most 32768 texels across)",
-            m.size().0,
-            m.size().1
-        )));
-    }
-    let mut out = vec![[0u32; 4]; ENV_LEVEL_HEADERS];
-    let mut offset = 0u32;
-    for (k, l) in p.levels().iter().enumerate() {
-        out[k] = [offset, l.width as u32, l.height as u32, 0];
-        offset += (l.width * l.height) as u32;
-    }
-    for l in p.levels() {
-        out.extend(
-            l.texels
-                .iter()
-                .map(|t| [t.r as f32, t.g as f32, t.b as f32, 0.0].map(f32::to_bits)),
-        );
-    }
-    Ok((out, p.levels().len() as u32))
 }
 
 impl Gpu {
@@ -1485,35 +1181,6 @@ impl GpuFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn env_tables_are_normalized_cdfs_and_densities() {
-        let (w, h) = (7, 5);
-        let texels: Vec<Rgb> = (0..w * h)
-            .map(|i| Rgb::splat(((i * 37) % 11) as f64))
-            .collect();
-        let (tex, cdf) = env_tables(w, h, &texels);
-        // The density integrates to 1 over the unit square.
-        let s: f64 = tex.iter().map(|t| t[3] as f64).sum::<f64>() / (w * h) as f64;
-        assert!((s - 1.0).abs() < 1e-5, "{s}");
-        // Each CDF starts at 0, ends at 1 and never decreases.
-        let check = |c: &[f32]| {
-            assert_eq!(c[0], 0.0);
-            assert_eq!(*c.last().unwrap(), 1.0);
-            assert!(c.windows(2).all(|p| p[0] <= p[1]));
-        };
-        check(&cdf[..h + 1]);
-        for y in 0..h {
-            let row = &cdf[h + 1 + y * (w + 1)..h + 1 + (y + 1) * (w + 1)];
-            check(row);
-            // The probability of texel (x, y) is its density / (w h).
-            for x in 0..w {
-                let p = (cdf[y + 1] - cdf[y]) as f64 * (row[x + 1] - row[x]) as f64;
-                let want = tex[y * w + x][3] as f64 / (w * h) as f64;
-                assert!((p - want).abs() < 1e-6, "{x} {y} {p} {want}");
-            }
-        }
-    }
 
     #[test]
     fn scene_features_are_the_code_a_scene_needs() {

@@ -6,7 +6,8 @@
 //! ([`GpuFrame::dispatch_wavefront`]), and the diagnostics read back from
 //! them ([`GpuFrame::wavefront_steps`], [`GpuFrame::sorted_steps`]).
 
-use super::{begin_pass, Clock, GpuFrame, ParamBlocks, LAYERS_MAX, LAYER_BYTES_MAX, TILE};
+use super::passes::{begin_pass, Clock, ParamBlocks};
+use super::{GpuFrame, LAYERS_MAX, LAYER_BYTES_MAX, TILE};
 use crate::{Gpu, GpuError, WF_BINS};
 use wgpu::util::DeviceExt;
 
