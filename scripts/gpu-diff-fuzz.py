@@ -90,7 +90,10 @@ def mean(path):
     return sum(sum(im.getpixel((x, y))) for y in range(h) for x in range(w)) / (3 * w * h)
 
 
-def render(isolux, scene, out, gpu, args, probe=None):
+def render(isolux, scene, out, gpu, args, probe=None, timeout=None):
+    """Renders `scene` to `out`: (exit code, stderr), or (None, why) past
+    `timeout` seconds (`args.timeout` by default)."""
+    timeout = timeout or args.timeout
     cmd = [isolux, "render", scene, "-o", out, "--quiet", "--width", "32",
            "--height", "24", "--spp", str(args.spp)]
     if gpu:
@@ -101,9 +104,9 @@ def render(isolux, scene, out, gpu, args, probe=None):
     if args.realtime:
         cmd.append("--realtime")
     try:
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
-        return None, f"still running after {args.timeout:.0f} s"
+        return None, f"still running after {timeout:g} s"
     err = "\n".join(l for l in r.stderr.splitlines() if "XDG_RUNTIME_DIR" not in l)
     return r.returncode, err
 
@@ -296,15 +299,17 @@ def main():
             open(variant, "w").write(src)
             name = f"{os.path.basename(scene)} ({'; '.join(what)})"
             # With --bounds both sides are the GPU's, clamped and zero.
-            def first():
+            def first(timeout=None):
                 if args.bounds:
-                    return render(args.isolux, variant, cpu_png, True, args, "clamp")
-                return render(args.isolux, variant, cpu_png, False, args)
+                    return render(args.isolux, variant, cpu_png, True, args, "clamp", timeout)
+                return render(args.isolux, variant, cpu_png, False, args, timeout=timeout)
 
-            def second():
+            def second(timeout=None):
                 if args.bounds:
-                    return render(args.isolux, variant, gpu_png, True, args, "zero")
-                return (0, "") if args.cpu_only else render(args.isolux, variant, gpu_png, True, args)
+                    return render(args.isolux, variant, gpu_png, True, args, "zero", timeout)
+                if args.cpu_only:
+                    return 0, ""
+                return render(args.isolux, variant, gpu_png, True, args, timeout=timeout)
             (rc, ec), (rg, eg) = first(), second()
             if rc is None or rg is None:
                 # Another load on the machine slows lavapipe far more than
@@ -313,12 +318,10 @@ def main():
                 # the GPU during a CI run, and in 11 s alone. The side that
                 # timed out runs once more with triple the time before a
                 # hang is flagged.
-                saved, args.timeout = args.timeout, 3 * args.timeout
                 if rc is None:
-                    rc, ec = first()
+                    rc, ec = first(3 * args.timeout)
                 if rg is None:
-                    rg, eg = second()
-                args.timeout = saved
+                    rg, eg = second(3 * args.timeout)
                 retried += 1
             problem = None
             rendered += rc == 0
