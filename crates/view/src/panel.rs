@@ -1,0 +1,288 @@
+//! The viewer's egui interface: the side panel (status, exposure and
+//! tone map, camera, point lights, and the selected material's editors)
+//! and the image area's orbit and zoom input. `State::ui` draws it once a
+//! frame and reports what changed ([`UiOutcome`]).
+
+use super::{params, State};
+use isolux_io::Tonemap;
+
+impl State {
+    /// The side panel and the image area; returns what changed.
+    pub(super) fn ui(&mut self, ctx: &egui::Context, info: &FrameInfo) -> UiOutcome {
+        let mut out = UiOutcome::default();
+        egui::SidePanel::right("isolux-panel")
+            .default_width(300.0)
+            .show(ctx, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui, info, &mut out));
+            });
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ctx, |ui| {
+                let rect = ui.max_rect();
+                let r = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+                out.viewport = rect;
+                if r.dragged() {
+                    let d = r.drag_delta();
+                    self.orbit.drag(d.x as f64, d.y as f64);
+                    out.camera = true;
+                    out.dragging = true;
+                }
+                if r.hovered() {
+                    let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+                    if scroll != 0.0 {
+                        self.orbit.zoom(scroll as f64 / 50.0);
+                        out.camera = true;
+                    }
+                }
+            });
+        if !ctx.wants_keyboard_input() && ctx.input(|i| i.key_pressed(egui::Key::P)) {
+            out.screenshot = true;
+        }
+        out
+    }
+
+    fn panel(&mut self, ui: &mut egui::Ui, info: &FrameInfo, out: &mut UiOutcome) {
+        ui.heading("Isolux");
+        ui.label(&self.file_name);
+        ui.label(format!("adapter: {}", info.adapter));
+        if info.film.0 > 0 {
+            ui.label(format!(
+                "{} x {}, {}, {:.1} ms per frame",
+                info.film.0, info.film.1, info.mode, info.frame_ms
+            ));
+        } else {
+            ui.label(&info.mode);
+        }
+        if !self.status.is_empty() {
+            ui.label(&self.status);
+        }
+        ui.separator();
+        ui.horizontal(|ui| {
+            ui.label("exposure");
+            ui.add(egui::Slider::new(&mut self.exposure, -8.0..=8.0).suffix(" stops"));
+        });
+        ui.horizontal(|ui| {
+            ui.label("tone map");
+            egui::ComboBox::from_id_salt("tonemap")
+                .selected_text(match self.tonemap {
+                    Tonemap::Clamp => "clamp",
+                    Tonemap::Reinhard => "reinhard",
+                })
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(&mut self.tonemap, Tonemap::Clamp, "clamp");
+                    ui.selectable_value(&mut self.tonemap, Tonemap::Reinhard, "reinhard");
+                });
+        });
+        if ui.button("Screenshot (P)").clicked() {
+            out.screenshot = true;
+        }
+        ui.separator();
+        egui::CollapsingHeader::new("Camera")
+            .default_open(true)
+            .show(ui, |ui| {
+                ui.label("drag the image to orbit, wheel to zoom");
+                let mut c = false;
+                c |= ui
+                    .add(egui::Slider::new(&mut self.orbit.fov_y, 5.0..=120.0).text("fov_y"))
+                    .changed();
+                c |= ui
+                    .add(
+                        egui::DragValue::new(&mut self.orbit.distance)
+                            .speed(0.01)
+                            .range(1e-3..=1e5)
+                            .prefix("distance "),
+                    )
+                    .changed();
+                if ui.button("Reset to the scene's camera").clicked() {
+                    self.orbit = self.initial_orbit;
+                    c = true;
+                }
+                out.camera |= c;
+            });
+        egui::CollapsingHeader::new("Lights")
+            .default_open(true)
+            .show(ui, |ui| {
+                if self.scene.lights.is_empty() {
+                    ui.label("no point lights");
+                }
+                for (i, l) in self.scene.lights.iter_mut().enumerate() {
+                    ui.label(format!("light {i}"));
+                    ui.horizontal(|ui| {
+                        ui.label("position");
+                        for v in [&mut l.position.x, &mut l.position.y, &mut l.position.z] {
+                            out.scene |= ui.add(egui::DragValue::new(v).speed(0.02)).changed();
+                        }
+                    });
+                    ui.horizontal(|ui| {
+                        ui.label("intensity");
+                        for v in [&mut l.intensity.r, &mut l.intensity.g, &mut l.intensity.b] {
+                            out.scene |= ui
+                                .add(egui::DragValue::new(v).speed(0.1).range(0.0..=1e9))
+                                .changed();
+                        }
+                    });
+                }
+            });
+        egui::CollapsingHeader::new("Materials")
+            .default_open(true)
+            .show(ui, |ui| self.materials_ui(ui, out));
+    }
+
+    fn materials_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {
+        use params::{editor, number, numbers3, Editor, SWITCHABLE};
+        use toml::Value;
+        if self.tables.is_empty() {
+            ui.label("no materials");
+            return;
+        }
+        let names = self.scene.material_names.clone();
+        let before = self.selected;
+        egui::ComboBox::from_label("material")
+            .selected_text(names[self.selected].as_str())
+            .show_ui(ui, |ui| {
+                for (i, n) in names.iter().enumerate() {
+                    ui.selectable_value(&mut self.selected, i, n.as_str());
+                }
+            });
+        if self.selected != before {
+            self.material_error = None;
+        }
+        let i = self.selected;
+        let mut changed = false;
+        let t = &mut self.tables[i];
+        let ty = t
+            .get("type")
+            .and_then(|v| v.as_str())
+            .unwrap_or("")
+            .to_string();
+        if SWITCHABLE.contains(&ty.as_str()) {
+            let mut new_ty = ty.clone();
+            egui::ComboBox::from_label("type")
+                .selected_text(ty.as_str())
+                .show_ui(ui, |ui| {
+                    for s in SWITCHABLE {
+                        ui.selectable_value(&mut new_ty, s.to_string(), *s);
+                    }
+                });
+            if new_ty != ty {
+                *t = params::template(&names[i], &new_ty);
+                changed = true;
+            }
+        } else {
+            ui.label(format!(
+                "type: {ty} (reads files or other materials: not switchable)"
+            ));
+        }
+        let keys: Vec<String> = t
+            .keys()
+            .filter(|k| *k != "name" && *k != "type")
+            .cloned()
+            .collect();
+        for k in keys {
+            let v = t[&k].clone();
+            match editor(&k, &v) {
+                Editor::Number => {
+                    let mut x = number(&v).unwrap_or(0.0);
+                    let speed = (x.abs() * 0.01).max(0.001);
+                    if ui
+                        .add(
+                            egui::DragValue::new(&mut x)
+                                .speed(speed)
+                                .prefix(format!("{k} ")),
+                        )
+                        .changed()
+                    {
+                        t.insert(k, Value::Float(x));
+                        changed = true;
+                    }
+                }
+                Editor::Color | Editor::Vector => {
+                    let mut c = numbers3(&v).unwrap_or([0.0; 3]);
+                    let color = editor(&k, &v) == Editor::Color;
+                    let mut edit = false;
+                    ui.horizontal(|ui| {
+                        ui.label(&k);
+                        if color {
+                            let mut f = c.map(|x| x.clamp(0.0, 1.0) as f32);
+                            if ui.color_edit_button_rgb(&mut f).changed() {
+                                c = f.map(|x| x as f64);
+                                edit = true;
+                            }
+                        }
+                        for x in c.iter_mut() {
+                            let mut d = egui::DragValue::new(x).speed(0.005);
+                            if color {
+                                d = d.range(0.0..=1.0);
+                            }
+                            edit |= ui.add(d).changed();
+                        }
+                    });
+                    if edit {
+                        t.insert(k, params::array3(c));
+                        changed = true;
+                    }
+                }
+                Editor::Choice(options) => {
+                    let cur = v.as_str().unwrap_or("").to_string();
+                    let mut sel = cur.clone();
+                    egui::ComboBox::from_label(k.as_str())
+                        .selected_text(cur.as_str())
+                        .show_ui(ui, |ui| {
+                            for o in &options {
+                                ui.selectable_value(&mut sel, o.to_string(), *o);
+                            }
+                        });
+                    if sel != cur {
+                        t.insert(k, Value::String(sel));
+                        changed = true;
+                    }
+                }
+                Editor::ReadOnly => {
+                    ui.label(format!("{k} = {v}"));
+                }
+            }
+        }
+        if changed {
+            match self.rebuild_material(i) {
+                Ok(()) => {
+                    self.material_error = None;
+                    out.scene = true;
+                }
+                Err(e) => self.material_error = Some(e),
+            }
+        }
+        if let Some(e) = &self.material_error {
+            ui.colored_label(egui::Color32::LIGHT_RED, e);
+            ui.label("(the last valid version is shown)");
+        }
+    }
+}
+
+/// What the panel reports each frame.
+pub(super) struct UiOutcome {
+    pub(super) viewport: egui::Rect,
+    pub(super) camera: bool,
+    pub(super) scene: bool,
+    pub(super) dragging: bool,
+    pub(super) screenshot: bool,
+}
+
+impl Default for UiOutcome {
+    fn default() -> Self {
+        Self {
+            viewport: egui::Rect::NOTHING,
+            camera: false,
+            scene: false,
+            dragging: false,
+            screenshot: false,
+        }
+    }
+}
+
+/// What the panel shows about the last frame.
+pub(super) struct FrameInfo {
+    pub(super) adapter: String,
+    pub(super) film: (u32, u32),
+    pub(super) mode: String,
+    pub(super) frame_ms: f64,
+}
