@@ -17,7 +17,7 @@ mod schema;
 
 pub use factored_files::load_factored;
 pub use reader::SceneError;
-pub use schema::{parse_material, parse_str, MATERIAL_TYPES};
+pub use schema::{parse_material, parse_str, MATERIAL_CHOICES, MATERIAL_INTEGERS, MATERIAL_TYPES};
 
 use std::path::{Path, PathBuf};
 

@@ -13,6 +13,7 @@ use std::path::Path;
 mod materials;
 
 use materials::material;
+pub use materials::{MATERIAL_CHOICES, MATERIAL_INTEGERS};
 
 /// Material `type` names accepted by this version.
 pub const MATERIAL_TYPES: &[&str] = &[

@@ -196,6 +196,30 @@ impl State {
                         changed = true;
                     }
                 }
+                Editor::Integer(min, max) => {
+                    let range = i64::try_from(min).unwrap_or(i64::MAX)
+                        ..=i64::try_from(max).unwrap_or(i64::MAX);
+                    let mut x = v.as_integer().unwrap_or(*range.start());
+                    if ui
+                        .add(
+                            egui::DragValue::new(&mut x)
+                                .speed(0.05)
+                                .range(range)
+                                .prefix(format!("{k} ")),
+                        )
+                        .changed()
+                    {
+                        t.insert(k, Value::Integer(x));
+                        changed = true;
+                    }
+                }
+                Editor::Toggle => {
+                    let mut b = v.as_bool().unwrap_or(false);
+                    if ui.checkbox(&mut b, k.as_str()).changed() {
+                        t.insert(k, Value::Boolean(b));
+                        changed = true;
+                    }
+                }
                 Editor::Color | Editor::Vector => {
                     let mut c = numbers3(&v).unwrap_or([0.0; 3]);
                     let color = editor(&k, &v) == Editor::Color;

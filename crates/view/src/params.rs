@@ -8,6 +8,7 @@
 //! each parameter appears in the panel.
 
 use isolux_materials::metals::Metal;
+use isolux_materials::subsurface::Medium;
 use toml::{Table, Value};
 
 /// Models the panel can switch a material to: the analytic reflection and
@@ -92,11 +93,17 @@ pub fn template(name: &str, ty: &str) -> Table {
 pub enum Editor {
     /// A number (drag to change).
     Number,
+    /// A whole number in `min..=max` (the scene format's integer keys,
+    /// [`isolux_scene::MATERIAL_INTEGERS`]).
+    Integer(u64, u64),
+    /// `true` or `false` (a checkbox).
+    Toggle,
     /// Linear RGB weights in `[0, 1]` (a colour picker and three numbers).
     Color,
     /// Three numbers (a direction, `eta`, `k`).
     Vector,
-    /// One of a fixed set of strings.
+    /// One of a fixed set of strings ([`isolux_scene::MATERIAL_CHOICES`],
+    /// and the names of the metals and of the measured media).
     Choice(Vec<&'static str>),
     /// Shown, not editable (file names, mix components).
     ReadOnly,
@@ -106,17 +113,29 @@ pub enum Editor {
 pub fn editor(key: &str, value: &Value) -> Editor {
     let numbers3 = matches!(value, Value::Array(a)
         if a.len() == 3 && a.iter().all(|x| matches!(x, Value::Float(_) | Value::Integer(_))));
+    let integer = isolux_scene::MATERIAL_INTEGERS
+        .iter()
+        .find(|(k, ..)| *k == key);
+    let choices = isolux_scene::MATERIAL_CHOICES
+        .iter()
+        .find(|(k, _)| *k == key);
     match value {
-        Value::Float(_) | Value::Integer(_) => Editor::Number,
+        Value::Float(_) | Value::Integer(_) => match integer {
+            Some(&(_, min, max)) => Editor::Integer(min, max),
+            None => Editor::Number,
+        },
+        Value::Boolean(_) => Editor::Toggle,
         _ if numbers3 => match key {
             "reflectance" | "specular" | "isotropic" | "schlick" => Editor::Color,
             _ => Editor::Vector,
         },
         Value::String(_) => match key {
             "metal" => Editor::Choice(Metal::names()),
-            "distribution" => Editor::Choice(vec!["beckmann", "ggx", "gaussian"]),
-            "masking" => Editor::Choice(vec!["cook_torrance", "smith"]),
-            _ => Editor::ReadOnly,
+            "medium" => Editor::Choice(Medium::names()),
+            _ => match choices {
+                Some((_, c)) => Editor::Choice(c.to_vec()),
+                None => Editor::ReadOnly,
+            },
         },
         _ => Editor::ReadOnly,
     }
@@ -190,6 +209,148 @@ mod tests {
         t.insert("metal".into(), Value::String("gold".into()));
         let err = parse(&t).unwrap_err().to_string();
         assert!(err.contains("unknown metal"), "{err}");
+    }
+
+    /// The material tables of the example scenes (the scene files' own
+    /// tables, as the viewer keeps them), with the directory their paths
+    /// are relative to.
+    fn example_tables() -> Vec<(String, Table)> {
+        let dir = "../../examples/scenes";
+        let mut out = Vec::new();
+        for e in std::fs::read_dir(dir).unwrap() {
+            let path = e.unwrap().path();
+            if path.extension().is_none_or(|x| x != "toml") {
+                continue;
+            }
+            let doc: Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            let Some(Value::Array(ms)) = doc.get("material") else {
+                continue;
+            };
+            for m in ms {
+                let t = m.as_table().unwrap().clone();
+                out.push((format!("{}: {}", path.display(), t["name"]), t));
+            }
+        }
+        assert!(out.len() > 20, "{} example materials", out.len());
+        out
+    }
+
+    fn parse_in_examples(
+        t: &Table,
+    ) -> Result<isolux_materials::Material, isolux_scene::SceneError> {
+        isolux_scene::parse_material(
+            &to_source(t),
+            "edit".as_ref(),
+            &[],
+            &[],
+            "../../examples/scenes".as_ref(),
+        )
+    }
+
+    /// On every material of the example scenes that stands alone (a mix
+    /// names others): every key but file names and references gets a
+    /// control; each menu holds the key's current value, and every entry of
+    /// it is one the scene format knows (an entry may still conflict with
+    /// another key, which the panel reports); an integer key's whole range
+    /// parses; a checkbox's other state parses.
+    #[test]
+    fn example_materials_are_editable_within_the_scene_format() {
+        let mut menus = 0;
+        let mut integers = 0;
+        let mut toggles = 0;
+        for (label, table) in example_tables() {
+            if table["type"].as_str() == Some("mix") {
+                continue;
+            }
+            parse_in_examples(&table).unwrap_or_else(|e| panic!("{label}: {e}"));
+            for (k, v) in table.iter() {
+                if k == "name" || k == "type" {
+                    continue;
+                }
+                let edited = |x: Value| {
+                    let mut t = table.clone();
+                    t.insert(k.clone(), x);
+                    parse_in_examples(&t)
+                };
+                match editor(k, v) {
+                    Editor::ReadOnly => {
+                        assert!(
+                            ["heightfield", "raw_size", "file", "dir"].contains(&k.as_str()),
+                            "{label}: {k} = {v} is read-only"
+                        )
+                    }
+                    Editor::Choice(options) => {
+                        menus += 1;
+                        assert!(
+                            options.contains(&v.as_str().unwrap()),
+                            "{label}: {k} = {v} not in {options:?}"
+                        );
+                        for o in options {
+                            if let Err(e) = edited(Value::String(o.into())) {
+                                let e = e.to_string();
+                                assert!(!e.contains("unknown"), "{label}: {k} = {o}: {e}");
+                            }
+                        }
+                    }
+                    Editor::Integer(min, max) => {
+                        integers += 1;
+                        for x in [min, max] {
+                            edited(Value::Integer(x as i64))
+                                .unwrap_or_else(|e| panic!("{label}: {k} = {x}: {e}"));
+                        }
+                        let e = edited(Value::Integer(max as i64 + 1))
+                            .unwrap_err()
+                            .to_string();
+                        assert!(e.contains("must lie in"), "{label}: {e}");
+                    }
+                    Editor::Toggle => {
+                        toggles += 1;
+                        let b = !v.as_bool().unwrap();
+                        edited(Value::Boolean(b))
+                            .unwrap_or_else(|e| panic!("{label}: {k} = {b}: {e}"));
+                    }
+                    Editor::Number | Editor::Color | Editor::Vector => {}
+                }
+            }
+        }
+        // The examples use menus (metal, medium, mode, wave keys) and an
+        // integer (a wave material's wavelengths).
+        assert!(
+            menus >= 15 && integers >= 1,
+            "{menus} menus, {integers} integers, {toggles} toggles"
+        );
+    }
+
+    /// The editors the scene format's key lists give, including a key the
+    /// examples do not write (`single_scattering`).
+    #[test]
+    fn integer_boolean_and_choice_keys_get_their_editors() {
+        let max = isolux_materials::wave::MAX_WAVELENGTHS as u64;
+        assert_eq!(
+            editor("wavelengths", &Value::Integer(4)),
+            Editor::Integer(1, max)
+        );
+        // A float key written as an integer stays a float.
+        assert_eq!(editor("exponent", &Value::Integer(40)), Editor::Number);
+        assert_eq!(
+            editor("single_scattering", &Value::Boolean(true)),
+            Editor::Toggle
+        );
+        assert_eq!(
+            editor("mode", &Value::String("dipole".into())),
+            Editor::Choice(vec!["dipole", "random_walk"])
+        );
+        let mut t = Table::new();
+        t.insert("name".into(), Value::String("s".into()));
+        t.insert("type".into(), Value::String("subsurface".into()));
+        t.insert("medium".into(), Value::String(Medium::names()[0].into()));
+        for b in [false, true] {
+            t.insert("single_scattering".into(), Value::Boolean(b));
+            match parse(&t).unwrap() {
+                isolux_materials::Material::Subsurface(s) => assert_eq!(s.single_scattering, b),
+                m => panic!("{}", m.type_name()),
+            }
+        }
     }
 
     #[test]

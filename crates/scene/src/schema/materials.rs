@@ -20,6 +20,44 @@ use std::path::Path;
 /// Keys that select a Fresnel term.
 const FRESNEL_KEYS: &[&str] = &["metal", "eta", "k", "ior", "schlick"];
 
+/// Material keys whose value is one of a fixed set of strings, with those
+/// strings. The parser reads each key through the same list, so this table
+/// cannot drift from it; `isolux view` offers the lists as menus. (`metal`
+/// takes [`Metal::names`], a list built at run time, and `type` takes
+/// [`MATERIAL_TYPES`].)
+pub const MATERIAL_CHOICES: &[(&str, &[&str])] = &[
+    ("distribution", DISTRIBUTIONS),
+    ("masking", MASKINGS),
+    ("mode", SUBSURFACE_MODES),
+    ("model", WAVE_MODELS),
+    ("obliquity", OBLIQUITIES),
+    ("mapping", MAPPINGS),
+    ("axis", AXES),
+];
+
+/// Material keys whose value is an integer, with the range the parser
+/// accepts (inclusive): `isolux view` edits them in whole steps within it.
+/// Every other numeric key takes a float (an integer written for it, as in
+/// `exponent = 40`, is read as one).
+pub const MATERIAL_INTEGERS: &[(&str, u64, u64)] = &[("wavelengths", WAVELENGTHS.0, WAVELENGTHS.1)];
+
+/// `cook_torrance.distribution`.
+const DISTRIBUTIONS: &[&str] = &["beckmann", "ggx", "gaussian"];
+/// `cook_torrance.masking`.
+const MASKINGS: &[&str] = &["cook_torrance", "smith"];
+/// `subsurface.mode`.
+const SUBSURFACE_MODES: &[&str] = &["dipole", "random_walk"];
+/// `wave.model`.
+const WAVE_MODELS: &[&str] = &["ghs", "ohs"];
+/// `wave.obliquity`.
+const OBLIQUITIES: &[&str] = &["reciprocal", "seed"];
+/// `wave.mapping`.
+const MAPPINGS: &[&str] = &["planar", "spherical", "cylindrical"];
+/// `wave.axis`.
+const AXES: &[&str] = &["x", "y", "z"];
+/// `wave.wavelengths`: the range of the number of wavelengths.
+const WAVELENGTHS: (u64, u64) = (1, isolux_materials::wave::MAX_WAVELENGTHS as u64);
+
 pub(super) fn material(
     t: &Table,
     names: &[String],
@@ -128,11 +166,11 @@ pub(super) fn material(
             keys.extend_from_slice(FRESNEL_KEYS);
             allow(&keys)?;
             let dist = match t.get("distribution") {
-                Some(v) => v.choice(&["beckmann", "ggx", "gaussian"])?,
+                Some(v) => v.choice(DISTRIBUTIONS)?,
                 None => "beckmann",
             };
             let masking = match t.get("masking") {
-                Some(v) => match v.choice(&["cook_torrance", "smith"])? {
+                Some(v) => match v.choice(MASKINGS)? {
                     "smith" if dist == "gaussian" => {
                         return Err(v.error(
                             "smith masking needs distribution = \"beckmann\" or \"ggx\" (the Gaussian has no closed-form Lambda)",
@@ -326,7 +364,7 @@ pub(super) fn material(
             ])?;
             let m = medium_coefficients(t)?;
             let mode = match t.get("mode") {
-                Some(v) => match v.choice(&["dipole", "random_walk"])? {
+                Some(v) => match v.choice(SUBSURFACE_MODES)? {
                     "random_walk" => SubsurfaceMode::RandomWalk,
                     _ => SubsurfaceMode::Dipole,
                 },
@@ -520,7 +558,7 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
     }
     let field = Heightfield::load(&file, &opts).map_err(|e| hv.error(e.to_string()))?;
     let model = match t.get("model") {
-        Some(v) => Model::parse(v.choice(&["ghs", "ohs"])?).unwrap_or_default(),
+        Some(v) => Model::parse(v.choice(WAVE_MODELS)?).unwrap_or_default(),
         None => Model::Ghs,
     };
     if t.get("metal").is_some() && t.get("ior").is_some() {
@@ -554,18 +592,18 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
         m.um_per_unit = v.positive()?;
     }
     if let Some(v) = t.get("wavelengths") {
-        m.wavelengths = v.uint(1, isolux_materials::wave::MAX_WAVELENGTHS as u64)? as usize;
+        m.wavelengths = v.uint(WAVELENGTHS.0, WAVELENGTHS.1)? as usize;
     }
     if let Some(v) = t.get("obliquity") {
         m.settings.obliquity =
-            isolux_wave::Obliquity::parse(v.choice(&["reciprocal", "seed"])?).unwrap_or_default();
+            isolux_wave::Obliquity::parse(v.choice(OBLIQUITIES)?).unwrap_or_default();
     }
     let center = match t.get("center") {
         Some(v) => vec3(&v)?,
         None => DVec3::ZERO,
     };
     let mapping = match t.get("mapping") {
-        Some(v) => v.choice(&["planar", "spherical", "cylindrical"])?,
+        Some(v) => v.choice(MAPPINGS)?,
         None => "planar",
     };
     if mapping != "planar" && t.get("axis").is_some() {
@@ -576,7 +614,7 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
         "cylindrical" => Mapping::Cylindrical(center),
         _ => {
             let axis = match t.get("axis") {
-                Some(v) => match v.choice(&["x", "y", "z"])? {
+                Some(v) => match v.choice(AXES)? {
                     "x" => 0,
                     "y" => 1,
                     _ => 2,
