@@ -261,6 +261,35 @@ impl State {
                         changed = true;
                     }
                 }
+                Editor::Components => {
+                    let mut c = params::components(&v).unwrap_or_default();
+                    let mut edit = false;
+                    ui.label(&k);
+                    for (j, (m, w)) in c.iter_mut().enumerate() {
+                        ui.horizontal(|ui| {
+                            egui::ComboBox::from_id_salt(("component", j))
+                                .selected_text(m.as_str())
+                                .show_ui(ui, |ui| {
+                                    for n in &names[..i] {
+                                        edit |=
+                                            ui.selectable_value(m, n.clone(), n.as_str()).changed();
+                                    }
+                                });
+                            edit |= ui
+                                .add(
+                                    egui::DragValue::new(w)
+                                        .speed(0.005)
+                                        .range(0.0..=1.0)
+                                        .prefix("weight "),
+                                )
+                                .changed();
+                        });
+                    }
+                    if edit {
+                        t.insert(k, params::components_value(&c));
+                        changed = true;
+                    }
+                }
                 Editor::ReadOnly => {
                     ui.label(format!("{k} = {v}"));
                 }

@@ -105,7 +105,10 @@ pub enum Editor {
     /// One of a fixed set of strings ([`isolux_scene::MATERIAL_CHOICES`],
     /// and the names of the metals and of the measured media).
     Choice(Vec<&'static str>),
-    /// Shown, not editable (file names, mix components).
+    /// A mix's components: each one's material (a menu of the materials
+    /// defined before the mix, as the scene format requires) and weight.
+    Components,
+    /// Shown, not editable (file names).
     ReadOnly,
 }
 
@@ -125,6 +128,7 @@ pub fn editor(key: &str, value: &Value) -> Editor {
             None => Editor::Number,
         },
         Value::Boolean(_) => Editor::Toggle,
+        _ if key == "components" && components(value).is_some() => Editor::Components,
         _ if numbers3 => match key {
             "reflectance" | "specular" | "isotropic" | "schlick" => Editor::Color,
             _ => Editor::Vector,
@@ -162,6 +166,35 @@ pub fn numbers3(v: &Value) -> Option<[f64; 3]> {
 /// Three numbers as a TOML array.
 pub fn array3(c: [f64; 3]) -> Value {
     Value::Array(c.iter().map(|&x| Value::Float(x)).collect())
+}
+
+/// A mix's `components` as `(material, weight)` pairs, if every entry has
+/// both keys and nothing else.
+pub fn components(v: &Value) -> Option<Vec<(String, f64)>> {
+    let Value::Array(a) = v else { return None };
+    a.iter()
+        .map(|c| {
+            let t = c.as_table().filter(|t| t.len() == 2)?;
+            Some((
+                t.get("material")?.as_str()?.to_string(),
+                number(t.get("weight")?)?,
+            ))
+        })
+        .collect()
+}
+
+/// A mix's `components` array from `(material, weight)` pairs.
+pub fn components_value(c: &[(String, f64)]) -> Value {
+    Value::Array(
+        c.iter()
+            .map(|(m, w)| {
+                let mut t = Table::new();
+                t.insert("material".into(), Value::String(m.clone()));
+                t.insert("weight".into(), Value::Float(*w));
+                Value::Table(t)
+            })
+            .collect(),
+    )
 }
 
 /// The TOML text of a material table, for [`isolux_scene::parse_material`].
@@ -258,8 +291,13 @@ mod tests {
         let mut menus = 0;
         let mut integers = 0;
         let mut toggles = 0;
+        let mut mixes = 0;
         for (label, table) in example_tables() {
             if table["type"].as_str() == Some("mix") {
+                // Read with the materials before it: the test below.
+                let c = &table["components"];
+                assert_eq!(editor("components", c), Editor::Components, "{label}");
+                mixes += 1;
                 continue;
             }
             parse_in_examples(&table).unwrap_or_else(|e| panic!("{label}: {e}"));
@@ -309,15 +347,15 @@ mod tests {
                         edited(Value::Boolean(b))
                             .unwrap_or_else(|e| panic!("{label}: {k} = {b}: {e}"));
                     }
-                    Editor::Number | Editor::Color | Editor::Vector => {}
+                    Editor::Number | Editor::Color | Editor::Vector | Editor::Components => {}
                 }
             }
         }
-        // The examples use menus (metal, medium, mode, wave keys) and an
-        // integer (a wave material's wavelengths).
+        // The examples use menus (metal, medium, mode, wave keys), an
+        // integer (a wave material's wavelengths) and a mix.
         assert!(
-            menus >= 15 && integers >= 1,
-            "{menus} menus, {integers} integers, {toggles} toggles"
+            menus >= 15 && integers >= 1 && mixes >= 1,
+            "{menus} menus, {integers} integers, {toggles} toggles, {mixes} mixes"
         );
     }
 
@@ -351,6 +389,53 @@ mod tests {
                 m => panic!("{}", m.type_name()),
             }
         }
+    }
+
+    /// A mix's components get their editor; an edit of the weights or of
+    /// a component's material round-trips through the TOML text and the
+    /// scene reader, and weights above 1 in sum are refused with its
+    /// message.
+    #[test]
+    fn mix_components_edit_through_the_scene_reader() {
+        let names = ["d".to_string(), "g".to_string(), "p".to_string()];
+        let earlier: Vec<_> = [("d", "diffuse"), ("g", "ggx"), ("p", "phong")]
+            .iter()
+            .map(|(n, ty)| parse(&template(n, ty)).unwrap())
+            .collect();
+        let read = |c: &[(String, f64)]| {
+            let mut t = Table::new();
+            t.insert("name".into(), Value::String("mix".into()));
+            t.insert("type".into(), Value::String("mix".into()));
+            t.insert("components".into(), components_value(c));
+            assert_eq!(editor("components", &t["components"]), Editor::Components);
+            assert_eq!(components(&t["components"]).as_deref(), Some(c));
+            isolux_scene::parse_material(
+                &to_source(&t),
+                "edit".as_ref(),
+                &names,
+                &earlier,
+                ".".as_ref(),
+            )
+        };
+        let c = vec![("d".to_string(), 0.6), ("g".to_string(), 0.4)];
+        let weights = |m: isolux_materials::Material| match m {
+            isolux_materials::Material::Mix(m) => m
+                .components
+                .iter()
+                .map(|(m, w)| (m.type_name(), *w))
+                .collect::<Vec<_>>(),
+            m => panic!("{}", m.type_name()),
+        };
+        assert_eq!(weights(read(&c).unwrap()), [("diffuse", 0.6), ("ggx", 0.4)]);
+        let c = vec![("p".to_string(), 0.25), ("g".to_string(), 0.5)];
+        assert_eq!(weights(read(&c).unwrap()), [("phong", 0.25), ("ggx", 0.5)]);
+        let c = vec![("d".to_string(), 0.7), ("g".to_string(), 0.4)];
+        let e = read(&c).unwrap_err().to_string();
+        assert!(e.contains("above 1"), "{e}");
+        // Not a components array: shown only.
+        assert_eq!(editor("components", &Value::String("d".into())), Editor::ReadOnly);
+        let extra = Value::Array(vec![Value::Table(template("x", "diffuse"))]);
+        assert_eq!(components(&extra), None);
     }
 
     #[test]
