@@ -80,6 +80,20 @@ impl EnvMap {
         })
     }
 
+    /// The same map with every texel multiplied by `factor` (finite, not
+    /// negative): `isolux view`'s live `scale`, which rescales the map as
+    /// read rather than the last rescaled one, so that no rounding piles
+    /// up. The sampling density, proportional to luminance, is unchanged
+    /// for any positive factor.
+    pub fn scaled(&self, factor: f64) -> Result<Self, String> {
+        if !(factor.is_finite() && factor >= 0.0) {
+            return Err(format!(
+                "scale must be finite and non-negative, got {factor}"
+            ));
+        }
+        Self::new(self.width, self.height, self.texels.clone(), factor)
+    }
+
     /// Size in texels.
     pub fn size(&self) -> (usize, usize) {
         (self.width, self.height)
@@ -182,6 +196,38 @@ mod tests {
         }
         assert!((uv_to_dir([0.5, 0.5]) - DVec3::new(0.0, 0.0, -1.0)).length() < 1e-12);
         assert!(uv_to_dir([0.3, 0.0]).y > 0.999_999);
+    }
+
+    /// A scaled map's radiance is the factor times the original's in every
+    /// direction, its sampling density and samples' directions are the
+    /// original's, and a negative or non-finite factor is refused.
+    #[test]
+    fn scaling_a_map_scales_radiance_and_keeps_the_density() {
+        let (w, h) = (12, 6);
+        let texels: Vec<Rgb> = (0..w * h)
+            .map(|i| Rgb::new(0.1 + i as f64, 0.5, 2.0 + (i % 5) as f64))
+            .collect();
+        let map = EnvMap::new(w, h, texels, 0.5).unwrap();
+        let a = Environment::Map(map.clone());
+        let b = Environment::Map(map.scaled(3.0).unwrap());
+        let mut rng = Pcg32::new(9, 1);
+        for _ in 0..500 {
+            let d = sampling::uniform_sphere(rng.next_2d());
+            let (la, lb) = (a.eval(d), b.eval(d));
+            for (x, y) in la.to_array().into_iter().zip(lb.to_array()) {
+                assert!((y - 3.0 * x).abs() <= 1e-12 * y, "{la:?} {lb:?}");
+            }
+            assert!((a.pdf(d) - b.pdf(d)).abs() <= 1e-12 * a.pdf(d));
+            let u = rng.next_2d();
+            let (sa, sb) = (a.sample(u).unwrap(), b.sample(u).unwrap());
+            assert!((sa.wi - sb.wi).length() < 1e-12);
+        }
+        let dark = Environment::Map(map.scaled(0.0).unwrap());
+        assert_eq!(dark.eval(DVec3::Y), Rgb::BLACK);
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let e = map.scaled(bad).unwrap_err();
+            assert!(e.contains("non-negative"), "{e}");
+        }
     }
 
     #[test]

@@ -38,7 +38,7 @@ use anyhow::{anyhow, bail, Context as _};
 use display::{Display, DisplayParams};
 use isolux_gpu::{wgpu, Gpu, GpuFrame};
 use isolux_io::Tonemap;
-use isolux_render::{FilmSettings, Scene};
+use isolux_render::{EnvMap, Environment, FilmSettings, Scene};
 use orbit::Orbit;
 use panel::{FrameInfo, UiOutcome};
 use std::path::{Path, PathBuf};
@@ -95,6 +95,10 @@ const MIN_WINDOW: (u32, u32) = (364, 64);
 /// The largest side: the texture size most adapters offer (the window
 /// system may still open the window smaller, to fit the screen).
 const MAX_WINDOW: u32 = 16384;
+
+/// How the panel's status line starts while the renderer refuses the scene
+/// as edited.
+const CANNOT_RENDER: &str = "cannot render: ";
 
 /// Opens the viewer and runs until the window closes (or the scripted
 /// frames are drawn).
@@ -221,6 +225,14 @@ struct State {
     material_error: Option<String>,
     exposure: f64,
     tonemap: Tonemap,
+    /// The environment map as read (the file's `scale` applied), which a
+    /// live `scale` rescales ([`isolux_render::EnvMap::scaled`]); `None`
+    /// for a constant environment.
+    env_map: Option<EnvMap>,
+    /// The scene file's environment `scale` (1 by default).
+    env_file_scale: f64,
+    /// The environment `scale` shown in the panel.
+    env_scale: f64,
     /// Last change of view or scene.
     last_change: Instant,
     status: String,
@@ -245,7 +257,19 @@ impl State {
             );
         }
         let orbit = Orbit::from_camera(&scene.camera);
+        let env_map = match &scene.environment {
+            Environment::Map(m) => Some(m.clone()),
+            Environment::Constant(_) => None,
+        };
+        let env_file_scale = doc
+            .get("environment")
+            .and_then(|e| e.get("scale"))
+            .and_then(params::number)
+            .unwrap_or(1.0);
         Ok(Self {
+            env_map,
+            env_file_scale,
+            env_scale: env_file_scale,
             orbit,
             initial_orbit: orbit,
             tables,
@@ -546,9 +570,14 @@ impl Running {
             let stale = self.frames.as_ref().is_none_or(|f| f.film != film);
             if stale || outcome.scene {
                 self.refusal = self.prepare(state, opts, film).err().map(|e| e.to_string());
-                if let Some(why) = &self.refusal {
-                    state.status = format!("cannot render: {why}");
-                    self.frames = None;
+                match &self.refusal {
+                    Some(why) => {
+                        state.status = format!("{CANNOT_RENDER}{why}");
+                        self.frames = None;
+                    }
+                    // It renders again: the refusal's message goes.
+                    None if state.status.starts_with(CANNOT_RENDER) => state.status.clear(),
+                    None => {}
                 }
             } else if outcome.camera {
                 let camera = state.orbit.camera();

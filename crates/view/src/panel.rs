@@ -5,6 +5,7 @@
 
 use super::{params, State};
 use isolux_io::Tonemap;
+use isolux_render::Environment;
 
 impl State {
     /// The side panel and the image area; returns what changed.
@@ -123,9 +124,53 @@ impl State {
                     });
                 }
             });
+        egui::CollapsingHeader::new("Environment")
+            .default_open(true)
+            .show(ui, |ui| self.environment_ui(ui, out));
         egui::CollapsingHeader::new("Materials")
             .default_open(true)
             .show(ui, |ui| self.materials_ui(ui, out));
+    }
+
+    /// A constant environment's radiance, or a map's `scale` (the factor on
+    /// the file's texels, as the scene key).
+    fn environment_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {
+        match &mut self.scene.environment {
+            Environment::Constant(c) => {
+                ui.horizontal(|ui| {
+                    ui.label("radiance");
+                    for v in [&mut c.r, &mut c.g, &mut c.b] {
+                        out.scene |= ui
+                            .add(egui::DragValue::new(v).speed(0.01).range(0.0..=1e6))
+                            .changed();
+                    }
+                });
+            }
+            Environment::Map(map) => {
+                let Some(read) = &self.env_map else { return };
+                if !(self.env_file_scale > 0.0) {
+                    ui.label("map, scale = 0 in the scene file (nothing to rescale)");
+                    return;
+                }
+                let edit = ui
+                    .add(
+                        egui::DragValue::new(&mut self.env_scale)
+                            .speed(0.01)
+                            .range(0.0..=1e6)
+                            .prefix("map scale "),
+                    )
+                    .changed();
+                if edit {
+                    match read.scaled(self.env_scale / self.env_file_scale) {
+                        Ok(m) => {
+                            *map = m;
+                            out.scene = true;
+                        }
+                        Err(e) => self.status = e,
+                    }
+                }
+            }
+        }
     }
 
     fn materials_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {

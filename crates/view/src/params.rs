@@ -433,7 +433,10 @@ mod tests {
         let e = read(&c).unwrap_err().to_string();
         assert!(e.contains("above 1"), "{e}");
         // Not a components array: shown only.
-        assert_eq!(editor("components", &Value::String("d".into())), Editor::ReadOnly);
+        assert_eq!(
+            editor("components", &Value::String("d".into())),
+            Editor::ReadOnly
+        );
         let extra = Value::Array(vec![Value::Table(template("x", "diffuse"))]);
         assert_eq!(components(&extra), None);
     }
