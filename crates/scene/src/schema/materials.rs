@@ -153,8 +153,8 @@ pub(super) fn material(
             let sum = specular + diffuse + iso;
             if sum.max_component() > 1.0 + 1e-12 {
                 return Err(t.error(format!(
-                    "reflectance + specular + isotropic = {:?} exceeds 1: the material would create energy",
-                    sum.to_array()
+                    "reflectance + specular + isotropic = [{}] exceeds 1: the material would create energy",
+                    sum.to_array().map(decimals12).join(", ")
                 )));
             }
             let mut m = HeidrichSeidel::new(exponent, specular, iso, diffuse);
@@ -276,7 +276,8 @@ pub(super) fn material(
             }
             if total > 1.0 + 1e-12 {
                 return Err(cv.error(format!(
-                    "weights sum to {total}, above 1: the mix would create energy"
+                    "weights sum to {}, above 1: the mix would create energy",
+                    decimals12(total)
                 )));
             }
             Ok(Material::Mix(Mix { components }))
@@ -494,8 +495,8 @@ fn lobe_weights(t: &Table) -> Result<(Rgb, Rgb)> {
     let sum = specular + diffuse;
     if sum.max_component() > 1.0 + 1e-12 {
         return Err(t.error(format!(
-            "reflectance + specular = {:?} exceeds 1: the material would create energy",
-            sum.to_array()
+            "reflectance + specular = [{}] exceeds 1: the material would create energy",
+            sum.to_array().map(decimals12).join(", ")
         )));
     }
     Ok((specular, diffuse))
@@ -626,6 +627,15 @@ fn wave_material(t: &Table, base_dir: &Path) -> Result<Material> {
     };
     m.query.sigma_um = m.coherence_um;
     Ok(Material::Wave(m))
+}
+
+/// `x` to 12 decimals with the trailing zeros dropped, for the energy
+/// checks' messages: a sum of values written as decimals prints as written
+/// (1.14, not 1.1400000000000001), and an excess over 1 large enough to
+/// fail the checks' 1e-12 tolerance still shows.
+fn decimals12(x: f64) -> String {
+    let s = format!("{x:.12}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
 fn fresnel(t: &Table) -> Result<Fresnel> {
