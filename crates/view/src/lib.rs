@@ -96,10 +96,6 @@ const MIN_WINDOW: (u32, u32) = (364, 64);
 /// system may still open the window smaller, to fit the screen).
 const MAX_WINDOW: u32 = 16384;
 
-/// How the panel's status line starts while the renderer refuses the scene
-/// as edited.
-const CANNOT_RENDER: &str = "cannot render: ";
-
 /// Opens the viewer and runs until the window closes (or the scripted
 /// frames are drawn).
 pub fn run(opts: Options) -> anyhow::Result<()> {
@@ -534,7 +530,11 @@ impl Running {
                     format!("real-time, {} spp", f.realtime.samples)
                 }
                 Some(f) => format!("path tracing, {} / {} spp", f.path.samples, opts.max_spp),
-                None => "starting".into(),
+                // Shown until an edit makes the scene renderable again.
+                None => match &self.refusal {
+                    Some(why) => format!("cannot render: {why}"),
+                    None => "starting".into(),
+                },
             },
             frame_ms: self.frame_ms,
         };
@@ -570,14 +570,8 @@ impl Running {
             let stale = self.frames.as_ref().is_none_or(|f| f.film != film);
             if stale || outcome.scene {
                 self.refusal = self.prepare(state, opts, film).err().map(|e| e.to_string());
-                match &self.refusal {
-                    Some(why) => {
-                        state.status = format!("{CANNOT_RENDER}{why}");
-                        self.frames = None;
-                    }
-                    // It renders again: the refusal's message goes.
-                    None if state.status.starts_with(CANNOT_RENDER) => state.status.clear(),
-                    None => {}
+                if self.refusal.is_some() {
+                    self.frames = None;
                 }
             } else if outcome.camera {
                 let camera = state.orbit.camera();

@@ -265,9 +265,9 @@ impl State {
                         changed = true;
                     }
                 }
-                Editor::Color | Editor::Vector => {
+                e @ (Editor::Color | Editor::Vector) => {
                     let mut c = numbers3(&v).unwrap_or([0.0; 3]);
-                    let color = editor(&k, &v) == Editor::Color;
+                    let color = e == Editor::Color;
                     let mut edit = false;
                     ui.horizontal(|ui| {
                         ui.label(&k);
