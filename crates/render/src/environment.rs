@@ -19,6 +19,8 @@
 //! *not* light-sampled: it has no features to find, and BSDF sampling alone
 //! is optimal (for a Lambertian surface it is noise-free).
 
+use std::sync::Arc;
+
 use isolux_core::{DVec3, Distribution2D, Rgb, PI};
 
 /// Environment radiance.
@@ -37,18 +39,32 @@ impl Default for Environment {
 }
 
 /// An equirectangular radiance map with its sampling distribution.
+///
+/// The map keeps the texels as read beside its `scale`, so that
+/// [`EnvMap::with_scale`] can set any scale later, 0 included, and the
+/// result is exactly the map built with that scale in the first place.
 #[derive(Clone, Debug)]
 pub struct EnvMap {
     width: usize,
     height: usize,
+    /// The texels as read, before `scale` (shared by rescaled copies).
+    read: Arc<[Rgb]>,
+    scale: f64,
+    /// `read` times `scale`: the radiance.
     texels: Vec<Rgb>,
     dist: Distribution2D,
 }
 
 impl EnvMap {
     /// Builds a map from row-major linear RGB texels (row 0 at the top),
-    /// multiplied by `scale`. Non-finite or negative texels are errors.
+    /// multiplied by `scale`. Non-finite or negative texels, and a scale
+    /// that is negative or not finite, are errors.
     pub fn new(width: usize, height: usize, texels: Vec<Rgb>, scale: f64) -> Result<Self, String> {
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(format!(
+                "scale must be finite and non-negative, got {scale}"
+            ));
+        }
         if width == 0 || height == 0 || texels.len() != width * height {
             return Err(format!(
                 "environment map has inconsistent size {width} x {height}"
@@ -64,7 +80,12 @@ impl EnvMap {
                 i / width
             ));
         }
-        let texels: Vec<Rgb> = texels.into_iter().map(|t| t * scale).collect();
+        Ok(Self::build(width, height, texels.into(), scale))
+    }
+
+    /// The map of already checked texels at `scale`.
+    fn build(width: usize, height: usize, read: Arc<[Rgb]>, scale: f64) -> Self {
+        let texels: Vec<Rgb> = read.iter().map(|&t| t * scale).collect();
         let mut w = vec![0.0; width * height];
         for y in 0..height {
             let sin_t = (PI * (y as f64 + 0.5) / height as f64).sin();
@@ -72,26 +93,39 @@ impl EnvMap {
                 w[y * width + x] = texels[y * width + x].luminance().max(0.0) * sin_t;
             }
         }
-        Ok(Self {
+        Self {
             dist: Distribution2D::new(&w, width, height),
             width,
             height,
+            read,
+            scale,
             texels,
-        })
+        }
     }
 
-    /// The same map with every texel multiplied by `factor` (finite, not
-    /// negative): `isolux view`'s live `scale`, which rescales the map as
-    /// read rather than the last rescaled one, so that no rounding piles
-    /// up. The sampling density, proportional to luminance, is unchanged
-    /// for any positive factor.
-    pub fn scaled(&self, factor: f64) -> Result<Self, String> {
-        if !(factor.is_finite() && factor >= 0.0) {
+    /// The same map at another `scale` (finite, not negative), applied to
+    /// the texels as read: `isolux view`'s live `scale`. However many
+    /// times a map is rescaled, and from whatever scale (0 included), the
+    /// result equals [`EnvMap::new`] with the new scale, texel for texel.
+    /// The sampling density, proportional to luminance, is the same for
+    /// every positive scale.
+    pub fn with_scale(&self, scale: f64) -> Result<Self, String> {
+        if !(scale.is_finite() && scale >= 0.0) {
             return Err(format!(
-                "scale must be finite and non-negative, got {factor}"
+                "scale must be finite and non-negative, got {scale}"
             ));
         }
-        Self::new(self.width, self.height, self.texels.clone(), factor)
+        Ok(Self::build(
+            self.width,
+            self.height,
+            self.read.clone(),
+            scale,
+        ))
+    }
+
+    /// The factor on the texels as read (the scene's `environment.scale`).
+    pub fn scale(&self) -> f64 {
+        self.scale
     }
 
     /// Size in texels.
@@ -198,18 +232,21 @@ mod tests {
         assert!(uv_to_dir([0.3, 0.0]).y > 0.999_999);
     }
 
-    /// A scaled map's radiance is the factor times the original's in every
-    /// direction, its sampling density and samples' directions are the
-    /// original's, and a negative or non-finite factor is refused.
+    /// A rescaled map's radiance is the scale ratio times the original's
+    /// in every direction, its sampling density and samples' directions
+    /// are the original's, rescaling (through 0 too) gives exactly the map
+    /// built with the final scale, and a negative or non-finite scale is
+    /// refused.
     #[test]
-    fn scaling_a_map_scales_radiance_and_keeps_the_density() {
+    fn rescaling_a_map_scales_radiance_and_keeps_the_density() {
         let (w, h) = (12, 6);
         let texels: Vec<Rgb> = (0..w * h)
             .map(|i| Rgb::new(0.1 + i as f64, 0.5, 2.0 + (i % 5) as f64))
             .collect();
-        let map = EnvMap::new(w, h, texels, 0.5).unwrap();
+        let map = EnvMap::new(w, h, texels.clone(), 0.5).unwrap();
+        assert_eq!(map.scale(), 0.5);
         let a = Environment::Map(map.clone());
-        let b = Environment::Map(map.scaled(3.0).unwrap());
+        let b = Environment::Map(map.with_scale(1.5).unwrap());
         let mut rng = Pcg32::new(9, 1);
         for _ in 0..500 {
             let d = sampling::uniform_sphere(rng.next_2d());
@@ -222,10 +259,30 @@ mod tests {
             let (sa, sb) = (a.sample(u).unwrap(), b.sample(u).unwrap());
             assert!((sa.wi - sb.wi).length() < 1e-12);
         }
-        let dark = Environment::Map(map.scaled(0.0).unwrap());
-        assert_eq!(dark.eval(DVec3::Y), Rgb::BLACK);
+        let dark = map.with_scale(0.0).unwrap();
+        assert_eq!(dark.scale(), 0.0);
+        assert_eq!(Environment::Map(dark.clone()).eval(DVec3::Y), Rgb::BLACK);
+        // Through 0 and back, and through a chain of odd factors: the map
+        // built at the last scale, texel for texel, density for density.
+        let fresh = EnvMap::new(w, h, texels, 0.7).unwrap();
+        for back in [
+            dark.with_scale(0.7).unwrap(),
+            map.with_scale(0.3)
+                .and_then(|m| m.with_scale(1.0 / 3.0))
+                .and_then(|m| m.with_scale(0.7))
+                .unwrap(),
+        ] {
+            assert_eq!(back.texels(), fresh.texels());
+            let (e, f) = (Environment::Map(back), Environment::Map(fresh.clone()));
+            for _ in 0..50 {
+                let d = sampling::uniform_sphere(rng.next_2d());
+                assert_eq!(e.pdf(d), f.pdf(d));
+            }
+        }
         for bad in [-1.0, f64::NAN, f64::INFINITY] {
-            let e = map.scaled(bad).unwrap_err();
+            let e = map.with_scale(bad).unwrap_err();
+            assert!(e.contains("non-negative"), "{e}");
+            let e = EnvMap::new(w, h, vec![Rgb::BLACK; w * h], bad).unwrap_err();
             assert!(e.contains("non-negative"), "{e}");
         }
     }

@@ -38,7 +38,7 @@ use anyhow::{anyhow, bail, Context as _};
 use display::{Display, DisplayParams};
 use isolux_gpu::{wgpu, Gpu, GpuFrame};
 use isolux_io::Tonemap;
-use isolux_render::{EnvMap, Environment, FilmSettings, Scene};
+use isolux_render::{Environment, FilmSettings, Scene};
 use orbit::Orbit;
 use panel::{FrameInfo, UiOutcome};
 use std::path::{Path, PathBuf};
@@ -221,13 +221,9 @@ struct State {
     material_error: Option<String>,
     exposure: f64,
     tonemap: Tonemap,
-    /// The environment map as read (the file's `scale` applied), which a
-    /// live `scale` rescales ([`isolux_render::EnvMap::scaled`]); `None`
-    /// for a constant environment.
-    env_map: Option<EnvMap>,
-    /// The scene file's environment `scale` (1 by default).
-    env_file_scale: f64,
-    /// The environment `scale` shown in the panel.
+    /// The environment map's `scale` shown in the panel, which
+    /// [`isolux_render::EnvMap::with_scale`] applies (1 for a constant
+    /// environment, where it is not shown).
     env_scale: f64,
     /// Last change of view or scene.
     last_change: Instant,
@@ -253,19 +249,12 @@ impl State {
             );
         }
         let orbit = Orbit::from_camera(&scene.camera);
-        let env_map = match &scene.environment {
-            Environment::Map(m) => Some(m.clone()),
-            Environment::Constant(_) => None,
+        let env_scale = match &scene.environment {
+            Environment::Map(m) => m.scale(),
+            Environment::Constant(_) => 1.0,
         };
-        let env_file_scale = doc
-            .get("environment")
-            .and_then(|e| e.get("scale"))
-            .and_then(params::number)
-            .unwrap_or(1.0);
         Ok(Self {
-            env_map,
-            env_file_scale,
-            env_scale: env_file_scale,
+            env_scale,
             orbit,
             initial_orbit: orbit,
             tables,

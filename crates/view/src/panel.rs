@@ -147,11 +147,6 @@ impl State {
                 });
             }
             Environment::Map(map) => {
-                let Some(read) = &self.env_map else { return };
-                if !(self.env_file_scale > 0.0) {
-                    ui.label("map, scale = 0 in the scene file (nothing to rescale)");
-                    return;
-                }
                 let edit = ui
                     .add(
                         egui::DragValue::new(&mut self.env_scale)
@@ -161,7 +156,7 @@ impl State {
                     )
                     .changed();
                 if edit {
-                    match read.scaled(self.env_scale / self.env_file_scale) {
+                    match map.with_scale(self.env_scale) {
                         Ok(m) => {
                             *map = m;
                             out.scene = true;
