@@ -18,6 +18,9 @@
 //!   every edit is re-read with the scene format's own checks, and a
 //!   refused value shows the scene format's message), and of the point
 //!   lights' positions and intensities; exposure and tone map.
+//! - **Save**: `Ctrl+S` (or the panel's button) writes the scene file with
+//!   the edits beside it as `<scene>-view-<n>.toml`, comments and layout
+//!   kept (module `save`).
 //! - **Screenshot**: the `P` key (or the panel's button) writes the image
 //!   shown, at film resolution, to `<scene>-view-<n>.png` in the current
 //!   directory.
@@ -33,6 +36,7 @@ pub mod display;
 pub mod orbit;
 mod panel;
 pub mod params;
+mod save;
 
 use anyhow::{anyhow, bail, Context as _};
 use display::{Display, DisplayParams};
@@ -213,6 +217,9 @@ struct State {
     /// The materials' tables as in the scene file (edited live).
     tables: Vec<toml::Table>,
     base_dir: PathBuf,
+    /// The scene file as opened, which a save copies with the edits.
+    src: String,
+    path: PathBuf,
     file_name: String,
     scene_stem: String,
     orbit: Orbit,
@@ -259,6 +266,8 @@ impl State {
             initial_orbit: orbit,
             tables,
             base_dir: opts.scene.parent().unwrap_or(Path::new(".")).to_path_buf(),
+            src,
+            path: opts.scene.clone(),
             file_name: opts.scene.display().to_string(),
             scene_stem: opts
                 .scene
@@ -274,6 +283,26 @@ impl State {
             last_change: Instant::now() - Duration::from_secs(1),
             status: String::new(),
         })
+    }
+
+    /// Saves the scene file with the edits to the next free
+    /// `<scene>-view-<n>.toml` beside it ([`save`]); returns the status
+    /// line.
+    fn save_scene(&self) -> String {
+        let camera = (self.orbit != self.initial_orbit).then(|| self.orbit.camera());
+        let edits = save::Edits {
+            materials: &self.tables,
+            lights: &self.scene.lights,
+            camera,
+            environment: &self.scene.environment,
+        };
+        let path = save::free_path(&self.base_dir, &self.scene_stem);
+        match save::edited_scene(&self.src, &edits, &self.path, &self.base_dir)
+            .and_then(|text| save::write(&path, &text))
+        {
+            Ok(()) => format!("saved {}", path.display()),
+            Err(e) => format!("scene not saved: {e}"),
+        }
     }
 
     /// Re-reads material `i` from its table, then the mixes after it (a

@@ -39,6 +39,9 @@ impl State {
         if !ctx.wants_keyboard_input() && ctx.input(|i| i.key_pressed(egui::Key::P)) {
             out.screenshot = true;
         }
+        if ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::S)) {
+            self.status = self.save_scene();
+        }
         out
     }
 
@@ -74,9 +77,18 @@ impl State {
                     ui.selectable_value(&mut self.tonemap, Tonemap::Reinhard, "reinhard");
                 });
         });
-        if ui.button("Screenshot (P)").clicked() {
-            out.screenshot = true;
-        }
+        ui.horizontal(|ui| {
+            if ui.button("Screenshot (P)").clicked() {
+                out.screenshot = true;
+            }
+            if ui
+                .button("Save scene (Ctrl+S)")
+                .on_hover_text("the scene file with the edits, as <scene>-view-<n>.toml beside it")
+                .clicked()
+            {
+                self.status = self.save_scene();
+            }
+        });
         ui.separator();
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
