@@ -239,9 +239,12 @@ struct State {
 
 impl State {
     fn load(opts: &Options) -> anyhow::Result<Self> {
-        let scene = isolux_scene::load(&opts.scene)?;
+        // Read once: the scene, the panel's tables and a saved copy all
+        // come from the same text.
         let src = std::fs::read_to_string(&opts.scene)
             .with_context(|| format!("{}: cannot read scene file", opts.scene.display()))?;
+        let base_dir = opts.scene.parent().unwrap_or(Path::new("."));
+        let scene = isolux_scene::parse_str(&src, &opts.scene, base_dir)?;
         let doc: toml::Table = toml::from_str(&src)
             .with_context(|| format!("{}: invalid TOML", opts.scene.display()))?;
         let tables: Vec<toml::Table> = doc
@@ -265,7 +268,7 @@ impl State {
             orbit,
             initial_orbit: orbit,
             tables,
-            base_dir: opts.scene.parent().unwrap_or(Path::new(".")).to_path_buf(),
+            base_dir: base_dir.to_path_buf(),
             src,
             path: opts.scene.clone(),
             file_name: opts.scene.display().to_string(),
