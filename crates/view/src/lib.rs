@@ -6,8 +6,9 @@
 //! accumulation buffer directly ([`display`]), an egui side panel edits
 //! the scene live.
 //!
-//! - **Orbit and zoom**: drag in the image to turn about the scene
-//!   camera's `look_at` ([`orbit`]), the wheel zooms.
+//! - **Orbit, pan and zoom**: drag in the image to turn about the scene
+//!   camera's `look_at` ([`orbit`]), right-drag (or Shift-drag) to pan,
+//!   the wheel zooms.
 //! - **Modes**: while the view changes (a drag, an edit, and for a quarter
 //!   of a second after) each frame is the real-time mode
 //!   (`isolux render --realtime`: point lights plus the prefiltered

@@ -4,7 +4,9 @@
 //! sin(pitch) up)`, where `(u, up, w)` is a fixed orthonormal frame around
 //! the scene camera's (normalized) `up`. Dragging turns yaw and pitch (the
 //! pitch stays within 89 degrees of the horizon, so `up` is never parallel
-//! to the view direction), the wheel scales the distance.
+//! to the view direction), the wheel scales the distance, and a pan
+//! (right or middle drag, or Shift with the left) slides the target and
+//! the eye together across the view.
 
 use glam::DVec3;
 use isolux_render::Camera;
@@ -89,6 +91,24 @@ impl Orbit {
         self.pitch = (self.pitch + dy * RADIANS_PER_PIXEL).clamp(-MAX_PITCH, MAX_PITCH);
     }
 
+    /// Slides the target and the eye together across the view by a drag of
+    /// `(dx, dy)` (right and down) in a view `height` units tall, in the
+    /// same units: the point orbited follows the cursor, as does anything
+    /// at its depth. The view direction and distance do not change.
+    pub fn pan(&mut self, dx: f64, dy: f64, height: f64) {
+        let eye = self.eye();
+        let Some(forward) = (self.target - eye).try_normalize() else {
+            return;
+        };
+        let Some(right) = forward.cross(self.up).try_normalize() else {
+            return;
+        };
+        let up = right.cross(forward);
+        let per_unit =
+            2.0 * self.distance * (0.5 * self.fov_y.to_radians()).tan() / height.max(1.0);
+        self.target += per_unit * (up * dy - right * dx);
+    }
+
     /// Moves the eye closer (`steps > 0`) or away, by 10% per step.
     pub fn zoom(&mut self, steps: f64) {
         self.distance = (self.distance * ZOOM_PER_STEP.powf(steps)).clamp(1e-4, 1e6);
@@ -156,6 +176,40 @@ mod tests {
         a.drag(120.0, 0.0);
         a.drag(-120.0, 0.0);
         assert!(close(a.eye(), Orbit::from_camera(&cam).eye(), 1e-12));
+    }
+
+    /// After a pan the point orbited before it projects where the cursor
+    /// went (checked with the renderer's own projection), and the view's
+    /// direction and distance are unchanged.
+    #[test]
+    fn panning_moves_the_target_with_the_cursor() {
+        let cam = Camera {
+            position: DVec3::new(1.0, 3.4, 7.2),
+            look_at: DVec3::new(0.5, -0.15, 0.0),
+            up: DVec3::Y,
+            fov_y: 42.0,
+        };
+        let (w, h) = (640, 360);
+        let mut o = Orbit::from_camera(&cam);
+        o.drag(50.0, 20.0);
+        for (dx, dy) in [(30.0, 0.0), (0.0, -25.0), (-12.5, 41.0)] {
+            let before = o;
+            o.pan(dx, dy, h as f64);
+            let (x, y) = o
+                .camera()
+                .rig(w, h)
+                .unwrap()
+                .project(before.target)
+                .unwrap();
+            assert!((x - (w as f64 / 2.0 + dx)).abs() < 1e-9, "{x}");
+            assert!((y - (h as f64 / 2.0 + dy)).abs() < 1e-9, "{y}");
+            let (a, b) = (before.camera(), o.camera());
+            assert!(close(b.position - b.look_at, a.position - a.look_at, 1e-12));
+            assert_eq!(
+                (o.yaw, o.pitch, o.distance),
+                (before.yaw, before.pitch, before.distance)
+            );
+        }
     }
 
     #[test]

@@ -24,7 +24,12 @@ impl State {
                 out.viewport = rect;
                 if r.dragged() {
                     let d = r.drag_delta();
-                    self.orbit.drag(d.x as f64, d.y as f64);
+                    let shift = ui.input(|i| i.modifiers.shift);
+                    if r.dragged_by(egui::PointerButton::Primary) && !shift {
+                        self.orbit.drag(d.x as f64, d.y as f64);
+                    } else {
+                        self.orbit.pan(d.x as f64, d.y as f64, rect.height() as f64);
+                    }
                     out.camera = true;
                     out.dragging = true;
                 }
@@ -93,7 +98,7 @@ impl State {
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
             .show(ui, |ui| {
-                ui.label("drag the image to orbit, wheel to zoom");
+                ui.label("drag the image to orbit, right-drag (or Shift) to pan, wheel to zoom");
                 let mut c = false;
                 c |= ui
                     .add(egui::Slider::new(&mut self.orbit.fov_y, 5.0..=120.0).text("fov_y"))

@@ -2,8 +2,8 @@
 //!
 //! `Ctrl+S` (or the panel's *Save scene* button) writes the scene file as
 //! opened with the edits made since: the materials' tables, the point
-//! lights' `position` and `intensity`, the camera's `position` and
-//! `fov_y` when the view was orbited, zoomed or widened, and the
+//! lights' `position` and `intensity`, the camera's `position`, `look_at`
+//! and `fov_y` when the view was orbited, panned, zoomed or widened, and the
 //! environment's `radiance` or map `scale`. Everything else is the file as
 //! it was, byte for byte: comments, key order, layout, and every value the
 //! viewer did not change (a value is rewritten only where it differs from
@@ -15,8 +15,8 @@
 //!   (environment maps, heightfields, factored directories) resolve
 //!   against its directory, so the copy renders as it is with
 //!   `isolux render`.
-//! - The camera's eye is written to 9 significant digits of its largest
-//!   coordinate (the orbit's trigonometry leaves rounding noise such as
+//! - The camera's eye and target are written to 9 significant digits of
+//!   their largest coordinate (the orbit's trigonometry leaves rounding noise such as
 //!   `3.0000000000000004`); every other number as the viewer holds it.
 //! - The text is read back by the scene reader before it is written
 //!   (`isolux_scene::parse_str`), so a copy that the reader would refuse (a
@@ -92,6 +92,17 @@ pub(super) fn edited_scene(
     if let Some(c) = &edits.camera {
         let t = table_mut(&mut doc, "camera")?;
         set(t, "position", triple(tidy(c.position.to_array())));
+        let old_target = t.get("look_at").and_then(|i| i.as_array()).map(|a| {
+            let v: Vec<f64> = a
+                .iter()
+                .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+                .collect();
+            v
+        });
+        let default = Camera::default().look_at.to_array().to_vec();
+        if old_target.unwrap_or(default) != c.look_at.to_array() {
+            set(t, "look_at", triple(tidy(c.look_at.to_array())));
+        }
         let old_fov = t.get("fov_y").and_then(number);
         if old_fov.unwrap_or(Camera::default().fov_y) != c.fov_y {
             set(t, "fov_y", Value::from(c.fov_y));
@@ -315,6 +326,7 @@ mod tests {
         orbit.drag(40.0, -25.0);
         orbit.zoom(1.5);
         orbit.fov_y = 47.5;
+        orbit.pan(30.0, -10.0, 400.0);
         // The environment map brightened.
         let Environment::Map(m) = &scene.environment else {
             panic!("the gallery has an environment map")
@@ -339,7 +351,11 @@ mod tests {
         let c = orbit.camera();
         assert!((back.camera.position - c.position).length() < 1e-7 * c.position.length());
         assert_eq!(back.camera.fov_y, 47.5);
-        assert_eq!(back.camera.look_at, scene.camera.look_at);
+        assert!((back.camera.look_at - c.look_at).length() < 1e-7 * c.position.length());
+        assert!(
+            (c.look_at - scene.camera.look_at).length() > 0.05,
+            "the pan moved it"
+        );
         let Environment::Map(b) = &back.environment else {
             panic!("map lost")
         };
