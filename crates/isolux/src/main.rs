@@ -39,8 +39,8 @@ enum Command {
     /// mode while moving, progressive path tracing when still (GPU).
     ///
     /// Keys: drag to orbit, right-drag (or Shift-drag) to pan, wheel to
-    /// zoom, P saves a screenshot to <scene>-view-NNN.png in the current
-    /// directory, Ctrl+S the edited scene to <scene>-view-NNN.toml beside
+    /// zoom, P saves a screenshot to SCENE-view-NNN.png in the current
+    /// directory, Ctrl+S the edited scene to SCENE-view-NNN.toml beside
     /// the scene file (docs/viewer.md).
     View(view_cmd::ViewArgs),
     /// Run performance benchmarks and print a table.
