@@ -18,7 +18,7 @@
 //! - **Live editing** of material parameters and models ([`params`]:
 //!   every edit is re-read with the scene format's own checks, and a
 //!   refused value shows the scene format's message), and of the point
-//!   lights' positions and intensities; exposure and tone map.
+//!   lights (moved, dimmed, added and removed); exposure and tone map.
 //! - **Save**: `Ctrl+S` (or the panel's button) writes the scene file with
 //!   the edits beside it as `<scene>-view-<n>.toml`, comments and layout
 //!   kept (module `save`).
@@ -223,6 +223,9 @@ struct State {
     path: PathBuf,
     file_name: String,
     scene_stem: String,
+    /// For each light of `scene.lights`, the `[[light]]` table of the file
+    /// it was read from, `None` for one added in the panel.
+    light_origin: Vec<Option<usize>>,
     orbit: Orbit,
     initial_orbit: Orbit,
     selected: usize,
@@ -266,6 +269,7 @@ impl State {
         };
         Ok(Self {
             env_scale,
+            light_origin: (0..scene.lights.len()).map(Some).collect(),
             orbit,
             initial_orbit: orbit,
             tables,
@@ -297,6 +301,7 @@ impl State {
         let edits = save::Edits {
             materials: &self.tables,
             lights: &self.scene.lights,
+            light_origin: &self.light_origin,
             camera,
             environment: &self.scene.environment,
         };

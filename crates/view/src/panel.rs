@@ -119,34 +119,58 @@ impl State {
             });
         egui::CollapsingHeader::new("Lights")
             .default_open(true)
-            .show(ui, |ui| {
-                if self.scene.lights.is_empty() {
-                    ui.label("no point lights");
-                }
-                for (i, l) in self.scene.lights.iter_mut().enumerate() {
-                    ui.label(format!("light {i}"));
-                    ui.horizontal(|ui| {
-                        ui.label("position");
-                        for v in [&mut l.position.x, &mut l.position.y, &mut l.position.z] {
-                            out.scene |= ui.add(egui::DragValue::new(v).speed(0.02)).changed();
-                        }
-                    });
-                    ui.horizontal(|ui| {
-                        ui.label("intensity");
-                        for v in [&mut l.intensity.r, &mut l.intensity.g, &mut l.intensity.b] {
-                            out.scene |= ui
-                                .add(egui::DragValue::new(v).speed(0.1).range(0.0..=1e9))
-                                .changed();
-                        }
-                    });
-                }
-            });
+            .show(ui, |ui| self.lights_ui(ui, out));
         egui::CollapsingHeader::new("Environment")
             .default_open(true)
             .show(ui, |ui| self.environment_ui(ui, out));
         egui::CollapsingHeader::new("Materials")
             .default_open(true)
             .show(ui, |ui| self.materials_ui(ui, out));
+    }
+
+    /// The point lights' positions and intensities; lights added (above
+    /// the eye, lighting the target) and removed.
+    fn lights_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {
+        if self.scene.lights.is_empty() {
+            ui.label("no point lights");
+        }
+        let mut remove = None;
+        for (i, l) in self.scene.lights.iter_mut().enumerate() {
+            ui.horizontal(|ui| {
+                ui.label(format!("light {i}"));
+                if ui.small_button("remove").clicked() {
+                    remove = Some(i);
+                }
+            });
+            ui.horizontal(|ui| {
+                ui.label("position");
+                for v in [&mut l.position.x, &mut l.position.y, &mut l.position.z] {
+                    out.scene |= ui.add(egui::DragValue::new(v).speed(0.02)).changed();
+                }
+            });
+            ui.horizontal(|ui| {
+                ui.label("intensity");
+                for v in [&mut l.intensity.r, &mut l.intensity.g, &mut l.intensity.b] {
+                    out.scene |= ui
+                        .add(egui::DragValue::new(v).speed(0.1).range(0.0..=1e9))
+                        .changed();
+                }
+            });
+        }
+        if let Some(i) = remove {
+            self.scene.lights.remove(i);
+            self.light_origin.remove(i);
+            out.scene = true;
+        }
+        if ui
+            .button("Add point light")
+            .on_hover_text("above the eye, lighting the target with an irradiance of about 1")
+            .clicked()
+        {
+            self.scene.lights.push(new_light(&self.orbit));
+            self.light_origin.push(None);
+            out.scene = true;
+        }
     }
 
     /// A constant environment's radiance, or a map's `scale` (the factor on
@@ -395,4 +419,54 @@ pub(super) struct FrameInfo {
     pub(super) film: (u32, u32),
     pub(super) mode: String,
     pub(super) frame_ms: f64,
+}
+
+/// A light added in the panel: half the view's distance above the eye
+/// (a key light over the viewer's shoulder), white, with an intensity
+/// that gives an irradiance of 1 (W/m^2, per channel) facing it at the
+/// target, so that a diffuse white surface there looks about as bright
+/// as under a typical example scene's lamp. The position is rounded to 4
+/// significant digits and the intensity to 3, for short numbers in the
+/// panel and in a saved scene (the irradiance stays within 0.5% of 1).
+fn new_light(orbit: &super::orbit::Orbit) -> isolux_render::PointLight {
+    use super::save::round_to;
+    let raw = orbit.eye() + 0.5 * orbit.distance * orbit.up;
+    let position = glam::DVec3::from_array(round_to(raw.to_array(), 4));
+    let r2 = (position - orbit.target).length_squared();
+    isolux_render::PointLight {
+        position,
+        intensity: isolux_core::Rgb::splat(round_to([r2; 3], 3)[0]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An added light sits above the eye and gives the target an
+    /// irradiance of 1 facing it.
+    #[test]
+    fn an_added_light_lights_the_target_from_above_the_eye() {
+        let cam = isolux_render::Camera {
+            position: glam::DVec3::new(1.0, 3.4, 7.2),
+            look_at: glam::DVec3::new(0.5, -0.15, 0.0),
+            up: glam::DVec3::Y,
+            fov_y: 42.0,
+        };
+        let orbit = crate::orbit::Orbit::from_camera(&cam);
+        let l = new_light(&orbit);
+        let r2 = (l.position - cam.look_at).length_squared();
+        for c in l.intensity.to_array() {
+            assert!((c / r2 - 1.0).abs() < 5e-3, "{c} {r2}");
+        }
+        assert!((l.position - orbit.eye()).dot(glam::DVec3::Y) > 0.0);
+        // Short numbers: 4 and 3 significant digits.
+        for x in l.position.to_array() {
+            assert!(
+                format!("{x}").trim_start_matches(['-', '0', '.']).len() <= 5,
+                "{x}"
+            );
+        }
+        assert!(format!("{}", l.intensity.r).len() <= 4, "{:?}", l.intensity);
+    }
 }

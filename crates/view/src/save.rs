@@ -2,7 +2,7 @@
 //!
 //! `Ctrl+S` (or the panel's *Save scene* button) writes the scene file as
 //! opened with the edits made since: the materials' tables, the point
-//! lights' `position` and `intensity`, the camera's `position`, `look_at`
+//! lights (added, removed, their `position` and `intensity`), the camera's `position`, `look_at`
 //! and `fov_y` when the view was orbited, panned, zoomed or widened, and the
 //! environment's `radiance` or map `scale`. Everything else is the file as
 //! it was, byte for byte: comments, key order, layout, and every value the
@@ -34,8 +34,11 @@ use toml_edit::{DocumentMut, Item, TableLike, Value};
 pub(super) struct Edits<'a> {
     /// The materials' tables, one per `[[material]]` of the file, in order.
     pub materials: &'a [toml::Table],
-    /// The point lights, one per `[[light]]`.
+    /// The point lights.
     pub lights: &'a [PointLight],
+    /// For each light, the index of the `[[light]]` table it was read
+    /// from, or `None` for a light added in the viewer.
+    pub light_origin: &'a [Option<usize>],
     /// The camera, when the view changed from the file's.
     pub camera: Option<Camera>,
     /// The environment.
@@ -76,6 +79,8 @@ pub(super) fn edited_scene(
             set(t, k, value(v)?);
         }
     }
+    restructure_lights(&mut doc, edits.light_origin)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let lights = tables_mut(&mut doc, "light");
     if lights.len() != edits.lights.len() {
         return Err(format!(
@@ -130,6 +135,75 @@ pub(super) fn edited_scene(
     isolux_scene::parse_str(&out, path, base_dir)
         .map_err(|e| format!("not saved, the scene reader refuses the edits: {e}"))?;
     Ok(out)
+}
+
+/// Rebuilds the file's lights in the viewer's order: the table each light
+/// was read from (its comments with it), and a new `type = "point"` table
+/// for each light added (its `position` and `intensity` are set after).
+/// The file's lights as they were, when none was added, removed or moved.
+fn restructure_lights(doc: &mut DocumentMut, origin: &[Option<usize>]) -> Result<(), String> {
+    let count = tables_mut(doc, "light").len();
+    if origin.len() == count && origin.iter().enumerate().all(|(i, o)| *o == Some(i)) {
+        return Ok(());
+    }
+    if let Some(bad) = origin.iter().flatten().find(|&&k| k >= count) {
+        return Err(format!(
+            "light {bad} is not in the file's {count} [[light]] tables"
+        ));
+    }
+    let new_table = || {
+        let mut t = toml_edit::Table::new();
+        t.insert("type", Item::Value(Value::from("point")));
+        t
+    };
+    match doc.get_mut("light") {
+        Some(Item::Value(Value::Array(a))) => {
+            let old: Vec<Value> = a.iter().cloned().collect();
+            // One element a line, as the file had them, or all on one.
+            let lines = a.to_string().contains('\n');
+            let mut fresh = toml_edit::Array::new();
+            for o in origin {
+                let mut v = match o {
+                    Some(k) => old[*k].clone(),
+                    None => Value::InlineTable(new_table().into_inline_table()),
+                };
+                if lines {
+                    v.decor_mut().set_prefix("\n  ");
+                    v.decor_mut().set_suffix("");
+                }
+                fresh.push_formatted(v);
+            }
+            if lines {
+                fresh.set_trailing_comma(true);
+                fresh.set_trailing("\n");
+            } else {
+                fresh.fmt();
+            }
+            *a = fresh;
+        }
+        Some(Item::ArrayOfTables(a)) => {
+            let old: Vec<toml_edit::Table> = a.iter().cloned().collect();
+            let mut fresh = toml_edit::ArrayOfTables::new();
+            for o in origin {
+                fresh.push(match o {
+                    Some(k) => old[*k].clone(),
+                    None => new_table(),
+                });
+            }
+            *a = fresh;
+        }
+        _ => {
+            let mut fresh = toml_edit::ArrayOfTables::new();
+            for _ in origin {
+                fresh.push(new_table());
+            }
+            doc.insert("light", Item::ArrayOfTables(fresh));
+        }
+    }
+    if origin.is_empty() {
+        doc.remove("light");
+    }
+    Ok(())
 }
 
 /// `<dir>/<stem>-view-<n>.toml` for the first `n` from 1 not taken.
@@ -215,11 +289,17 @@ fn number(i: &Item) -> Option<f64> {
 /// A vector rounded to 9 significant digits of its largest coordinate, so
 /// that the orbit's rounding noise (and `-0`) is not written out.
 fn tidy(a: [f64; 3]) -> [f64; 3] {
+    round_to(a, 9)
+}
+
+/// A vector rounded to `digits` significant digits of its largest
+/// coordinate (printed and read back, so that it prints short), `-0` as 0.
+pub(super) fn round_to(a: [f64; 3], digits: i32) -> [f64; 3] {
     let big = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if !(big > 0.0 && big.is_finite()) {
         return a;
     }
-    let decimals = (8 - big.log10().floor() as i32).max(0) as usize;
+    let decimals = (digits - 1 - big.log10().floor() as i32).max(0) as usize;
     a.map(|x| format!("{x:.decimals$}").parse::<f64>().unwrap_or(x) + 0.0)
 }
 
@@ -278,9 +358,22 @@ mod tests {
         camera: Option<Camera>,
         path: &Path,
     ) -> Result<String, String> {
+        let origin: Vec<Option<usize>> = (0..scene.lights.len()).map(Some).collect();
+        save_lights(src, scene, tables, camera, path, &origin)
+    }
+
+    fn save_lights(
+        src: &str,
+        scene: &Scene,
+        tables: &[toml::Table],
+        camera: Option<Camera>,
+        path: &Path,
+        light_origin: &[Option<usize>],
+    ) -> Result<String, String> {
         let edits = Edits {
             materials: tables,
             lights: &scene.lights,
+            light_origin,
             camera,
             environment: &scene.environment,
         };
@@ -403,6 +496,47 @@ mod tests {
         assert!(e.contains("not saved") && e.contains("reflectance"), "{e}");
     }
 
+    /// Lights added, removed and reordered come back in the viewer's
+    /// order; a removed light takes its comments with it, the others keep
+    /// theirs; removing them all leaves no `light` key.
+    #[test]
+    fn lights_added_and_removed_come_back_in_order() {
+        let (src, mut scene, tables, path) = read("translucent.toml");
+        assert_eq!(scene.lights.len(), 2);
+        let new = PointLight {
+            position: glam::DVec3::new(1.5, 4.0, -2.25),
+            intensity: isolux_core::Rgb::new(10.0, 8.0, 6.0),
+        };
+        // Drop the first, keep the second, add one, in that order.
+        scene.lights = vec![scene.lights[1], new];
+        let out = save_lights(&src, &scene, &tables, None, &path, &[Some(1), None]).unwrap();
+        let back = isolux_scene::parse_str(&out, &path, path.parent().unwrap()).unwrap();
+        assert_eq!(back.lights, scene.lights);
+        // Reversed, as inline tables: the same lights back.
+        let inline =
+            "light = [\n  { type = \"point\", position = [0, 4, 0], intensity = [5, 5, 5] },\n  \
+                      { type = \"point\", position = [2, 4, 0], intensity = [1, 2, 3] },\n]\n";
+        let p = Path::new("inline.toml");
+        let mut s2 = isolux_scene::parse_str(inline, p, Path::new(".")).unwrap();
+        s2.lights = vec![s2.lights[1], new, s2.lights[0]];
+        let out = save_lights(inline, &s2, &[], None, p, &[Some(1), None, Some(0)]).unwrap();
+        let back = isolux_scene::parse_str(&out, p, Path::new(".")).unwrap();
+        assert_eq!(back.lights, s2.lights);
+        // None left, then one added to a file without lights.
+        scene.lights.clear();
+        let out = save_lights(&src, &scene, &tables, None, &path, &[]).unwrap();
+        assert!(!out.contains("[[light]]"), "{out}");
+        let back = isolux_scene::parse_str(&out, &path, path.parent().unwrap()).unwrap();
+        assert!(back.lights.is_empty());
+        scene.lights = vec![new];
+        let again = save_lights(&out, &scene, &tables, None, &path, &[None]).unwrap();
+        let back = isolux_scene::parse_str(&again, &path, path.parent().unwrap()).unwrap();
+        assert_eq!(back.lights, vec![new]);
+        // A light the file does not have is an error, not a panic.
+        let e = save_lights(&src, &scene, &tables, None, &path, &[Some(7)]).unwrap_err();
+        assert!(e.contains("light 7"), "{e}");
+    }
+
     #[test]
     fn tidy_drops_rounding_noise_only() {
         assert_eq!(
@@ -414,6 +548,11 @@ mod tests {
         let x = [0.123456789123, 1e-3, 0.0];
         let t = tidy(x);
         assert!((t[0] - x[0]).abs() < 1e-9 && t[1] == 1e-3);
+        assert_eq!(
+            round_to([2.2e-16, 2.749493173818168, 3.6], 4),
+            [0.0, 2.749, 3.6]
+        );
+        assert_eq!(round_to([20.24726339549089; 3], 3), [20.2; 3]);
     }
 
     #[test]
