@@ -2,9 +2,10 @@
 //!
 //! `Ctrl+S` (or the panel's *Save scene* button) writes the scene file as
 //! opened with the edits made since: the materials' tables, the point
-//! lights (added, removed, their `position` and `intensity`), the camera's `position`, `look_at`
-//! and `fov_y` when the view was orbited, panned, zoomed or widened, and the
-//! environment's `radiance` or map `scale`. Everything else is the file as
+//! lights (added, removed, their `position` and `intensity`), the
+//! camera's `position`, `look_at` and `fov_y` when the view was orbited,
+//! panned, zoomed or widened, and the environment's `radiance` or map
+//! `scale`. Everything else is the file as
 //! it was, byte for byte: comments, key order, layout, and every value the
 //! viewer did not change (a value is rewritten only where it differs from
 //! the file's, and then keeps the comment beside it).
@@ -16,8 +17,9 @@
 //!   against its directory, so the copy renders as it is with
 //!   `isolux render`.
 //! - The camera's eye and target are written to 9 significant digits of
-//!   their largest coordinate (the orbit's trigonometry leaves rounding noise such as
-//!   `3.0000000000000004`); every other number as the viewer holds it.
+//!   their largest coordinate (the orbit's trigonometry leaves rounding
+//!   noise such as `3.0000000000000004`); every other number as the
+//!   viewer holds it.
 //! - The text is read back by the scene reader before it is written
 //!   (`isolux_scene::parse_str`), so a copy that the reader would refuse (a
 //!   material edit the panel is still showing as refused) is never saved;
@@ -98,14 +100,12 @@ pub(super) fn edited_scene(
         let t = table_mut(&mut doc, "camera")?;
         set(t, "position", triple(tidy(c.position.to_array())));
         let old_target = t.get("look_at").and_then(|i| i.as_array()).map(|a| {
-            let v: Vec<f64> = a
-                .iter()
-                .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-                .collect();
-            v
+            a.iter()
+                .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+                .collect::<Vec<_>>()
         });
-        let default = Camera::default().look_at.to_array().to_vec();
-        if old_target.unwrap_or(default) != c.look_at.to_array() {
+        let default = Camera::default().look_at.to_array().map(Some).to_vec();
+        if old_target.unwrap_or(default) != c.look_at.to_array().map(Some) {
             set(t, "look_at", triple(tidy(c.look_at.to_array())));
         }
         let old_fov = t.get("fov_y").and_then(number);
@@ -250,23 +250,24 @@ fn set(t: &mut dyn TableLike, key: &str, mut v: Value) {
 /// `1.00` are the same number, and so are `4` and `4.0` (the scene reader
 /// takes an integer wherever it takes a number).
 fn same(a: &Value, b: &Value) -> bool {
-    fn numeric(v: toml::Value) -> toml::Value {
-        match v {
-            toml::Value::Integer(i) => toml::Value::Float(i as f64),
-            toml::Value::Array(a) => toml::Value::Array(a.into_iter().map(numeric).collect()),
-            toml::Value::Table(t) => {
-                toml::Value::Table(t.into_iter().map(|(k, v)| (k, numeric(v))).collect())
+    fn eq(a: &toml::Value, b: &toml::Value) -> bool {
+        use toml::Value::{Array, Float, Integer, Table};
+        match (a, b) {
+            (Integer(i), Float(x)) | (Float(x), Integer(i)) => *i as f64 == *x,
+            (Array(a), Array(b)) => a.len() == b.len() && a.iter().zip(b).all(|(x, y)| eq(x, y)),
+            (Table(a), Table(b)) => {
+                a.len() == b.len() && a.iter().all(|(k, x)| b.get(k).is_some_and(|y| eq(x, y)))
             }
-            v => v,
+            (a, b) => a == b,
         }
     }
     let read = |v: &Value| {
         toml::from_str::<toml::Table>(&format!("x = {}", v.to_string().trim()))
             .ok()
-            .map(|t| numeric(toml::Value::Table(t)))
+            .and_then(|mut t| t.remove("x"))
     };
     match (read(a), read(b)) {
-        (Some(x), Some(y)) => x == y,
+        (Some(x), Some(y)) => eq(&x, &y),
         _ => false,
     }
 }
@@ -535,6 +536,23 @@ mod tests {
         // A light the file does not have is an error, not a panic.
         let e = save_lights(&src, &scene, &tables, None, &path, &[Some(7)]).unwrap_err();
         assert!(e.contains("light 7"), "{e}");
+    }
+
+    #[test]
+    fn values_compare_as_values() {
+        let v = |s: &str| s.parse::<Value>().unwrap();
+        assert!(same(&v("[0, 4, 0.5]"), &v("[0.0, 4.00, 5e-1]")));
+        let mut commented = v("1.0");
+        commented.decor_mut().set_suffix("   # W/sr");
+        assert!(same(&commented, &v("1")));
+        assert!(same(
+            &v("{ a = 1, b = \"x\" }"),
+            &v("{ b = \"x\", a = 1.0 }")
+        ));
+        assert!(!same(&v("[0, 4]"), &v("[0, 4, 0]")));
+        assert!(!same(&v("\"1\""), &v("1")));
+        // Integers compare exactly, not through f64.
+        assert!(!same(&v("9223372036854775807"), &v("9223372036854775806")));
     }
 
     #[test]
