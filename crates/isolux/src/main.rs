@@ -41,7 +41,8 @@ enum Command {
     /// Keys: drag to orbit, right-drag (or Shift-drag) to pan, wheel to
     /// zoom, P saves a screenshot to SCENE-view-NNN.png in the current
     /// directory, Ctrl+S the edited scene to SCENE-view-NNN.toml beside
-    /// the scene file (docs/viewer.md).
+    /// the scene file, Ctrl+Z and Ctrl+Shift+Z undo and redo edits
+    /// (docs/viewer.md).
     View(view_cmd::ViewArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),

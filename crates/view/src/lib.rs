@@ -19,6 +19,7 @@
 //!   every edit is re-read with the scene format's own checks, and a
 //!   refused value shows the scene format's message), and of the point
 //!   lights (moved, dimmed, added and removed); exposure and tone map.
+//! - **Undo and redo** of the edits (`Ctrl+Z`, `Ctrl+Shift+Z`; [`history`]).
 //! - **Save**: `Ctrl+S` (or the panel's button) writes the scene file with
 //!   the edits beside it as `<scene>-view-<n>.toml`, comments and layout
 //!   kept (module `save`).
@@ -34,6 +35,7 @@
 #![warn(missing_docs)]
 
 pub mod display;
+pub mod history;
 pub mod orbit;
 mod panel;
 pub mod params;
@@ -212,8 +214,20 @@ fn check_display() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What an undo step restores ([`history`]): the panel's scene edits.
+#[derive(Clone, Debug, PartialEq)]
+struct Edited {
+    tables: Vec<toml::Table>,
+    lights: Vec<isolux_render::PointLight>,
+    light_origin: Vec<Option<usize>>,
+    /// A constant environment's radiance, or a map's scale.
+    environment: Result<isolux_core::Rgb, f64>,
+}
+
 /// The scene and everything the panel edits.
 struct State {
+    /// Undo and redo of the edits.
+    history: history::History<Edited>,
     scene: Scene,
     /// The materials' tables as in the scene file (edited live).
     tables: Vec<toml::Table>,
@@ -267,7 +281,13 @@ impl State {
             Environment::Map(m) => m.scale(),
             Environment::Constant(_) => 1.0,
         };
-        Ok(Self {
+        let mut state = Self {
+            history: history::History::new(Edited {
+                tables: Vec::new(),
+                lights: Vec::new(),
+                light_origin: Vec::new(),
+                environment: Ok(isolux_core::Rgb::BLACK),
+            }),
             env_scale,
             light_origin: (0..scene.lights.len()).map(Some).collect(),
             orbit,
@@ -290,7 +310,71 @@ impl State {
             // Still at start: path tracing right away in the auto mode.
             last_change: Instant::now() - Duration::from_secs(1),
             status: String::new(),
-        })
+        };
+        state.history = history::History::new(state.edited());
+        Ok(state)
+    }
+
+    /// The panel's edits as they stand.
+    fn edited(&self) -> Edited {
+        Edited {
+            tables: self.tables.clone(),
+            lights: self.scene.lights.clone(),
+            light_origin: self.light_origin.clone(),
+            environment: match &self.scene.environment {
+                Environment::Constant(c) => Ok(*c),
+                Environment::Map(m) => Err(m.scale()),
+            },
+        }
+    }
+
+    /// Goes back (`back`) or forward one step of the history; returns
+    /// whether the scene changed.
+    fn undo(&mut self, back: bool) -> bool {
+        let now = self.edited();
+        let step = if back {
+            self.history.undo(&now)
+        } else {
+            self.history.redo(&now)
+        };
+        let Some(e) = step else {
+            self.status = format!("nothing to {}", if back { "undo" } else { "redo" });
+            return false;
+        };
+        self.restore(e);
+        self.status = if back { "undone" } else { "redone" }.into();
+        true
+    }
+
+    /// Puts the edits back to `e`: the materials whose tables differ are
+    /// re-read (the mixes after them too), and the panel shows the first.
+    fn restore(&mut self, e: Edited) {
+        let changed: Vec<usize> = (0..self.tables.len())
+            .filter(|&i| self.tables[i] != e.tables[i])
+            .collect();
+        self.tables = e.tables;
+        self.material_error = None;
+        for &i in &changed {
+            if let Err(err) = self.rebuild_material(i) {
+                self.material_error = Some(err);
+            }
+        }
+        if let Some(&i) = changed.first() {
+            self.selected = i;
+        }
+        self.scene.lights = e.lights;
+        self.light_origin = e.light_origin;
+        match (&mut self.scene.environment, e.environment) {
+            (Environment::Constant(c), Ok(v)) => *c = v,
+            (Environment::Map(m), Err(scale)) => match m.with_scale(scale) {
+                Ok(r) => {
+                    *m = r;
+                    self.env_scale = scale;
+                }
+                Err(err) => self.status = err,
+            },
+            _ => {}
+        }
     }
 
     /// Saves the scene file with the edits to the next free
@@ -764,5 +848,83 @@ impl Running {
         let (image, _) = frame.image(&self.gpu)?;
         isolux_io::write_image(path, &image, state.exposure, state.tonemap)?;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gallery() -> State {
+        let opts = Options {
+            scene: Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes/gallery.toml"),
+            width: 800,
+            height: 600,
+            realtime_spp: 4,
+            max_spp: 16,
+            mode: Mode::Auto,
+            exposure: 0.0,
+            tonemap: Tonemap::Clamp,
+            frames: None,
+            screenshot: None,
+        };
+        State::load(&opts).unwrap()
+    }
+
+    /// Undo puts back the materials (re-read, the mix that copies an edited
+    /// component too), the lights and the environment, as loaded; redo
+    /// brings the edits back; each burst of edits is one step.
+    #[test]
+    fn undo_and_redo_restore_the_scene_as_read() {
+        let mut s = gallery();
+        let start = (s.scene.materials.clone(), s.scene.lights.clone());
+        let ggx = s
+            .scene
+            .material_names
+            .iter()
+            .position(|n| n == "ggx")
+            .unwrap();
+        let mix = s
+            .scene
+            .material_names
+            .iter()
+            .position(|n| n == "mix")
+            .unwrap();
+        assert!(mix > ggx);
+        // A burst: the roughness dragged over three frames, then still.
+        for r in [0.2, 0.3, 0.45] {
+            s.tables[ggx].insert("roughness".into(), toml::Value::Float(r));
+            s.rebuild_material(ggx).unwrap();
+            s.history.observe(&s.edited());
+        }
+        s.history.observe(&s.edited());
+        // Another: a light moved and the map brightened together.
+        s.scene.lights[0].position.y += 1.0;
+        let Environment::Map(m) = &s.scene.environment else {
+            panic!("the gallery has a map")
+        };
+        s.scene.environment = Environment::Map(m.with_scale(2.0).unwrap());
+        s.history.observe(&s.edited());
+        s.history.observe(&s.edited());
+        assert_eq!(s.history.depth(), (2, 0));
+        let edited = (s.scene.materials.clone(), s.scene.lights.clone());
+        assert_ne!(
+            edited.0[mix], start.0[mix],
+            "the mix copies the ggx it holds"
+        );
+
+        assert!(s.undo(true));
+        assert_eq!(s.scene.lights, start.1);
+        assert_eq!(s.env_scale, 0.7);
+        assert!(s.undo(true));
+        assert_eq!(s.scene.materials, start.0);
+        assert_eq!(s.selected, ggx);
+        assert!(!s.undo(true), "nothing left");
+        assert!(s.undo(false) && s.undo(false));
+        assert_eq!((s.scene.materials.clone(), s.scene.lights.clone()), edited);
+        let Environment::Map(m) = &s.scene.environment else {
+            panic!("map lost")
+        };
+        assert_eq!(m.scale(), 2.0);
     }
 }

@@ -47,6 +47,19 @@ impl State {
         if ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::S)) {
             self.status = self.save_scene();
         }
+        if !ctx.wants_keyboard_input() {
+            let shift_z = egui::Modifiers::COMMAND | egui::Modifiers::SHIFT;
+            let redo = ctx.input_mut(|i| {
+                i.consume_key(shift_z, egui::Key::Z)
+                    || i.consume_key(egui::Modifiers::COMMAND, egui::Key::Y)
+            });
+            let undo =
+                !redo && ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::Z));
+            if redo || undo {
+                out.scene |= self.undo(undo);
+            }
+        }
+        self.history.observe(&self.edited());
         out
     }
 
@@ -92,6 +105,23 @@ impl State {
                 .clicked()
             {
                 self.status = self.save_scene();
+            }
+        });
+        ui.horizontal(|ui| {
+            let (back, forward) = self.history.depth();
+            if ui
+                .add_enabled(back > 0, egui::Button::new(format!("Undo ({back})")))
+                .on_hover_text("Ctrl+Z: the last edit of a material, light or environment")
+                .clicked()
+            {
+                out.scene |= self.undo(true);
+            }
+            if ui
+                .add_enabled(forward > 0, egui::Button::new(format!("Redo ({forward})")))
+                .on_hover_text("Ctrl+Shift+Z or Ctrl+Y")
+                .clicked()
+            {
+                out.scene |= self.undo(false);
             }
         });
         ui.separator();
