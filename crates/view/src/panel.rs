@@ -11,6 +11,23 @@ impl State {
     /// The side panel and the image area; returns what changed.
     pub(super) fn ui(&mut self, ctx: &egui::Context, info: &FrameInfo) -> UiOutcome {
         let mut out = UiOutcome::default();
+        // Keys that change what the panel shows first, so that the panel
+        // drawn below shows the state restored and the status.
+        if ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::S)) {
+            self.status = self.save_scene();
+        }
+        if !ctx.wants_keyboard_input() {
+            let shift_z = egui::Modifiers::COMMAND | egui::Modifiers::SHIFT;
+            let redo = ctx.input_mut(|i| {
+                i.consume_key(shift_z, egui::Key::Z)
+                    || i.consume_key(egui::Modifiers::COMMAND, egui::Key::Y)
+            });
+            let undo =
+                !redo && ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::Z));
+            if redo || undo {
+                out.scene |= self.undo(undo);
+            }
+        }
         egui::SidePanel::right("isolux-panel")
             .default_width(300.0)
             .show(ctx, |ui| {
@@ -43,21 +60,6 @@ impl State {
             });
         if !ctx.wants_keyboard_input() && ctx.input(|i| i.key_pressed(egui::Key::P)) {
             out.screenshot = true;
-        }
-        if ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::S)) {
-            self.status = self.save_scene();
-        }
-        if !ctx.wants_keyboard_input() {
-            let shift_z = egui::Modifiers::COMMAND | egui::Modifiers::SHIFT;
-            let redo = ctx.input_mut(|i| {
-                i.consume_key(shift_z, egui::Key::Z)
-                    || i.consume_key(egui::Modifiers::COMMAND, egui::Key::Y)
-            });
-            let undo =
-                !redo && ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::Z));
-            if redo || undo {
-                out.scene |= self.undo(undo);
-            }
         }
         self.history.observe(&self.edited());
         out
