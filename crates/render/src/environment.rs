@@ -60,11 +60,7 @@ impl EnvMap {
     /// multiplied by `scale`. Non-finite or negative texels, and a scale
     /// that is negative or not finite, are errors.
     pub fn new(width: usize, height: usize, texels: Vec<Rgb>, scale: f64) -> Result<Self, String> {
-        if !(scale.is_finite() && scale >= 0.0) {
-            return Err(format!(
-                "scale must be finite and non-negative, got {scale}"
-            ));
-        }
+        check_scale(scale)?;
         if width == 0 || height == 0 || texels.len() != width * height {
             return Err(format!(
                 "environment map has inconsistent size {width} x {height}"
@@ -110,11 +106,7 @@ impl EnvMap {
     /// The sampling density, proportional to luminance, is the same for
     /// every positive scale.
     pub fn with_scale(&self, scale: f64) -> Result<Self, String> {
-        if !(scale.is_finite() && scale >= 0.0) {
-            return Err(format!(
-                "scale must be finite and non-negative, got {scale}"
-            ));
-        }
+        check_scale(scale)?;
         Ok(Self::build(
             self.width,
             self.height,
@@ -136,6 +128,17 @@ impl EnvMap {
     /// The texels (scaled), row-major, row 0 at the top.
     pub fn texels(&self) -> &[Rgb] {
         &self.texels
+    }
+}
+
+/// A map's `scale` must be finite and not negative.
+fn check_scale(scale: f64) -> Result<(), String> {
+    if scale.is_finite() && scale >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!(
+            "scale must be finite and non-negative, got {scale}"
+        ))
     }
 }
 

@@ -224,6 +224,20 @@ struct Edited {
     environment: Result<isolux_core::Rgb, f64>,
 }
 
+impl Edited {
+    fn of(tables: &[toml::Table], scene: &Scene, light_origin: &[Option<usize>]) -> Self {
+        Self {
+            tables: tables.to_vec(),
+            lights: scene.lights.clone(),
+            light_origin: light_origin.to_vec(),
+            environment: match &scene.environment {
+                Environment::Constant(c) => Ok(*c),
+                Environment::Map(m) => Err(m.scale()),
+            },
+        }
+    }
+}
+
 /// The scene and everything the panel edits.
 struct State {
     /// Undo and redo of the edits.
@@ -281,15 +295,11 @@ impl State {
             Environment::Map(m) => m.scale(),
             Environment::Constant(_) => 1.0,
         };
-        let mut state = Self {
-            history: history::History::new(Edited {
-                tables: Vec::new(),
-                lights: Vec::new(),
-                light_origin: Vec::new(),
-                environment: Ok(isolux_core::Rgb::BLACK),
-            }),
+        let light_origin: Vec<Option<usize>> = (0..scene.lights.len()).map(Some).collect();
+        Ok(Self {
+            history: history::History::new(Edited::of(&tables, &scene, &light_origin)),
             env_scale,
-            light_origin: (0..scene.lights.len()).map(Some).collect(),
+            light_origin,
             orbit,
             initial_orbit: orbit,
             tables,
@@ -310,22 +320,12 @@ impl State {
             // Still at start: path tracing right away in the auto mode.
             last_change: Instant::now() - Duration::from_secs(1),
             status: String::new(),
-        };
-        state.history = history::History::new(state.edited());
-        Ok(state)
+        })
     }
 
     /// The panel's edits as they stand.
     fn edited(&self) -> Edited {
-        Edited {
-            tables: self.tables.clone(),
-            lights: self.scene.lights.clone(),
-            light_origin: self.light_origin.clone(),
-            environment: match &self.scene.environment {
-                Environment::Constant(c) => Ok(*c),
-                Environment::Map(m) => Err(m.scale()),
-            },
-        }
+        Edited::of(&self.tables, &self.scene, &self.light_origin)
     }
 
     /// Goes back (`back`) or forward one step of the history; returns
@@ -878,18 +878,14 @@ mod tests {
     fn undo_and_redo_restore_the_scene_as_read() {
         let mut s = gallery();
         let start = (s.scene.materials.clone(), s.scene.lights.clone());
-        let ggx = s
-            .scene
-            .material_names
-            .iter()
-            .position(|n| n == "ggx")
-            .unwrap();
-        let mix = s
-            .scene
-            .material_names
-            .iter()
-            .position(|n| n == "mix")
-            .unwrap();
+        let index = |name: &str| {
+            s.scene
+                .material_names
+                .iter()
+                .position(|n| n == name)
+                .unwrap()
+        };
+        let (ggx, mix) = (index("ggx"), index("mix"));
         assert!(mix > ggx);
         // A burst: the roughness dragged over three frames, then still.
         for r in [0.2, 0.3, 0.45] {

@@ -99,16 +99,15 @@ pub(super) fn edited_scene(
     if let Some(c) = &edits.camera {
         let t = table_mut(&mut doc, "camera")?;
         set(t, "position", triple(tidy(c.position.to_array())));
-        let old_target = t.get("look_at").and_then(|i| i.as_array()).map(|a| {
-            a.iter()
-                .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-                .collect::<Vec<_>>()
-        });
+        let old_target = t
+            .get("look_at")
+            .and_then(|i| i.as_array())
+            .map(|a| a.iter().map(number).collect::<Vec<_>>());
         let default = Camera::default().look_at.to_array().map(Some).to_vec();
         if old_target.unwrap_or(default) != c.look_at.to_array().map(Some) {
             set(t, "look_at", triple(tidy(c.look_at.to_array())));
         }
-        let old_fov = t.get("fov_y").and_then(number);
+        let old_fov = t.get("fov_y").and_then(Item::as_value).and_then(number);
         if old_fov.unwrap_or(Camera::default().fov_y) != c.fov_y {
             set(t, "fov_y", Value::from(c.fov_y));
         }
@@ -126,7 +125,12 @@ pub(super) fn edited_scene(
         }
         Environment::Map(m) => {
             let t = table_mut(&mut doc, "environment")?;
-            if t.get("scale").and_then(number).unwrap_or(1.0) != m.scale() {
+            if t.get("scale")
+                .and_then(Item::as_value)
+                .and_then(number)
+                .unwrap_or(1.0)
+                != m.scale()
+            {
                 set(t, "scale", Value::from(m.scale()));
             }
         }
@@ -283,8 +287,9 @@ fn triple(a: [f64; 3]) -> Value {
     Value::Array(a.into_iter().collect())
 }
 
-fn number(i: &Item) -> Option<f64> {
-    i.as_float().or_else(|| i.as_integer().map(|x| x as f64))
+/// A number written as a float or an integer.
+fn number(v: &Value) -> Option<f64> {
+    v.as_float().or_else(|| v.as_integer().map(|x| x as f64))
 }
 
 /// A vector rounded to 9 significant digits of its largest coordinate, so
