@@ -273,7 +273,7 @@ def main():
     if args.bounds:
         # The two probes' images, in place of the CPU's and the GPU's.
         cpu_png, gpu_png = os.path.join(args.keep, "clamp.exr"), os.path.join(args.keep, "zero.exr")
-    flagged = compared = rendered = redone = retried = 0
+    flagged = compared = rendered = redone = retried = refused = 0
     try:
         for k in range(args.rounds):
             scene = rng.choice(scenes)
@@ -356,13 +356,15 @@ def main():
                         # still flagged, for a check on another driver.
                         problem += ("; the driver warned of its random walks: rerun on "
                                     "Mesa 25 (scripts/mesa25.sh lvp) before calling it ours")
+            both_refused = not args.bounds and rc == 1 and rg == 1
+            refused += both_refused and not problem
             if problem:
                 flagged += 1
                 keep = os.path.join(args.keep, f"flagged-{args.seed}-{k}.toml")
                 open(keep, "w").write(src)
                 print(f"FLAG {name}: {problem} -> {keep}", flush=True)
             else:
-                print(f"ok   {name}", flush=True)
+                print(f"ok   {name}{' (refused by both)' if both_refused else ''}", flush=True)
     finally:
         if os.path.exists(variant):
             os.remove(variant)
@@ -372,7 +374,8 @@ def main():
               f"{flagged} flagged")
     else:
         again = f" ({redone} by the megakernel, the wavefront not deterministic here)" if redone else ""
-        print(f"{compared} variants compared{again}{slow}, {flagged} flagged")
+        refusals = f", {refused} refused by both" if refused else ""
+        print(f"{compared} variants compared{again}{refusals}{slow}, {flagged} flagged")
     sys.exit(1 if flagged else 0)
 
 
