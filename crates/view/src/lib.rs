@@ -8,7 +8,10 @@
 //!
 //! - **Orbit, pan and zoom**: drag in the image to turn about the scene
 //!   camera's `look_at` ([`orbit`]), right-drag (or Shift-drag) to pan,
-//!   the wheel zooms.
+//!   the wheel zooms; a double click orbits about the point under the
+//!   cursor.
+//! - **Picking**: a click on an object shows its material in the panel
+//!   (the CPU's exact intersection of the camera ray through the cursor).
 //! - **Modes**: while the view changes (a drag, an edit, and for a quarter
 //!   of a second after) each frame is the real-time mode
 //!   (`isolux render --realtime`: point lights plus the prefiltered
@@ -238,6 +241,17 @@ impl Edited {
     }
 }
 
+/// What a click in the image found ([`State::pick`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pick {
+    /// Index of the object in the scene (file order).
+    object: usize,
+    /// Index of its material.
+    material: usize,
+    /// The point hit.
+    point: glam::DVec3,
+}
+
 /// The scene and everything the panel edits.
 struct State {
     /// Undo and redo of the edits.
@@ -256,6 +270,8 @@ struct State {
     light_origin: Vec<Option<usize>>,
     orbit: Orbit,
     initial_orbit: Orbit,
+    /// Each `[[object]]` table's `name`, where it has one.
+    object_names: Vec<Option<String>>,
     selected: usize,
     material_error: Option<String>,
     exposure: f64,
@@ -283,6 +299,16 @@ impl State {
             .get("material")
             .and_then(|v| v.as_array())
             .map(|a| a.iter().filter_map(|m| m.as_table().cloned()).collect())
+            .unwrap_or_default();
+        // The objects' optional names, which a click reports.
+        let object_names: Vec<Option<String>> = doc
+            .get("object")
+            .and_then(|v| v.as_array())
+            .map(|a| {
+                a.iter()
+                    .map(|o| o.get("name").and_then(|n| n.as_str()).map(String::from))
+                    .collect()
+            })
             .unwrap_or_default();
         if tables.len() != scene.materials.len() {
             bail!(
@@ -313,6 +339,7 @@ impl State {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "isolux".into()),
             scene,
+            object_names,
             selected: 0,
             material_error: None,
             exposure: opts.exposure,
@@ -326,6 +353,58 @@ impl State {
     /// The panel's edits as they stand.
     fn edited(&self) -> Edited {
         Edited::of(&self.tables, &self.scene, &self.light_origin)
+    }
+
+    /// What the view shows at `(x, y)` in an image `width x height` (any
+    /// unit, `y` down): the nearest object the camera ray meets (the CPU's
+    /// exact intersection, as in `isolux render`), its material and the
+    /// point hit; `None` for the environment.
+    fn pick(&self, x: f64, y: f64, width: f64, height: f64) -> Option<Pick> {
+        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
+        let rig = self.orbit.camera().rig(w as u32, h as u32).ok()?;
+        let ray = rig.ray(x * w / width, y * h / height);
+        let (object, hit) = self.scene.geometry.intersect(&ray, 0.0, f64::INFINITY)?;
+        Some(Pick {
+            object,
+            material: *self.scene.object_material.get(object)?,
+            point: hit.p,
+        })
+    }
+
+    /// A click in the image at `(x, y)` of `width x height`: the panel
+    /// shows the material under the cursor, and with `focus` (a double
+    /// click) the view turns to orbit about the point. Returns whether
+    /// the camera moved.
+    fn click(&mut self, x: f64, y: f64, width: f64, height: f64, focus: bool) -> bool {
+        let Some(pick) = self.pick(x, y, width, height) else {
+            self.status = "nothing under the cursor but the environment".into();
+            return false;
+        };
+        if self.selected != pick.material {
+            self.selected = pick.material;
+            self.material_error = None;
+        }
+        let p = pick.point;
+        let name = &self.scene.material_names[pick.material];
+        let at = format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z);
+        if !focus {
+            let objects = self.scene.geometry.objects().len();
+            let named = match self.object_names.get(pick.object) {
+                Some(Some(n)) => format!(" \"{n}\""),
+                _ => String::new(),
+            };
+            self.status = format!(
+                "object {} of {objects}{named}, material \"{name}\", at {at}",
+                pick.object + 1
+            );
+            false
+        } else if self.orbit.focus(p) {
+            self.status = format!("orbiting about {at} (material \"{name}\")");
+            true
+        } else {
+            self.status = format!("cannot orbit about {at}: too close or too far");
+            false
+        }
     }
 
     /// Goes back (`back`) or forward one step of the history; returns
@@ -457,6 +536,9 @@ struct Running {
     last_present: Instant,
     frame_ms: f64,
     screenshots: u32,
+    /// Draw another frame at once (egui asked for one, or the status
+    /// changed after the panel was drawn).
+    again: bool,
 }
 
 struct App {
@@ -516,6 +598,7 @@ impl ApplicationHandler for App {
         // Keep drawing while there is work (moving, or samples to add);
         // otherwise sleep until an event.
         let busy = self.opts.frames.is_some()
+            || r.again
             || r.frames
                 .as_ref()
                 .is_none_or(|f| r.showing_realtime || f.path.samples < self.opts.max_spp.max(1))
@@ -603,6 +686,7 @@ impl Running {
             frame_ms: 0.0,
             refusal: None,
             screenshots: 0,
+            again: false,
         })
     }
 
@@ -656,6 +740,12 @@ impl Running {
             .run(input, |ctx| outcome = state.ui(ctx, &info));
         self.egui_state
             .handle_platform_output(&self.window, full.platform_output);
+        // What egui asks to draw again at once (a click's result in the
+        // panel drawn before it), as eframe does.
+        self.again = full
+            .viewport_output
+            .get(&egui::ViewportId::ROOT)
+            .is_some_and(|v| v.repaint_delay.is_zero());
 
         // The image area in framebuffer pixels.
         let ppp = full.pixels_per_point;
@@ -809,6 +899,7 @@ impl Running {
                 Ok(()) => state.status = format!("saved {}", path.display()),
                 Err(e) => state.status = format!("screenshot failed: {e}"),
             }
+            self.again = true;
         }
         if let Some(n) = opts.frames {
             if self.frames_drawn >= n {
@@ -869,6 +960,75 @@ mod tests {
             screenshot: None,
         };
         State::load(&opts).unwrap()
+    }
+
+    /// A click names what the view shows under the cursor: checked against
+    /// each object intersected on its own (no hierarchy) and the camera's
+    /// projection; a double click orbits about the point from the same eye.
+    #[test]
+    fn clicks_pick_the_nearest_object_and_focus_on_it() {
+        use glam::DVec3;
+        let mut s = gallery();
+        let (w, h) = (400.0, 300.0);
+        let rig = s.orbit.camera().rig(400, 300).unwrap();
+        let mut materials = std::collections::BTreeSet::new();
+        let mut sky = 0;
+        for j in 0..15 {
+            for i in 0..20 {
+                let (x, y) = ((i as f64 + 0.5) * w / 20.0, (j as f64 + 0.5) * h / 15.0);
+                let ray = rig.ray(x, y);
+                // The nearest of every object's own first hit.
+                let nearest = s
+                    .scene
+                    .geometry
+                    .objects()
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, o)| o.intersect(&ray, 0.0, f64::INFINITY).map(|h| (k, h.t)))
+                    .min_by(|a, b| a.1.total_cmp(&b.1));
+                let Some(pick) = s.pick(x, y, w, h) else {
+                    assert!(nearest.is_none(), "({x}, {y}): missed {nearest:?}");
+                    sky += 1;
+                    continue;
+                };
+                let (k, t) = nearest.expect("a hit where no object is");
+                assert_eq!(pick.object, k, "({x}, {y})");
+                assert!(((pick.point - ray.origin).length() - t).abs() < 1e-9 * (1.0 + t));
+                let (px, py) = rig.project(pick.point).unwrap();
+                assert!((px - x).abs() < 1e-6 && (py - y).abs() < 1e-6);
+                assert_eq!(pick.material, s.scene.object_material[k]);
+                materials.insert(pick.material);
+            }
+        }
+        // The gallery's floor is a plane under every view from above.
+        assert_eq!(sky, 0);
+        assert!(materials.len() >= 10, "{materials:?}");
+
+        // A click selects the material and leaves the view; a double click
+        // on the same spot orbits about the point from the same eye.
+        let (x, y) = (0.5 * w, 0.6 * h);
+        let pick = s.pick(x, y, w, h).unwrap();
+        s.selected = (pick.material + 1) % s.tables.len();
+        let before = s.orbit;
+        assert!(!s.click(x, y, w, h, false));
+        assert_eq!((s.selected, s.orbit), (pick.material, before));
+        assert!(s.status.contains(&s.scene.material_names[pick.material]));
+        // The gallery names its objects; the status gives the name.
+        assert_eq!(s.object_names.len(), s.scene.geometry.objects().len());
+        let object = s.object_names[pick.object].as_deref().unwrap();
+        assert!(s.status.contains(&format!("\"{object}\"")), "{}", s.status);
+        assert!(s.click(x, y, w, h, true));
+        assert!((s.orbit.target - pick.point).length() < 1e-12);
+        assert!((s.orbit.eye() - before.eye()).length() < 1e-9);
+        // The environment (the view turned up to the sky): nothing
+        // selected, nothing moved.
+        s.orbit.target = DVec3::new(0.0, 5.0, 0.0);
+        s.orbit.pitch = -0.3;
+        let (orbit, selected) = (s.orbit, s.selected);
+        assert!(s.pick(0.5 * w, 0.5 * h, w, h).is_none());
+        assert!(!s.click(0.5 * w, 0.5 * h, w, h, true));
+        assert_eq!((s.orbit, s.selected), (orbit, selected));
+        assert!(s.status.contains("environment"));
     }
 
     /// Undo puts back the materials (re-read, the mix that copies an edited

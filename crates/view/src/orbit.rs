@@ -17,6 +17,9 @@ const MAX_PITCH: f64 = 89.0 * std::f64::consts::PI / 180.0;
 const RADIANS_PER_PIXEL: f64 = 0.008;
 /// Distance factor per wheel step.
 const ZOOM_PER_STEP: f64 = 0.9;
+/// The range of the eye's distance from the target.
+const MIN_DISTANCE: f64 = 1e-4;
+const MAX_DISTANCE: f64 = 1e6;
 
 /// An orbit camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -109,9 +112,33 @@ impl Orbit {
         self.target += per_unit * (up * dy - right * dx);
     }
 
+    /// Turns to orbit about `p` from where the eye is: the target becomes
+    /// `p`, the distance `|eye - p|`, and the view turns to centre it (a
+    /// double click in the image). The eye stays put unless `p` lies
+    /// within a degree of straight above or below it, where the pitch's
+    /// bound moves it about `p` to 89 degrees. A point closer to the eye
+    /// or farther than the zoom's range (1e-4 to 1e6) leaves the orbit
+    /// as it was and returns `false`.
+    pub fn focus(&mut self, p: DVec3) -> bool {
+        let offset = self.eye() - p;
+        let distance = offset.length();
+        if !(MIN_DISTANCE..=MAX_DISTANCE).contains(&distance) {
+            return false;
+        }
+        self.target = p;
+        self.distance = distance;
+        self.yaw = offset.dot(self.w).atan2(offset.dot(self.u));
+        self.pitch = (offset.dot(self.up) / distance)
+            .clamp(-1.0, 1.0)
+            .asin()
+            .clamp(-MAX_PITCH, MAX_PITCH);
+        true
+    }
+
     /// Moves the eye closer (`steps > 0`) or away, by 10% per step.
     pub fn zoom(&mut self, steps: f64) {
-        self.distance = (self.distance * ZOOM_PER_STEP.powf(steps)).clamp(1e-4, 1e6);
+        self.distance =
+            (self.distance * ZOOM_PER_STEP.powf(steps)).clamp(MIN_DISTANCE, MAX_DISTANCE);
     }
 }
 
@@ -210,6 +237,46 @@ mod tests {
                 (before.yaw, before.pitch, before.distance)
             );
         }
+    }
+
+    #[test]
+    fn focusing_keeps_the_eye_and_centres_the_point() {
+        let camera = Camera {
+            position: DVec3::new(1.0, 2.0, 5.0),
+            look_at: DVec3::new(0.0, 0.5, 0.0),
+            up: DVec3::Y,
+            fov_y: 40.0,
+        };
+        for p in [
+            DVec3::new(0.7, 0.2, -0.3),
+            DVec3::new(-3.0, -1.0, 2.0),
+            DVec3::new(1.5, 0.0, 4.0),
+        ] {
+            let mut o = Orbit::from_camera(&camera);
+            let eye = o.eye();
+            assert!(o.focus(p));
+            assert!(close(o.target, p, 1e-12));
+            assert!(close(o.eye(), eye, 1e-12), "{:?} against {eye:?}", o.eye());
+            // Centred: the renderer's own projection puts it mid-film.
+            let rig = o.camera().rig(640, 480).unwrap();
+            let (x, y) = rig.project(p).unwrap();
+            assert!((x - 320.0).abs() < 1e-9 && (y - 240.0).abs() < 1e-9);
+            // Orbiting now turns about p.
+            o.drag(40.0, -25.0);
+            assert!(((o.eye() - p).length() - (eye - p).length()).abs() < 1e-12);
+        }
+        // Straight below the eye: the pitch's bound moves the eye about p.
+        let mut o = Orbit::from_camera(&camera);
+        let eye = o.eye();
+        assert!(o.focus(eye - DVec3::Y * 2.0));
+        assert!((o.pitch - MAX_PITCH).abs() < 1e-12);
+        assert!((o.distance - 2.0).abs() < 1e-12);
+        // At the eye, or beyond the zoom's range: unchanged.
+        let before = o;
+        assert!(!o.focus(o.eye()));
+        assert!(!o.focus(o.eye() + DVec3::X * 2e6));
+        assert!(!o.focus(DVec3::NAN));
+        assert_eq!(o, before);
     }
 
     #[test]

@@ -50,6 +50,18 @@ impl State {
                     out.camera = true;
                     out.dragging = true;
                 }
+                // A click shows the material under the cursor in the
+                // panel; a double click also orbits about the point.
+                let double = r.double_clicked_by(egui::PointerButton::Primary);
+                if double || r.clicked_by(egui::PointerButton::Primary) {
+                    if let Some(pos) = r.interact_pointer_pos() {
+                        let at = pos - rect.min;
+                        let (w, h) = (rect.width() as f64, rect.height() as f64);
+                        out.camera |= self.click(at.x as f64, at.y as f64, w, h, double);
+                        // The panel, drawn before, shows it next frame.
+                        ui.ctx().request_repaint();
+                    }
+                }
                 if r.hovered() {
                     let scroll = ui.input(|i| i.smooth_scroll_delta.y);
                     if scroll != 0.0 {
@@ -130,7 +142,10 @@ impl State {
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
             .show(ui, |ui| {
-                ui.label("drag the image to orbit, right-drag (or Shift) to pan, wheel to zoom");
+                ui.label(
+                    "drag the image to orbit, right-drag (or Shift) to pan, wheel to zoom; \
+                     click an object to edit its material, double-click to orbit about the point",
+                );
                 let mut c = false;
                 c |= ui
                     .add(egui::Slider::new(&mut self.orbit.fov_y, 5.0..=120.0).text("fov_y"))
