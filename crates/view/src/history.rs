@@ -6,9 +6,10 @@
 //! snapshot keeps changing form one *burst* (a drag of a value, a colour
 //! picked, a light moved), and a burst is one undo step: `Ctrl+Z` goes
 //! back to the state before it, `Ctrl+Shift+Z` or `Ctrl+Y` forward
-//! again. A burst ends with the first frame that changes nothing (a
-//! drag's release draws one, and the renderer keeps drawing while it
-//! refines). A new edit after an undo drops the steps that could have
+//! again. A burst ends with the first frame that changes nothing while
+//! no mouse button is held ([`History::observe_held`]: a slow drag, on a
+//! CPU driver's frames of half a second, has frames between its moves
+//! that change nothing), and a drag's release draws one. A new edit after an undo drops the steps that could have
 //! been redone. At most [`History::LIMIT`] steps are kept.
 
 /// Undo and redo stacks over snapshots of type `T`.
@@ -37,10 +38,19 @@ impl<T: Clone + PartialEq> History<T> {
     }
 
     /// Observes a frame's snapshot: the start of a burst of changes saves
-    /// the state before it as an undo step.
+    /// the state before it as an undo step; a frame that changes nothing
+    /// ends the burst.
     pub fn observe(&mut self, now: &T) {
+        self.observe_held(now, false);
+    }
+
+    /// [`History::observe`] for a frame drawn while a mouse button is
+    /// `held` or not: while held, a frame that changes nothing does not
+    /// end the burst, so that a whole drag is one step however slowly the
+    /// frames come.
+    pub fn observe_held(&mut self, now: &T, held: bool) {
         if *now == self.last {
-            self.burst = false;
+            self.burst &= held;
             return;
         }
         if !self.burst {
@@ -108,6 +118,28 @@ mod tests {
         assert_eq!(h.redo(&3), Some(8));
         assert_eq!(h.redo(&8), None);
         assert_eq!(h.depth(), (2, 0));
+    }
+
+    /// While a button is held, still frames between changes do not end
+    /// the burst; the first still frame after the release does.
+    #[test]
+    fn a_slow_drag_is_one_step() {
+        let mut h = History::new(0);
+        for (v, held) in [
+            (1, true),
+            (1, true),
+            (2, true),
+            (2, true),
+            (3, true),
+            (3, false),
+        ] {
+            h.observe_held(&v, held);
+        }
+        assert_eq!(h.depth(), (1, 0));
+        h.observe_held(&4, true);
+        assert_eq!(h.depth(), (2, 0));
+        assert_eq!(h.undo(&4), Some(3));
+        assert_eq!(h.undo(&3), Some(0));
     }
 
     /// An edit after an undo drops the redo steps, and an edit right

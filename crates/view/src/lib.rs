@@ -21,7 +21,8 @@
 //! - **Live editing** of material parameters and models ([`params`]:
 //!   every edit is re-read with the scene format's own checks, and a
 //!   refused value shows the scene format's message), and of the point
-//!   lights (moved, dimmed, added and removed); exposure and tone map.
+//!   lights (moved, dimmed, added and removed; dragged by their rings in
+//!   the image); exposure and tone map.
 //! - **Undo and redo** of the edits (`Ctrl+Z`, `Ctrl+Shift+Z`; [`history`]).
 //! - **Save**: `Ctrl+S` (or the panel's button) writes the scene file with
 //!   the edits beside it as `<scene>-view-<n>.toml`, comments and layout
@@ -241,6 +242,15 @@ impl Edited {
     }
 }
 
+/// Where a point light is marked in the image ([`State::light_markers`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Marker {
+    x: f64,
+    y: f64,
+    /// The light is in view (else the marker is on the border).
+    inside: bool,
+}
+
 /// What a click in the image found ([`State::pick`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pick {
@@ -270,6 +280,9 @@ struct State {
     light_origin: Vec<Option<usize>>,
     orbit: Orbit,
     initial_orbit: Orbit,
+    /// The light a drag in the image moves, and the offset from the
+    /// cursor to its marker when the drag began.
+    light_drag: Option<(usize, egui::Vec2)>,
     /// Each `[[object]]` table's `name`, where it has one.
     object_names: Vec<Option<String>>,
     selected: usize,
@@ -340,6 +353,7 @@ impl State {
                 .unwrap_or_else(|| "isolux".into()),
             scene,
             object_names,
+            light_drag: None,
             selected: 0,
             material_error: None,
             exposure: opts.exposure,
@@ -369,6 +383,76 @@ impl State {
             material: *self.scene.object_material.get(object)?,
             point: hit.p,
         })
+    }
+
+    /// Where each point light's marker shows in an image `width x height`
+    /// (`y` down), and whether the light itself is in view: a light in
+    /// front of the eye but out of view is marked on the image's border
+    /// (`inset` inside it), where the line from the image's centre to it
+    /// leaves the image. `None` for a light behind the eye's plane.
+    fn light_markers(&self, width: f64, height: f64, inset: f64) -> Vec<Option<Marker>> {
+        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
+        let Ok(rig) = self.orbit.camera().rig(w as u32, h as u32) else {
+            return vec![None; self.scene.lights.len()];
+        };
+        let (cx, cy) = (0.5 * width, 0.5 * height);
+        let (hx, hy) = ((cx - inset).max(0.0), (cy - inset).max(0.0));
+        self.scene
+            .lights
+            .iter()
+            .map(|l| {
+                let (x, y) = rig.project(l.position)?;
+                let (dx, dy) = (x * width / w - cx, y * height / h - cy);
+                let inside =
+                    (0.0..=width).contains(&(cx + dx)) && (0.0..=height).contains(&(cy + dy));
+                let s = (hx / dx.abs()).min(hy / dy.abs()).min(1.0);
+                let s = if inside || !s.is_finite() { 1.0 } else { s };
+                Some(Marker {
+                    x: cx + s * dx,
+                    y: cy + s * dy,
+                    inside,
+                })
+            })
+            .collect()
+    }
+
+    /// The light whose marker lies within `radius` of `(x, y)` (the
+    /// nearest), in the units of [`State::light_markers`].
+    fn light_at(&self, x: f64, y: f64, width: f64, height: f64, radius: f64) -> Option<usize> {
+        self.light_markers(width, height, radius)
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, m)| m.map(|m| (i, (m.x - x).hypot(m.y - y))))
+            .filter(|&(_, d)| d <= radius)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
+    }
+
+    /// Moves light `i` to show at `(x, y)` of an image `width x height`,
+    /// at the same depth along the view (in the plane through it facing
+    /// the camera), its coordinates rounded to 4 significant digits of
+    /// the largest, as an added light's. Returns whether it moved.
+    fn move_light(&mut self, i: usize, x: f64, y: f64, width: f64, height: f64) -> bool {
+        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
+        let camera = self.orbit.camera();
+        let (Ok(rig), Some(light)) = (camera.rig(w as u32, h as u32), self.scene.lights.get(i))
+        else {
+            return false;
+        };
+        let [origin, forward, ..] = rig.basis();
+        let depth = (light.position - origin).dot(forward);
+        let ray = rig.ray(x * w / width, y * h / height);
+        let along = ray.dir.dot(forward);
+        if !(depth > 0.0 && along > 0.0) {
+            return false;
+        }
+        let p = origin + ray.dir * (depth / along);
+        let p = glam::DVec3::from_array(save::round_to(p.to_array(), 4));
+        if !p.is_finite() || p == light.position {
+            return false;
+        }
+        self.scene.lights[i].position = p;
+        true
     }
 
     /// A click in the image at `(x, y)` of `width x height`: the panel
@@ -1029,6 +1113,78 @@ mod tests {
         assert!(!s.click(0.5 * w, 0.5 * h, w, h, true));
         assert_eq!((s.orbit, s.selected), (orbit, selected));
         assert!(s.status.contains("environment"));
+    }
+
+    /// A light dragged by its marker follows the cursor at its depth along
+    /// the view (the renderer's projection puts it under the cursor, the
+    /// plane facing the camera keeps its depth), and the drag is one undo
+    /// step.
+    #[test]
+    fn lights_dragged_in_the_image_follow_the_cursor() {
+        use glam::DVec3;
+        let mut s = gallery();
+        let (w, h) = (640.0, 360.0);
+        // A second light in view, the first the file's (out of view here).
+        let target = s.orbit.target;
+        s.scene.lights.push(isolux_render::PointLight {
+            position: target + DVec3::new(0.5, 1.5, 0.25),
+            intensity: isolux_core::Rgb::splat(4.0),
+        });
+        s.light_origin.push(None);
+        // Its own step: a frame changing nothing ends the burst.
+        s.history.observe(&s.edited());
+        s.history.observe(&s.edited());
+        let markers = s.light_markers(w, h, 9.0);
+        let Some(Marker {
+            x: mx,
+            y: my,
+            inside: true,
+        }) = markers[1]
+        else {
+            panic!("{markers:?}");
+        };
+        // The file's light is above the view: marked on the top border,
+        // the way it lies.
+        let rig = s.orbit.camera().rig(640, 360).unwrap();
+        let (lx, ly) = rig.project(s.scene.lights[0].position).unwrap();
+        let top = markers[0].unwrap();
+        assert!(
+            !top.inside && ly < 0.0 && (top.y - 9.0).abs() < 1e-9,
+            "{top:?}"
+        );
+        let along = ((top.x - 320.0) / (top.y - 180.0) - (lx - 320.0) / (ly - 180.0)).abs();
+        assert!(along < 1e-9, "{top:?} against ({lx}, {ly})");
+        // Dragged from its border marker, it comes into view (then back,
+        // unobserved: no undo step).
+        let file_light = s.scene.lights[0].position;
+        assert!(s.move_light(0, top.x, top.y + 20.0, w, h));
+        assert!(s.light_markers(w, h, 9.0)[0].unwrap().inside);
+        s.scene.lights[0].position = file_light;
+        assert_eq!(s.light_at(mx + 3.0, my - 4.0, w, h, 9.0), Some(1));
+        assert_eq!(s.light_at(mx + 9.0, my + 9.0, w, h, 9.0), None);
+        let [origin, forward, ..] = rig.basis();
+        let depth = |p: DVec3| (p - origin).dot(forward);
+        let d0 = depth(s.scene.lights[1].position);
+        for (x, y) in [(mx + 40.0, my), (mx - 120.5, my + 60.25), (20.0, 330.0)] {
+            assert!(s.move_light(1, x, y, w, h));
+            let p = s.scene.lights[1].position;
+            let (px, py) = rig.project(p).unwrap();
+            // Rounded to 4 significant digits: well within a pixel.
+            assert!((px - x).abs() < 0.3 && (py - y).abs() < 0.3, "{px} {py}");
+            assert!((depth(p) - d0).abs() < 1e-3 * d0);
+            s.history.observe(&s.edited());
+        }
+        s.history.observe(&s.edited());
+        // Behind the eye's plane, nothing moves; the whole drag is one step.
+        assert!(!s.move_light(7, 10.0, 10.0, w, h));
+        let moved = s.scene.lights[1].position;
+        assert!(s.undo(true));
+        assert_eq!(
+            s.scene.lights[1].position,
+            target + DVec3::new(0.5, 1.5, 0.25)
+        );
+        assert!(s.undo(false));
+        assert_eq!(s.scene.lights[1].position, moved);
     }
 
     /// Undo puts back the materials (re-read, the mix that copies an edited

@@ -4,6 +4,9 @@
 //! frame and reports what changed ([`UiOutcome`]).
 
 use super::{params, State};
+
+/// How near (in points) to a light's marker a press grabs the light.
+const MARKER_GRAB: f64 = 9.0;
 use isolux_io::Tonemap;
 use isolux_render::Environment;
 
@@ -35,46 +38,159 @@ impl State {
             });
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
-            .show(ctx, |ui| {
-                let rect = ui.max_rect();
-                let r = ui.allocate_rect(rect, egui::Sense::click_and_drag());
-                out.viewport = rect;
-                if r.dragged() {
-                    let d = r.drag_delta();
-                    let shift = ui.input(|i| i.modifiers.shift);
-                    if r.dragged_by(egui::PointerButton::Primary) && !shift {
-                        self.orbit.drag(d.x as f64, d.y as f64);
-                    } else {
-                        self.orbit.pan(d.x as f64, d.y as f64, rect.height() as f64);
-                    }
-                    out.camera = true;
-                    out.dragging = true;
-                }
-                // A click shows the material under the cursor in the
-                // panel; a double click also orbits about the point.
-                let double = r.double_clicked_by(egui::PointerButton::Primary);
-                if double || r.clicked_by(egui::PointerButton::Primary) {
-                    if let Some(pos) = r.interact_pointer_pos() {
-                        let at = pos - rect.min;
-                        let (w, h) = (rect.width() as f64, rect.height() as f64);
-                        out.camera |= self.click(at.x as f64, at.y as f64, w, h, double);
-                        // The panel, drawn before, shows it next frame.
-                        ui.ctx().request_repaint();
-                    }
-                }
-                if r.hovered() {
-                    let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-                    if scroll != 0.0 {
-                        self.orbit.zoom(scroll as f64 / 50.0);
-                        out.camera = true;
-                    }
-                }
-            });
+            .show(ctx, |ui| self.image_ui(ui, &mut out));
         if !ctx.wants_keyboard_input() && ctx.input(|i| i.key_pressed(egui::Key::P)) {
             out.screenshot = true;
         }
-        self.history.observe(&self.edited());
+        let held = ctx.input(|i| i.pointer.any_down());
+        self.history.observe_held(&self.edited(), held);
         out
+    }
+
+    /// The image area: orbit (drag), pan (right or middle drag, or
+    /// Shift-drag), zoom (wheel), a light moved by dragging its marker,
+    /// a click's pick and a double click's focus.
+    fn image_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {
+        let rect = ui.max_rect();
+        let r = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        out.viewport = rect;
+        let (w, h) = (rect.width() as f64, rect.height() as f64);
+        let local = |p: egui::Pos2| p - rect.min;
+        let primary = egui::PointerButton::Primary;
+        // A drag that starts on a light's marker moves the light.
+        if r.drag_started_by(primary) && !ui.input(|i| i.modifiers.shift) {
+            self.light_drag = ui.input(|i| i.pointer.press_origin()).and_then(|p| {
+                let at = local(p);
+                let i = self.light_at(at.x as f64, at.y as f64, w, h, MARKER_GRAB)?;
+                let m = self.light_markers(w, h, MARKER_GRAB)[i]?;
+                Some((i, egui::vec2(m.x as f32, m.y as f32) - at))
+            });
+        }
+        if !r.dragged() {
+            self.light_drag = None;
+        }
+        if r.dragged() {
+            if let Some((i, offset)) = self.light_drag {
+                if let Some(pos) = r.interact_pointer_pos() {
+                    let at = local(pos) + offset;
+                    out.scene |= self.move_light(i, at.x as f64, at.y as f64, w, h);
+                }
+            } else {
+                let d = r.drag_delta();
+                let shift = ui.input(|i| i.modifiers.shift);
+                if r.dragged_by(primary) && !shift {
+                    self.orbit.drag(d.x as f64, d.y as f64);
+                } else {
+                    self.orbit.pan(d.x as f64, d.y as f64, h);
+                }
+                out.camera = true;
+            }
+            out.dragging = true;
+        }
+        // A click shows the material under the cursor in the panel (or
+        // names the light whose marker it is on); a double click also
+        // orbits about the point.
+        let double = r.double_clicked_by(primary);
+        if double || r.clicked_by(primary) {
+            if let Some(pos) = r.interact_pointer_pos() {
+                let at = local(pos);
+                let (x, y) = (at.x as f64, at.y as f64);
+                match self.light_at(x, y, w, h, MARKER_GRAB) {
+                    Some(i) if !double => {
+                        let p = self.scene.lights[i].position;
+                        self.status = format!(
+                            "light {i} at ({:.4}, {:.4}, {:.4}): drag its marker to move it",
+                            p.x, p.y, p.z
+                        );
+                    }
+                    _ => out.camera |= self.click(x, y, w, h, double),
+                }
+                // The panel, drawn before, shows it next frame.
+                ui.ctx().request_repaint();
+            }
+        }
+        if r.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.orbit.zoom(scroll as f64 / 50.0);
+                out.camera = true;
+            }
+        }
+        self.draw_light_markers(ui, rect, r.hover_pos());
+    }
+
+    /// A ring at each point light in view, filled with its colour, with
+    /// its number; the one under the cursor or being dragged drawn larger.
+    fn draw_light_markers(&self, ui: &egui::Ui, rect: egui::Rect, hover: Option<egui::Pos2>) {
+        let (w, h) = (rect.width() as f64, rect.height() as f64);
+        let hovered = hover.and_then(|p| {
+            let at = p - rect.min;
+            self.light_at(at.x as f64, at.y as f64, w, h, MARKER_GRAB)
+        });
+        let active = self.light_drag.map(|(i, _)| i).or(hovered);
+        if active.is_some() {
+            ui.ctx().set_cursor_icon(if self.light_drag.is_some() {
+                egui::CursorIcon::Grabbing
+            } else {
+                egui::CursorIcon::Grab
+            });
+        }
+        let painter = ui.painter_at(rect);
+        for (i, m) in self
+            .light_markers(w, h, MARKER_GRAB)
+            .into_iter()
+            .enumerate()
+        {
+            let Some(m) = m else { continue };
+            let c = rect.min + egui::vec2(m.x as f32, m.y as f32);
+            let e = self.scene.lights[i].intensity;
+            let peak = e.r.max(e.g).max(e.b);
+            let level = |v: f64| {
+                if peak > 0.0 {
+                    (255.0 * (v / peak).clamp(0.0, 1.0).powf(1.0 / 2.2)).round() as u8
+                } else {
+                    0
+                }
+            };
+            // A light out of view: a hollow ring on the border.
+            let fill = if m.inside {
+                egui::Color32::from_rgb(level(e.r), level(e.g), level(e.b))
+            } else {
+                egui::Color32::TRANSPARENT
+            };
+            let radius = if active == Some(i) { 8.0 } else { 6.0 };
+            painter.circle_filled(c, radius, fill);
+            painter.circle_stroke(
+                c,
+                radius + 1.0,
+                egui::Stroke::new(1.5, egui::Color32::BLACK),
+            );
+            painter.circle_stroke(
+                c,
+                radius + 2.5,
+                egui::Stroke::new(1.5, egui::Color32::WHITE),
+            );
+            // The number beside it, on the side towards the centre.
+            let right = m.x < 0.5 * w;
+            let below = m.y < 0.5 * h;
+            let (dx, ax) = if right {
+                (radius + 4.0, egui::Align::LEFT)
+            } else {
+                (-radius - 4.0, egui::Align::RIGHT)
+            };
+            let (dy, ay) = if below {
+                (radius + 2.0, egui::Align::TOP)
+            } else {
+                (-radius - 2.0, egui::Align::BOTTOM)
+            };
+            painter.text(
+                c + egui::vec2(dx, dy),
+                egui::Align2([ax, ay]),
+                i.to_string(),
+                egui::FontId::proportional(13.0),
+                egui::Color32::WHITE,
+            );
+        }
     }
 
     fn panel(&mut self, ui: &mut egui::Ui, info: &FrameInfo, out: &mut UiOutcome) {
@@ -180,6 +296,11 @@ impl State {
     fn lights_ui(&mut self, ui: &mut egui::Ui, out: &mut UiOutcome) {
         if self.scene.lights.is_empty() {
             ui.label("no point lights");
+        } else {
+            ui.label(
+                "drag a light's ring in the image to move it (a hollow ring on the border: \
+                 out of view that way)",
+            );
         }
         let mut remove = None;
         for (i, l) in self.scene.lights.iter_mut().enumerate() {
