@@ -4,11 +4,11 @@
 //! frame and reports what changed ([`UiOutcome`]).
 
 use super::{params, State};
+use isolux_io::Tonemap;
+use isolux_render::Environment;
 
 /// How near (in points) to a light's marker a press grabs the light.
 const MARKER_GRAB: f64 = 9.0;
-use isolux_io::Tonemap;
-use isolux_render::Environment;
 
 impl State {
     /// The side panel and the image area; returns what changed.
@@ -68,8 +68,7 @@ impl State {
         }
         if !r.dragged() {
             self.light_drag = None;
-        }
-        if r.dragged() {
+        } else {
             if let Some((i, offset)) = self.light_drag {
                 if let Some(pos) = r.interact_pointer_pos() {
                     let at = local(pos) + offset;
@@ -119,8 +118,10 @@ impl State {
         self.draw_light_markers(ui, rect, r.hover_pos());
     }
 
-    /// A ring at each point light in view, filled with its colour, with
-    /// its number; the one under the cursor or being dragged drawn larger.
+    /// A ring at each point light in front of the eye, filled with its
+    /// colour, with its number (hollow on the border for one out of view;
+    /// [`State::light_markers`]); the one under the cursor or being
+    /// dragged drawn larger.
     fn draw_light_markers(&self, ui: &egui::Ui, rect: egui::Rect, hover: Option<egui::Pos2>) {
         let (w, h) = (rect.width() as f64, rect.height() as f64);
         let hovered = hover.and_then(|p| {

@@ -305,7 +305,13 @@ pub(super) fn round_to(a: [f64; 3], digits: i32) -> [f64; 3] {
     if !(big > 0.0 && big.is_finite()) {
         return a;
     }
-    let decimals = (digits - 1 - big.log10().floor() as i32).max(0) as usize;
+    round_decimals(a, digits - 1 - big.log10().floor() as i32)
+}
+
+/// A vector rounded to `decimals` decimal places (none where negative),
+/// printed and read back so that it prints short, `-0` as 0.
+pub(super) fn round_decimals(a: [f64; 3], decimals: i32) -> [f64; 3] {
+    let decimals = decimals.max(0) as usize;
     a.map(|x| format!("{x:.decimals$}").parse::<f64>().unwrap_or(x) + 0.0)
 }
 
