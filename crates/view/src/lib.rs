@@ -9,7 +9,7 @@
 //! - **Orbit, pan and zoom**: drag in the image to turn about the scene
 //!   camera's `look_at` ([`orbit`]), right-drag (or Shift-drag) to pan,
 //!   the wheel zooms; a double click orbits about the point under the
-//!   cursor.
+//!   cursor, and `F` frames the object clicked last.
 //! - **Picking**: a click on an object shows its material in the panel
 //!   (the CPU's exact intersection of the camera ray through the cursor).
 //! - **Modes**: while the view changes (a drag, an edit, and for a quarter
@@ -285,6 +285,9 @@ struct State {
     light_drag: Option<(usize, egui::Vec2)>,
     /// Each `[[object]]` table's `name`, where it has one.
     object_names: Vec<Option<String>>,
+    /// The object a click picked last (`None` after a click on the
+    /// environment): the one `F` frames.
+    picked: Option<usize>,
     selected: usize,
     material_error: Option<String>,
     exposure: f64,
@@ -353,6 +356,7 @@ impl State {
                 .unwrap_or_else(|| "isolux".into()),
             scene,
             object_names,
+            picked: None,
             light_drag: None,
             selected: 0,
             material_error: None,
@@ -458,6 +462,41 @@ impl State {
         true
     }
 
+    /// `object N` (counting the `[[object]]` tables from 1), with its
+    /// `name` where it has one.
+    fn object_label(&self, o: usize) -> String {
+        match self.object_names.get(o) {
+            Some(Some(n)) => format!("object {} \"{n}\"", o + 1),
+            _ => format!("object {}", o + 1),
+        }
+    }
+
+    /// Frames the object picked last ([`Orbit::frame`]: the same view
+    /// direction, its box's bounding sphere filling the view's height).
+    /// Returns whether the camera moved; the status says what was framed
+    /// or why not. (With nothing picked it asks for a click rather than
+    /// framing every object: a bounded floor would fill the view.)
+    fn frame(&mut self) -> bool {
+        let objects = self.scene.geometry.objects();
+        let Some(o) = self.picked.filter(|&o| o < objects.len()) else {
+            self.status = "click an object first: F frames the object clicked".into();
+            return false;
+        };
+        let (what, b) = (self.object_label(o), objects[o].bbox());
+        if !b.is_finite() {
+            self.status = format!("{what}: unbounded, nothing to frame");
+            return false;
+        }
+        let radius = 0.5 * (b.max - b.min).length();
+        if self.orbit.frame(b.center(), radius) {
+            self.status = format!("framed {what}");
+            true
+        } else {
+            self.status = format!("cannot frame {what} (radius {radius:.3e})");
+            false
+        }
+    }
+
     /// A click in the image at `(x, y)` of `width x height`: the panel
     /// shows the material under the cursor, and with `focus` (a double
     /// click) the view turns to orbit about the point. Returns whether
@@ -465,8 +504,10 @@ impl State {
     fn click(&mut self, x: f64, y: f64, width: f64, height: f64, focus: bool) -> bool {
         let Some(pick) = self.pick(x, y, width, height) else {
             self.status = "nothing under the cursor but the environment".into();
+            self.picked = None;
             return false;
         };
+        self.picked = Some(pick.object);
         if self.selected != pick.material {
             self.selected = pick.material;
             self.material_error = None;
@@ -476,13 +517,9 @@ impl State {
         let at = format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z);
         if !focus {
             let objects = self.scene.geometry.objects().len();
-            let named = match self.object_names.get(pick.object) {
-                Some(Some(n)) => format!(" \"{n}\""),
-                _ => String::new(),
-            };
             self.status = format!(
-                "object {} of {objects}{named}, material \"{name}\", at {at}",
-                pick.object + 1
+                "{} of {objects}, material \"{name}\", at {at}",
+                self.object_label(pick.object)
             );
             false
         } else if self.orbit.focus(p) {
@@ -1102,11 +1139,32 @@ mod tests {
         assert!(s.status.contains(&s.scene.material_names[pick.material]));
         // The gallery names its objects; the status gives the name.
         assert_eq!(s.object_names.len(), s.scene.geometry.objects().len());
-        let object = s.object_names[pick.object].as_deref().unwrap();
+        let object = s.object_names[pick.object].clone().unwrap();
         assert!(s.status.contains(&format!("\"{object}\"")), "{}", s.status);
         assert!(s.click(x, y, w, h, true));
         assert!((s.orbit.target - pick.point).length() < 1e-12);
         assert!((s.orbit.eye() - before.eye()).length() < 1e-9);
+        // F frames the object picked: its box's centre becomes the target,
+        // seen from the same direction, all of the box's corners in view.
+        let dir = (s.orbit.eye() - s.orbit.target).normalize();
+        assert!(s.frame());
+        assert!(s.status.contains(&format!("\"{object}\"")), "{}", s.status);
+        let b = s.scene.geometry.objects()[pick.object].bbox();
+        assert!((s.orbit.target - b.center()).length() < 1e-12);
+        assert!(((s.orbit.eye() - s.orbit.target).normalize() - dir).length() < 1e-12);
+        let rig = s.orbit.camera().rig(300, 300).unwrap();
+        for k in 0..8 {
+            let corner = DVec3::new(
+                if k & 1 == 0 { b.min.x } else { b.max.x },
+                if k & 2 == 0 { b.min.y } else { b.max.y },
+                if k & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let (x, y) = rig.project(corner).unwrap();
+            assert!(
+                (0.0..300.0).contains(&x) && (0.0..300.0).contains(&y),
+                "{x} {y}"
+            );
+        }
         // The environment (the view turned up to the sky): nothing
         // selected, nothing moved.
         s.orbit.target = DVec3::new(0.0, 5.0, 0.0);
@@ -1116,6 +1174,10 @@ mod tests {
         assert!(!s.click(0.5 * w, 0.5 * h, w, h, true));
         assert_eq!((s.orbit, s.selected), (orbit, selected));
         assert!(s.status.contains("environment"));
+        // With nothing picked, F asks for a click.
+        assert!(!s.frame());
+        assert_eq!(s.orbit, orbit);
+        assert!(s.status.contains("click an object"));
     }
 
     /// A light dragged by its marker follows the cursor at its depth along

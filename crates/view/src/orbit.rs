@@ -17,9 +17,10 @@ const MAX_PITCH: f64 = 89.0 * std::f64::consts::PI / 180.0;
 const RADIANS_PER_PIXEL: f64 = 0.008;
 /// Distance factor per wheel step.
 const ZOOM_PER_STEP: f64 = 0.9;
-/// The range of the eye's distance from the target.
-const MIN_DISTANCE: f64 = 1e-4;
-const MAX_DISTANCE: f64 = 1e6;
+/// The least distance of the eye from the target.
+pub const MIN_DISTANCE: f64 = 1e-4;
+/// The greatest distance of the eye from the target.
+pub const MAX_DISTANCE: f64 = 1e6;
 
 /// An orbit camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,6 +133,23 @@ impl Orbit {
             .clamp(-1.0, 1.0)
             .asin()
             .clamp(-MAX_PITCH, MAX_PITCH);
+        true
+    }
+
+    /// Turns to orbit about `center` from the same direction, at the
+    /// distance where a sphere of `radius` about it fills the vertical
+    /// field of view with a margin of 10% (the `F` key frames an object
+    /// this way). Returns `false`, unchanged, for a radius that is not
+    /// positive and finite or a distance beyond the zoom's range.
+    pub fn frame(&mut self, center: DVec3, radius: f64) -> bool {
+        let half = (0.5 * self.fov_y).to_radians();
+        let distance = 1.1 * radius / half.sin();
+        let fits = radius > 0.0 && (MIN_DISTANCE..=MAX_DISTANCE).contains(&distance);
+        if !(fits && center.is_finite()) {
+            return false;
+        }
+        self.target = center;
+        self.distance = distance;
         true
     }
 
@@ -276,6 +294,34 @@ mod tests {
         assert!(!o.focus(o.eye()));
         assert!(!o.focus(o.eye() + DVec3::X * 2e6));
         assert!(!o.focus(DVec3::NAN));
+        assert_eq!(o, before);
+    }
+
+    /// A framed sphere fits the film's height, its silhouette's angular
+    /// radius 1/1.1 of the half field of view, from the same direction.
+    #[test]
+    fn framing_fits_the_sphere_in_the_view() {
+        let mut o = Orbit::from_camera(&Camera::default());
+        let dir = (o.eye() - o.target).normalize();
+        let (c, r) = (DVec3::new(3.0, -1.0, 2.0), 0.75);
+        assert!(o.frame(c, r));
+        assert_eq!(o.target, c);
+        assert!(((o.eye() - o.target).normalize() - dir).length() < 1e-12);
+        let half = (0.5 * o.fov_y).to_radians();
+        let seen = (r / o.distance).asin();
+        assert!((seen - (half.sin() / 1.1).asin()).abs() < 1e-12);
+        // The sphere's top and bottom (as seen) lie inside the film.
+        let rig = o.camera().rig(400, 400).unwrap();
+        let [_, _, _, up] = rig.basis();
+        for s in [1.0, -1.0] {
+            let (_, y) = rig.project(c + s * r * up.normalize()).unwrap();
+            assert!(y > 0.0 && y < 400.0, "{y}");
+        }
+        let before = o;
+        assert!(!o.frame(c, 0.0));
+        assert!(!o.frame(c, f64::INFINITY));
+        assert!(!o.frame(DVec3::NAN, 1.0));
+        assert!(!o.frame(c, 1e7));
         assert_eq!(o, before);
     }
 

@@ -3,7 +3,7 @@
 //! and the image area's orbit and zoom input. `State::ui` draws it once a
 //! frame and reports what changed ([`UiOutcome`]).
 
-use super::{params, State};
+use super::{orbit, params, State};
 use isolux_io::Tonemap;
 use isolux_render::Environment;
 
@@ -29,6 +29,9 @@ impl State {
                 !redo && ctx.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::Z));
             if redo || undo {
                 out.scene |= self.undo(undo);
+            }
+            if ctx.input_mut(|i| i.consume_key(egui::Modifiers::NONE, egui::Key::F)) {
+                out.camera |= self.frame();
             }
         }
         egui::SidePanel::right("isolux-panel")
@@ -261,7 +264,8 @@ impl State {
             .show(ui, |ui| {
                 ui.label(
                     "drag the image to orbit, right-drag (or Shift) to pan, wheel to zoom; \
-                     click an object to edit its material, double-click to orbit about the point",
+                     click an object to edit its material, double-click to orbit about the \
+                     point, F to frame the object clicked",
                 );
                 let mut c = false;
                 c |= ui
@@ -271,14 +275,26 @@ impl State {
                     .add(
                         egui::DragValue::new(&mut self.orbit.distance)
                             .speed(0.01)
-                            .range(1e-3..=1e5)
+                            .range(orbit::MIN_DISTANCE..=orbit::MAX_DISTANCE)
                             .prefix("distance "),
                     )
                     .changed();
-                if ui.button("Reset to the scene's camera").clicked() {
-                    self.orbit = self.initial_orbit;
-                    c = true;
-                }
+                ui.horizontal(|ui| {
+                    if ui.button("Reset to the scene's camera").clicked() {
+                        self.orbit = self.initial_orbit;
+                        c = true;
+                    }
+                    if ui
+                        .button("Frame (F)")
+                        .on_hover_text(
+                            "the object clicked last, or every bounded object: the same \
+                             direction, the object filling the view's height",
+                        )
+                        .clicked()
+                    {
+                        c |= self.frame();
+                    }
+                });
                 out.camera |= c;
             });
         egui::CollapsingHeader::new("Lights")
