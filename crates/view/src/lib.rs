@@ -462,13 +462,17 @@ impl State {
         true
     }
 
-    /// `object N` (counting the `[[object]]` tables from 1), with its
-    /// `name` where it has one.
-    fn object_label(&self, o: usize) -> String {
-        match self.object_names.get(o) {
-            Some(Some(n)) => format!("object {} \"{n}\"", o + 1),
-            _ => format!("object {}", o + 1),
+    /// `object N` (counting the `[[object]]` tables from 1), `of M` with
+    /// `of_all`, then its `name` where it has one.
+    fn object_label(&self, o: usize, of_all: bool) -> String {
+        let mut s = format!("object {}", o + 1);
+        if of_all {
+            s += &format!(" of {}", self.scene.geometry.objects().len());
         }
+        if let Some(Some(n)) = self.object_names.get(o) {
+            s += &format!(" \"{n}\"");
+        }
+        s
     }
 
     /// Frames the object picked last ([`Orbit::frame`]: the same view
@@ -482,7 +486,7 @@ impl State {
             self.status = "click an object first: F frames the object clicked".into();
             return false;
         };
-        let (what, b) = (self.object_label(o), objects[o].bbox());
+        let (what, b) = (self.object_label(o, false), objects[o].bbox());
         if !b.is_finite() {
             self.status = format!("{what}: unbounded, nothing to frame");
             return false;
@@ -516,10 +520,9 @@ impl State {
         let name = &self.scene.material_names[pick.material];
         let at = format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z);
         if !focus {
-            let objects = self.scene.geometry.objects().len();
             self.status = format!(
-                "{} of {objects}, material \"{name}\", at {at}",
-                self.object_label(pick.object)
+                "{}, material \"{name}\", at {at}",
+                self.object_label(pick.object, true)
             );
             false
         } else if self.orbit.focus(p) {
@@ -1140,7 +1143,9 @@ mod tests {
         // The gallery names its objects; the status gives the name.
         assert_eq!(s.object_names.len(), s.scene.geometry.objects().len());
         let object = s.object_names[pick.object].clone().unwrap();
-        assert!(s.status.contains(&format!("\"{object}\"")), "{}", s.status);
+        let n = s.scene.geometry.objects().len();
+        let label = format!("object {} of {n} \"{object}\", ", pick.object + 1);
+        assert!(s.status.starts_with(&label), "{}", s.status);
         assert!(s.click(x, y, w, h, true));
         assert!((s.orbit.target - pick.point).length() < 1e-12);
         assert!((s.orbit.eye() - before.eye()).length() < 1e-9);

@@ -94,7 +94,22 @@ impl State {
         // orbits about the point.
         let double = r.double_clicked_by(primary);
         if double || r.clicked_by(primary) {
-            if let Some(pos) = r.interact_pointer_pos() {
+            // Where the button was released: with slow frames (a CPU
+            // driver's seconds) the pointer may have moved on by the time
+            // the frame reads it, and `interact_pointer_pos` is its latest
+            // position.
+            let released = ui.input(|i| {
+                i.events.iter().rev().find_map(|e| match e {
+                    egui::Event::PointerButton {
+                        pos,
+                        button: egui::PointerButton::Primary,
+                        pressed: false,
+                        ..
+                    } => Some(*pos),
+                    _ => None,
+                })
+            });
+            if let Some(pos) = released.or(r.interact_pointer_pos()) {
                 let at = local(pos);
                 let (x, y) = (at.x as f64, at.y as f64);
                 match self.light_at(x, y, w, h, MARKER_GRAB) {
