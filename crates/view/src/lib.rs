@@ -251,6 +251,28 @@ struct Marker {
     inside: bool,
 }
 
+/// The view's camera in the image area's units (`width x height`, any
+/// unit, `y` down): the renderer's [`isolux_render::CameraRig`] at the
+/// nearest whole size, its film coordinates scaled to the area's.
+struct ImageRig {
+    rig: isolux_render::CameraRig,
+    /// Film pixels per image unit, across and down.
+    scale: (f64, f64),
+}
+
+impl ImageRig {
+    /// The camera ray through `(x, y)`.
+    fn ray(&self, x: f64, y: f64) -> isolux_core::Ray {
+        self.rig.ray(x * self.scale.0, y * self.scale.1)
+    }
+
+    /// Where a point in front of the camera shows.
+    fn project(&self, p: glam::DVec3) -> Option<(f64, f64)> {
+        let (x, y) = self.rig.project(p)?;
+        Some((x / self.scale.0, y / self.scale.1))
+    }
+}
+
 /// What a click in the image found ([`State::pick`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pick {
@@ -373,14 +395,22 @@ impl State {
         Edited::of(&self.tables, &self.scene, &self.light_origin)
     }
 
+    /// The view's camera for an image area `width x height` ([`ImageRig`]);
+    /// `None` where the orbit gives no camera.
+    fn image_rig(&self, width: f64, height: f64) -> Option<ImageRig> {
+        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
+        Some(ImageRig {
+            rig: self.orbit.camera().rig(w as u32, h as u32).ok()?,
+            scale: (w / width, h / height),
+        })
+    }
+
     /// What the view shows at `(x, y)` in an image `width x height` (any
     /// unit, `y` down): the nearest object the camera ray meets (the CPU's
     /// exact intersection, as in `isolux render`), its material and the
     /// point hit; `None` for the environment.
     fn pick(&self, x: f64, y: f64, width: f64, height: f64) -> Option<Pick> {
-        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
-        let rig = self.orbit.camera().rig(w as u32, h as u32).ok()?;
-        let ray = rig.ray(x * w / width, y * h / height);
+        let ray = self.image_rig(width, height)?.ray(x, y);
         let (object, hit) = self.scene.geometry.intersect(&ray, 0.0, f64::INFINITY)?;
         Some(Pick {
             object,
@@ -395,8 +425,7 @@ impl State {
     /// (`inset` inside it), where the line from the image's centre to it
     /// leaves the image. `None` for a light behind the eye's plane.
     fn light_markers(&self, width: f64, height: f64, inset: f64) -> Vec<Option<Marker>> {
-        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
-        let Ok(rig) = self.orbit.camera().rig(w as u32, h as u32) else {
+        let Some(rig) = self.image_rig(width, height) else {
             return vec![None; self.scene.lights.len()];
         };
         let (cx, cy) = (0.5 * width, 0.5 * height);
@@ -406,7 +435,7 @@ impl State {
             .iter()
             .map(|l| {
                 let (x, y) = rig.project(l.position)?;
-                let (dx, dy) = (x * width / w - cx, y * height / h - cy);
+                let (dx, dy) = (x - cx, y - cy);
                 let inside =
                     (0.0..=width).contains(&(cx + dx)) && (0.0..=height).contains(&(cy + dy));
                 let s = (hx / dx.abs()).min(hy / dy.abs()).min(1.0);
@@ -439,15 +468,13 @@ impl State {
     /// far finer than a pixel and short in a saved scene. Returns whether
     /// it moved.
     fn move_light(&mut self, i: usize, x: f64, y: f64, width: f64, height: f64) -> bool {
-        let (w, h) = (width.round().max(1.0), height.round().max(1.0));
-        let camera = self.orbit.camera();
-        let (Ok(rig), Some(light)) = (camera.rig(w as u32, h as u32), self.scene.lights.get(i))
+        let (Some(rig), Some(light)) = (self.image_rig(width, height), self.scene.lights.get(i))
         else {
             return false;
         };
-        let [origin, forward, ..] = rig.basis();
+        let [origin, forward, ..] = rig.rig.basis();
         let depth = (light.position - origin).dot(forward);
-        let ray = rig.ray(x * w / width, y * h / height);
+        let ray = rig.ray(x, y);
         let along = ray.dir.dot(forward);
         if !(depth > 0.0 && along > 0.0) {
             return false;
