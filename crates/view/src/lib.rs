@@ -273,6 +273,22 @@ impl ImageRig {
     }
 }
 
+/// The marker within `radius` of `(x, y)` nearest to it, and its index.
+fn nearest_marker(
+    markers: &[Option<Marker>],
+    x: f64,
+    y: f64,
+    radius: f64,
+) -> Option<(usize, Marker)> {
+    markers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| m.map(|m| (i, m, (m.x - x).hypot(m.y - y))))
+        .filter(|&(_, _, d)| d <= radius)
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .map(|(i, m, _)| (i, m))
+}
+
 /// What a click in the image found ([`State::pick`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pick {
@@ -450,15 +466,16 @@ impl State {
     }
 
     /// The light whose marker lies within `radius` of `(x, y)` (the
-    /// nearest), in the units of [`State::light_markers`].
-    fn light_at(&self, x: f64, y: f64, width: f64, height: f64, radius: f64) -> Option<usize> {
-        self.light_markers(width, height, radius)
-            .into_iter()
-            .enumerate()
-            .filter_map(|(i, m)| m.map(|m| (i, (m.x - x).hypot(m.y - y))))
-            .filter(|&(_, d)| d <= radius)
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, _)| i)
+    /// nearest), with its marker, in the units of [`State::light_markers`].
+    fn light_at(
+        &self,
+        x: f64,
+        y: f64,
+        width: f64,
+        height: f64,
+        radius: f64,
+    ) -> Option<(usize, Marker)> {
+        nearest_marker(&self.light_markers(width, height, radius), x, y, radius)
     }
 
     /// Moves light `i` to show at `(x, y)` of an image `width x height`,
@@ -1257,7 +1274,7 @@ mod tests {
         assert!(s.move_light(0, top.x, top.y + 20.0, w, h));
         assert!(s.light_markers(w, h, 9.0)[0].unwrap().inside);
         s.scene.lights[0].position = file_light;
-        assert_eq!(s.light_at(mx + 3.0, my - 4.0, w, h, 9.0), Some(1));
+        assert_eq!(s.light_at(mx + 3.0, my - 4.0, w, h, 9.0).unwrap().0, 1);
         assert_eq!(s.light_at(mx + 9.0, my + 9.0, w, h, 9.0), None);
         let [origin, forward, ..] = rig.basis();
         let depth = |p: DVec3| (p - origin).dot(forward);

@@ -64,8 +64,7 @@ impl State {
         if r.drag_started_by(primary) && !ui.input(|i| i.modifiers.shift) {
             self.light_drag = ui.input(|i| i.pointer.press_origin()).and_then(|p| {
                 let at = local(p);
-                let i = self.light_at(at.x as f64, at.y as f64, w, h, MARKER_GRAB)?;
-                let m = self.light_markers(w, h, MARKER_GRAB)[i]?;
+                let (i, m) = self.light_at(at.x as f64, at.y as f64, w, h, MARKER_GRAB)?;
                 Some((i, egui::vec2(m.x as f32, m.y as f32) - at))
             });
         }
@@ -113,10 +112,10 @@ impl State {
                 let at = local(pos);
                 let (x, y) = (at.x as f64, at.y as f64);
                 match self.light_at(x, y, w, h, MARKER_GRAB) {
-                    Some(i) if !double => {
+                    Some((i, _)) if !double => {
                         let p = self.scene.lights[i].position;
                         self.status = format!(
-                            "light {i} at ({:.4}, {:.4}, {:.4}): drag its marker to move it",
+                            "light {i} at ({:.4}, {:.4}, {:.4}): drag its ring to move it",
                             p.x, p.y, p.z
                         );
                     }
@@ -142,9 +141,10 @@ impl State {
     /// dragged drawn larger.
     fn draw_light_markers(&self, ui: &egui::Ui, rect: egui::Rect, hover: Option<egui::Pos2>) {
         let (w, h) = (rect.width() as f64, rect.height() as f64);
+        let markers = self.light_markers(w, h, MARKER_GRAB);
         let hovered = hover.and_then(|p| {
             let at = p - rect.min;
-            self.light_at(at.x as f64, at.y as f64, w, h, MARKER_GRAB)
+            super::nearest_marker(&markers, at.x as f64, at.y as f64, MARKER_GRAB).map(|(i, _)| i)
         });
         let active = self.light_drag.map(|(i, _)| i).or(hovered);
         if active.is_some() {
@@ -155,11 +155,7 @@ impl State {
             });
         }
         let painter = ui.painter_at(rect);
-        for (i, m) in self
-            .light_markers(w, h, MARKER_GRAB)
-            .into_iter()
-            .enumerate()
-        {
+        for (i, m) in markers.into_iter().enumerate() {
             let Some(m) = m else { continue };
             let c = rect.min + egui::vec2(m.x as f32, m.y as f32);
             let e = self.scene.lights[i].intensity;
@@ -302,8 +298,8 @@ impl State {
                     if ui
                         .button("Frame (F)")
                         .on_hover_text(
-                            "the object clicked last, or every bounded object: the same \
-                             direction, the object filling the view's height",
+                            "the object clicked last: the same direction, the object \
+                             filling the view's height",
                         )
                         .clicked()
                     {
