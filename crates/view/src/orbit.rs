@@ -53,22 +53,28 @@ impl Orbit {
         let w = up.cross(u);
         let offset = camera.position - camera.look_at;
         let distance = offset.length().max(1e-6);
-        let horizontal = DVec3::new(offset.dot(u), offset.dot(w), 0.0);
-        let yaw = horizontal.y.atan2(horizontal.x);
-        let pitch = (offset.dot(up) / distance)
-            .clamp(-1.0, 1.0)
-            .asin()
-            .clamp(-MAX_PITCH, MAX_PITCH);
-        Self {
+        let mut orbit = Self {
             target: camera.look_at,
             up,
             u,
             w,
             distance,
-            yaw,
-            pitch,
+            yaw: 0.0,
+            pitch: 0.0,
             fov_y: camera.fov_y,
-        }
+        };
+        orbit.turn_to(offset, distance);
+        orbit
+    }
+
+    /// Yaw and pitch of the eye at `offset` from the target, `distance`
+    /// long (the pitch clamped to 89 degrees).
+    fn turn_to(&mut self, offset: DVec3, distance: f64) {
+        self.yaw = offset.dot(self.w).atan2(offset.dot(self.u));
+        self.pitch = (offset.dot(self.up) / distance)
+            .clamp(-1.0, 1.0)
+            .asin()
+            .clamp(-MAX_PITCH, MAX_PITCH);
     }
 
     /// The eye position.
@@ -128,11 +134,7 @@ impl Orbit {
         }
         self.target = p;
         self.distance = distance;
-        self.yaw = offset.dot(self.w).atan2(offset.dot(self.u));
-        self.pitch = (offset.dot(self.up) / distance)
-            .clamp(-1.0, 1.0)
-            .asin()
-            .clamp(-MAX_PITCH, MAX_PITCH);
+        self.turn_to(offset, distance);
         true
     }
 
