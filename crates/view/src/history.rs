@@ -9,8 +9,9 @@
 //! again. A burst ends with the first frame that changes nothing while
 //! no mouse button is held ([`History::observe_held`]: a slow drag, on a
 //! CPU driver's frames of half a second, has frames between its moves
-//! that change nothing), and a drag's release draws one. A new edit after an undo drops the steps that could have
-//! been redone. At most [`History::LIMIT`] steps are kept.
+//! that change nothing), and a drag's release draws one. A new edit after
+//! an undo drops the steps that could have been redone. At most
+//! [`History::LIMIT`] steps are kept.
 
 /// Undo and redo stacks over snapshots of type `T`.
 #[derive(Clone, Debug)]
