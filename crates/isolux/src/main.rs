@@ -41,10 +41,10 @@ enum Command {
     /// Keys: drag to orbit, right-drag (or Shift-drag) to pan, wheel to
     /// zoom, a click on an object shows its material in the panel, a
     /// double click orbits about the point clicked, F frames the object
-    /// clicked, a light's ring drags the light, P saves a screenshot to SCENE-view-NNN.png in the current
-    /// directory, Ctrl+S the edited scene to SCENE-view-NNN.toml beside
-    /// the scene file, Ctrl+Z and Ctrl+Shift+Z undo and redo edits
-    /// (docs/viewer.md).
+    /// clicked, a light's ring drags the light, P saves a screenshot to
+    /// SCENE-view-NNN.png in the current directory, Ctrl+S the edited
+    /// scene to SCENE-view-NNN.toml beside the scene file, Ctrl+Z and
+    /// Ctrl+Shift+Z undo and redo edits (docs/viewer.md).
     View(view_cmd::ViewArgs),
     /// Run performance benchmarks and print a table.
     Bench(bench::BenchArgs),
